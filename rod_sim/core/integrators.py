@@ -1,0 +1,216 @@
+"""Time steppers behind one protocol, chosen by name.
+
+Every integrator maps (model, y0, t0, output times, held forces) to the states at the output
+times, restarting at the scene's load breakpoints:
+
+- ``dop853-jit`` (default): compiled adaptive Dormand-Prince 8(5,3) with dense output.
+- ``rk4``, ``rk2``, ``euler``: compiled fixed-step explicit Runge-Kutta (order 4, 2, 1);
+  the step is ``step`` [s] at most, intervals are split into equal substeps.
+- ``RK45``, ``DOP853``, ``Radau``, ``BDF``, ``LSODA``: scipy's ``solve_ivp`` methods.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from . import erk
+
+DEFAULT_RTOL = 1e-8
+DEFAULT_STEP = 1e-3
+SCIPY_METHODS = ("RK45", "DOP853", "Radau", "BDF", "LSODA")
+
+_TABLEAUX = {
+    "euler": (np.zeros((1, 1)), np.array([1.0]), np.array([0.0]), 1),
+    "rk2": (np.array([[0.0, 0.0], [1.0, 0.0]]), np.array([0.5, 0.5]), np.array([0.0, 1.0]), 2),
+    "rk4": (np.array([[0.0, 0.0, 0.0, 0.0], [0.5, 0.0, 0.0, 0.0], [0.0, 0.5, 0.0, 0.0],
+                      [0.0, 0.0, 1.0, 0.0]]),
+            np.array([1.0, 2.0, 2.0, 1.0]) / 6.0, np.array([0.0, 0.5, 0.5, 1.0]), 4),
+}
+
+
+class IntegrationError(RuntimeError):
+    """The integration could not go on (divergence, non-finite state, step underflow).
+
+    ``t`` is the simulated time [s] reached, ``reason`` a one-line cause."""
+
+    def __init__(self, reason: str, t: float):
+        self.reason = reason
+        self.t = t
+        super().__init__(f"integration stopped at t = {t:.6g} s: {reason}")
+
+
+@dataclass
+class Stats:
+    """Work counters: right-hand side evaluations, accepted and rejected steps."""
+
+    nfev: int = 0
+    steps: int = 0
+    rejected: int = 0
+
+    def add(self, arr) -> None:
+        self.nfev += int(arr[0])
+        self.steps += int(arr[1])
+        self.rejected += int(arr[2])
+
+
+@dataclass
+class Integrator:
+    """Base class: ``integrate(model, y0, t0, t_out, held)`` -> states (len(t_out), size)."""
+
+    name: str = ""
+    rtol: float = DEFAULT_RTOL
+    atol: float | None = None
+    step: float = DEFAULT_STEP
+    stats: Stats = field(default_factory=Stats)
+    order: int = 0
+    adaptive: bool = True
+
+    @property
+    def abs_tol(self) -> float:
+        return self.rtol if self.atol is None else self.atol
+
+    def describe(self) -> str:
+        """A short settings string for logs and reports."""
+        if self.adaptive:
+            return f"{self.name} rtol={self.rtol:g} atol={self.abs_tol:g}"
+        return f"{self.name} step={self.step:g}"
+
+    def integrate(self, model, y0, t0, t_out, held=None):
+        raise NotImplementedError
+
+    @staticmethod
+    def _breaks(model, t0, t_end) -> np.ndarray:
+        b = [x for x in model.scene.load_breakpoints() if t0 < x < t_end]
+        return np.array(sorted(b), dtype=float)
+
+    @staticmethod
+    def _prepare(model, y0, t_out, held):
+        t_out = np.atleast_1d(np.asarray(t_out, dtype=float))
+        if t_out.size == 0:
+            raise ValueError("t_out: at least one output time is needed")
+        if np.any(np.diff(t_out) < 0):
+            raise ValueError("t_out: output times must be sorted")
+        held = model._held(held)
+        return np.ascontiguousarray(y0, dtype=float), t_out, held
+
+
+@dataclass
+class JitDop853(Integrator):
+    """Compiled adaptive DOP853; carries its step size from one call to the next."""
+
+    name: str = "dop853-jit"
+    order: int = 8
+    max_step: float = np.inf
+    max_steps: int = 10_000_000
+    _h: float = 0.0
+
+    def integrate(self, model, y0, t0, t_out, held=None):
+        y0, t_out, held = self._prepare(model, y0, t_out, held)
+        Y = np.empty((t_out.size, y0.size))
+        stats = np.zeros(3, dtype=np.int64)
+        y, t, h, status = erk.dop853_run(
+            model.kernel, model.chain, model.extra, model.loads, held, y0, float(t0), t_out,
+            self._breaks(model, t0, t_out[-1]), self.rtol, self.abs_tol, self._h,
+            self.max_step, self.max_steps, Y, stats)
+        self.stats.add(stats)
+        if status != erk.STATUS_OK:
+            raise IntegrationError(erk.STATUS_TEXT[status], t)
+        self._h = h
+        return Y
+
+    def reset(self) -> None:
+        self._h = 0.0
+
+
+@dataclass
+class JitFixedStep(Integrator):
+    """Compiled fixed-step explicit Runge-Kutta (euler, rk2 = Heun, rk4)."""
+
+    adaptive: bool = False
+
+    def __post_init__(self):
+        A, b, c, order = _TABLEAUX[self.name]
+        self._tableau = (np.ascontiguousarray(A), b, c)
+        self.order = order
+        if not self.step > 0:
+            raise ValueError(f"step: must be > 0 (got {self.step!r})")
+
+    def integrate(self, model, y0, t0, t_out, held=None):
+        y0, t_out, held = self._prepare(model, y0, t_out, held)
+        Y = np.empty((t_out.size, y0.size))
+        stats = np.zeros(3, dtype=np.int64)
+        A, b, c = self._tableau
+        y, t, status = erk.fixed_run(model.kernel, model.chain, model.extra, model.loads, held,
+                                     y0, float(t0), t_out, self._breaks(model, t0, t_out[-1]),
+                                     float(self.step), A, b, c, Y, stats)
+        self.stats.add(stats)
+        if status != erk.STATUS_OK:
+            raise IntegrationError(erk.STATUS_TEXT[status], t)
+        return Y
+
+
+@dataclass
+class ScipyIntegrator(Integrator):
+    """scipy.integrate.solve_ivp with one of its methods, restarted at load breakpoints."""
+
+    def __post_init__(self):
+        self.order = {"RK45": 5, "DOP853": 8, "Radau": 5, "BDF": 5, "LSODA": 12}[self.name]
+
+    def integrate(self, model, y0, t0, t_out, held=None):
+        y0, t_out, held = self._prepare(model, y0, t_out, held)
+        Y = np.empty((t_out.size, y0.size))
+        edges = [float(t0), *self._breaks(model, t0, t_out[-1]), float(t_out[-1])]
+        kernel, chain, extra, loads = model.kernel, model.chain, model.extra, model.loads
+        y = y0
+        done = 0
+        while done < t_out.size and t_out[done] <= t0:
+            Y[done] = y0
+            done += 1
+        for a, b in zip(edges[:-1], edges[1:]):
+            if b <= a:
+                continue
+            side = 0.5 * (a + b)
+
+            def fun(t, yy, side=side):
+                out = np.empty(yy.shape[0])
+                kernel(t, yy, chain, extra, loads, held, side, out)
+                return out
+
+            stop = done
+            while stop < t_out.size and t_out[stop] <= b:
+                stop += 1
+            sol = solve_ivp(fun, (a, b), y, method=self.name, rtol=self.rtol,
+                            atol=self.abs_tol, dense_output=stop > done)
+            self.stats.nfev += sol.nfev
+            self.stats.steps += max(sol.t.size - 1, 0)
+            if sol.status != 0 or not np.all(np.isfinite(sol.y)):
+                raise IntegrationError(sol.message if sol.status != 0 else
+                                       erk.STATUS_TEXT[erk.STATUS_NONFINITE],
+                                       float(sol.t[-1]) if sol.t.size else a)
+            if stop > done:
+                Y[done:stop] = sol.sol(t_out[done:stop]).T
+            y = sol.y[:, -1]
+            done = stop
+        return Y
+
+
+INTEGRATORS = ("dop853-jit", "rk4", "rk2", "euler") + SCIPY_METHODS
+
+
+def make_integrator(name: str = "dop853-jit", *, rtol: float | None = None,
+                    atol: float | None = None, step: float | None = None) -> Integrator:
+    """The integrator called ``name`` with the given tolerances or fixed step [s]."""
+    rtol = DEFAULT_RTOL if rtol is None else float(rtol)
+    if not (np.isfinite(rtol) and rtol > 0):
+        raise ValueError(f"rtol: must be a positive number (got {rtol!r})")
+    if atol is not None and not (np.isfinite(atol) and atol > 0):
+        raise ValueError(f"atol: must be a positive number (got {atol!r})")
+    if name == "dop853-jit":
+        return JitDop853(rtol=rtol, atol=atol)
+    if name in _TABLEAUX:
+        return JitFixedStep(name=name, step=DEFAULT_STEP if step is None else float(step))
+    if name in SCIPY_METHODS:
+        return ScipyIntegrator(name=name, rtol=rtol, atol=atol)
+    raise ValueError(f"integrator: unknown integrator {name!r} (choose from {', '.join(INTEGRATORS)})")

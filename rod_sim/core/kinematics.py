@@ -1,0 +1,41 @@
+"""Positions of the chain: nodes (paper eq. (3)) and points of the bent rods (eqs. (1), (4))."""
+from __future__ import annotations
+
+import numpy as np
+
+
+def node_positions(length: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """Nodes 0..n of the chain, eq. (3): array (n+1, 2) [m]; node 0 at the origin.
+
+    ``length`` (n,) [m], ``phi`` (n,) [rad].
+    """
+    out = np.zeros((len(phi) + 1, 2))
+    out[1:, 0] = np.cumsum(length * np.cos(phi))
+    out[1:, 1] = np.cumsum(length * np.sin(phi))
+    return out
+
+
+def shape_functions(s: np.ndarray, length: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """sigma(s) and tau(s) of eq. (1) [m per rad of end slope]; ``s`` in [0, l]."""
+    sigma = s * (length - s) ** 2 / length**2
+    tau = -(s**2) * (length - s) / length**2
+    return sigma, tau
+
+
+def rod_points(length: np.ndarray, phi: np.ndarray, alpha: np.ndarray, beta: np.ndarray,
+               points_per_rod: int = 11) -> np.ndarray:
+    """Points of the bent rods, eq. (4): array (n, points_per_rod, 2) [m].
+
+    Point j of rod k is at s = l_k j / (points_per_rod - 1); the first and last point of
+    each rod are its end nodes. ``alpha``, ``beta`` (n,) are the end slopes [rad].
+    """
+    nodes = node_positions(length, phi)
+    u = np.linspace(0.0, 1.0, points_per_rod)
+    s = length[:, None] * u[None, :]                       # (n, P)
+    sigma, tau = shape_functions(s, length[:, None])
+    eta = alpha[:, None] * sigma + beta[:, None] * tau     # transverse deflection (n, P)
+    c, sn = np.cos(phi)[:, None], np.sin(phi)[:, None]
+    out = np.empty((len(phi), points_per_rod, 2))
+    out[:, :, 0] = nodes[:-1, 0:1] + s * c - eta * sn
+    out[:, :, 1] = nodes[:-1, 1:2] + s * sn + eta * c
+    return out

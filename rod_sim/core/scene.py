@@ -1,0 +1,306 @@
+"""The chain description: rods, node masses, hinges, initial state and scripted loads.
+
+A :class:`Scene` is built once from plain Python data (``Scene.from_dict``) and validated
+there; every error is a :class:`SceneError` whose ``key`` names the offending entry in the
+scene file's terms (``rods.length``, ``loads[1].node``, ...). Arrays are read-only.
+
+Indexing: rods and nodes 1..n in the paper are 0..n-1 in arrays (array index k is rod k+1,
+node k+1); hinges 0..n-1 keep their paper numbers (hinge h sits at node h and joins rod h
+to rod h+1; hinge 0 joins rod 1 to the ground).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import numpy as np
+
+LOAD_SHAPES = ("raised_cosine_pulse", "constant", "step")
+LOAD_AXES = ("x", "y")
+
+
+class SceneError(ValueError):
+    """A scene entry is missing, unknown, of the wrong length or non-physical.
+
+    ``key`` is the dotted path of the entry (e.g. ``rods.length``); ``str(err)`` is a
+    one-line message that starts with it.
+    """
+
+    def __init__(self, key: str, message: str):
+        self.key = key
+        super().__init__(f"{key}: {message}")
+
+
+@dataclass(frozen=True)
+class Load:
+    """A scripted nodal force component.
+
+    ``node`` is 1..n (paper numbering), ``axis`` 'x' or 'y', ``amplitude`` A [N],
+    ``start`` [s], ``duration`` [s] (``inf`` for a ``constant`` load).
+    Shapes: ``raised_cosine_pulse`` A(1/2 - 1/2 cos(2 pi (t-start)/duration)) on
+    [start, start+duration]; ``constant`` A for t >= start; ``step`` A on
+    [start, start+duration), zero elsewhere.
+    """
+
+    node: int
+    axis: str
+    shape: str
+    amplitude: float
+    start: float = 0.0
+    duration: float = math.inf
+
+    def value(self, t: float) -> float:
+        """Force component [N] at simulated time ``t`` [s]."""
+        tau = t - self.start
+        if tau < 0.0:
+            return 0.0
+        if self.shape == "constant":
+            return self.amplitude
+        if self.shape == "step":
+            return self.amplitude if tau < self.duration else 0.0
+        if tau > self.duration:
+            return 0.0
+        return self.amplitude * (0.5 - 0.5 * math.cos(2.0 * math.pi * tau / self.duration))
+
+    def breakpoints(self) -> tuple[float, ...]:
+        """Times [s] where the force or one of its derivatives jumps."""
+        if self.shape == "constant" or not math.isfinite(self.duration):
+            return (self.start,)
+        return (self.start, self.start + self.duration)
+
+    def to_dict(self) -> dict[str, Any]:
+        out = {"node": self.node, "axis": self.axis, "shape": self.shape,
+               "amplitude": self.amplitude, "start": self.start}
+        if math.isfinite(self.duration):
+            out["duration"] = self.duration
+        return out
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    """A validated chain of n rods. All arrays have shape (n,) and SI units.
+
+    length l_k [m], mass_per_length m_k [kg/m], bending_stiffness EI_k [N m^2] (rods 1..n);
+    node_mass mu_k [kg] (nodes 1..n); hinge_stiffness kappa_h [N m/rad], hinge_damping
+    nu_h [N m s/rad] (hinges 0..n-1); phi0 [rad], phi_rate0 [rad/s] (initial rod angles).
+    """
+
+    name: str
+    length: np.ndarray
+    mass_per_length: np.ndarray
+    bending_stiffness: np.ndarray
+    node_mass: np.ndarray
+    hinge_stiffness: np.ndarray
+    hinge_damping: np.ndarray
+    phi0: np.ndarray
+    phi_rate0: np.ndarray
+    loads: tuple[Load, ...] = field(default_factory=tuple)
+
+    def __post_init__(self):
+        n = len(self.length)
+        for name in ("length", "mass_per_length", "bending_stiffness", "node_mass",
+                     "hinge_stiffness", "hinge_damping", "phi0", "phi_rate0"):
+            arr = _readonly(getattr(self, name))
+            if arr.shape != (n,):
+                raise SceneError(name, f"expected {n} values, got shape {arr.shape}")
+            object.__setattr__(self, name, arr)
+        object.__setattr__(self, "loads", tuple(self.loads))
+
+    @property
+    def n(self) -> int:
+        """Number of rods."""
+        return len(self.length)
+
+    def with_changes(self, **changes) -> "Scene":
+        """A copy with some fields replaced (arrays are broadcast to (n,))."""
+        data = {f: getattr(self, f) for f in self.__dataclass_fields__}
+        for key, value in changes.items():
+            if key not in data:
+                raise SceneError(key, "unknown scene field")
+            if isinstance(data[key], np.ndarray):
+                value = np.broadcast_to(np.asarray(value, dtype=float), (self.n,))
+            data[key] = value
+        return Scene(**data)
+
+    def load_breakpoints(self) -> tuple[float, ...]:
+        """Sorted times [s] where a scripted load or one of its derivatives jumps."""
+        return tuple(sorted({b for load in self.loads for b in load.breakpoints()}))
+
+    def scripted_forces(self, t: float) -> np.ndarray:
+        """Scripted nodal forces at time ``t`` [s]: array (n, 2) of (X_k, Y_k) [N]."""
+        f = np.zeros((self.n, 2))
+        for load in self.loads:
+            f[load.node - 1, LOAD_AXES.index(load.axis)] += load.value(t)
+        return f
+
+    # ----- construction from plain data (the YAML layer parses text into this) -----
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> "Scene":
+        """Build and validate a scene from the structure of SPEC section 2."""
+        return _SceneParser().parse(data)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The resolved scene (every per-rod value spelled out), as SPEC section 2 data."""
+
+        def lst(a):
+            return [float(v) for v in a]
+
+        out: dict[str, Any] = {
+            "name": self.name,
+            "rods": {"count": self.n, "length": lst(self.length),
+                     "mass_per_length": lst(self.mass_per_length),
+                     "bending_stiffness": lst(self.bending_stiffness)},
+            "nodes": {"mass": lst(self.node_mass)},
+            "hinges": {"stiffness": lst(self.hinge_stiffness),
+                       "damping": lst(self.hinge_damping)},
+            "initial": {"phi": lst(self.phi0), "phi_rate": lst(self.phi_rate0)},
+        }
+        if self.loads:
+            out["loads"] = [load.to_dict() for load in self.loads]
+        return out
+
+
+_TOP_KEYS = {"name", "rods", "nodes", "hinges", "initial", "loads"}
+_SECTION_KEYS = {
+    "rods": {"count", "length", "mass_per_length", "bending_stiffness"},
+    "nodes": {"mass"},
+    "hinges": {"stiffness", "damping"},
+    "initial": {"phi", "phi_rate"},
+}
+_LOAD_KEYS = {"node", "axis", "shape", "amplitude", "start", "duration"}
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+
+
+class _SceneParser:
+    def parse(self, data: Mapping[str, Any]) -> Scene:
+        if not isinstance(data, Mapping):
+            raise SceneError("scene", "must be a mapping with keys rods, nodes, hinges, ...")
+        self._unknown(data, _TOP_KEYS, "")
+        for section in ("rods", "nodes", "hinges"):
+            if section not in data:
+                raise SceneError(section, "missing section")
+        sections = {}
+        for section, keys in _SECTION_KEYS.items():
+            value = data.get(section, {})
+            if value is None:
+                value = {}
+            if not isinstance(value, Mapping):
+                raise SceneError(section, "must be a mapping")
+            self._unknown(value, keys, section + ".")
+            sections[section] = value
+        rods = sections["rods"]
+        if "count" not in rods:
+            raise SceneError("rods.count", "missing")
+        count = rods["count"]
+        if not (isinstance(count, (int, np.integer)) and not isinstance(count, bool)) or count < 1:
+            raise SceneError("rods.count", f"must be a whole number >= 1 (got {count!r})")
+        n = int(count)
+        name = data.get("name", "scene")
+        if not isinstance(name, str) or not name:
+            raise SceneError("name", f"must be a non-empty string (got {name!r})")
+
+        def arr(section, key, *, default=None, minimum=None, strict=False):
+            path = f"{section}.{key}"
+            value = sections[section].get(key, default)
+            if value is None:
+                raise SceneError(path, "missing")
+            return self._array(path, value, n, minimum=minimum, strict=strict)
+
+        scene_fields = dict(
+            length=arr("rods", "length", minimum=0.0, strict=True),
+            mass_per_length=arr("rods", "mass_per_length", minimum=0.0),
+            bending_stiffness=arr("rods", "bending_stiffness", minimum=0.0, strict=True),
+            node_mass=arr("nodes", "mass", minimum=0.0),
+            hinge_stiffness=arr("hinges", "stiffness", minimum=0.0),
+            hinge_damping=arr("hinges", "damping", minimum=0.0),
+            phi0=arr("initial", "phi", default=0.0),
+            phi_rate0=arr("initial", "phi_rate", default=0.0),
+        )
+        tip_mass = scene_fields["node_mass"][-1] + scene_fields["mass_per_length"][-1] * scene_fields["length"][-1]
+        if tip_mass <= 0.0:
+            raise SceneError("nodes.mass",
+                             f"the chain has no inertia: rod {n} and node {n} are both massless")
+        loads = self._loads(data.get("loads", []), n)
+        return Scene(name=name, loads=loads, **scene_fields)
+
+    @staticmethod
+    def _unknown(mapping: Mapping, allowed: set, prefix: str) -> None:
+        for key in mapping:
+            if key not in allowed:
+                raise SceneError(f"{prefix}{key}",
+                                 f"unknown key (allowed: {', '.join(sorted(allowed))})")
+
+    @staticmethod
+    def _array(path, value, n, *, minimum=None, strict=False) -> np.ndarray:
+        if _is_number(value):
+            values = [value] * n
+        elif isinstance(value, (list, tuple)):
+            if len(value) != n:
+                raise SceneError(path, f"expected a scalar or a list of {n} values, got {len(value)}")
+            values = list(value)
+        else:
+            raise SceneError(path, f"must be a number or a list of {n} numbers (got {value!r})")
+        for i, v in enumerate(values):
+            where = f" at index {i}" if len(values) > 1 and not _is_number(value) else ""
+            if not _is_number(v):
+                raise SceneError(path, f"must be a number{where} (got {v!r})")
+            if not math.isfinite(float(v)):
+                raise SceneError(path, f"must be finite{where} (got {v!r})")
+            if minimum is not None and (float(v) <= minimum if strict else float(v) < minimum):
+                op = ">" if strict else ">="
+                raise SceneError(path, f"must be {op} {minimum:g}{where} (got {v!r})")
+        return np.asarray(values, dtype=float)
+
+    def _loads(self, loads, n) -> tuple[Load, ...]:
+        if loads is None:
+            return ()
+        if not isinstance(loads, (list, tuple)):
+            raise SceneError("loads", "must be a list of load entries")
+        out = []
+        for i, entry in enumerate(loads):
+            key = f"loads[{i}]"
+            if not isinstance(entry, Mapping):
+                raise SceneError(key, "must be a mapping")
+            self._unknown(entry, _LOAD_KEYS, key + ".")
+            for req in ("node", "axis", "shape", "amplitude"):
+                if req not in entry:
+                    raise SceneError(f"{key}.{req}", "missing")
+            node = entry["node"]
+            if not (isinstance(node, (int, np.integer)) and not isinstance(node, bool)) or not 1 <= node <= n:
+                raise SceneError(f"{key}.node", f"must be a node number 1..{n} (got {node!r})")
+            axis = entry["axis"]
+            if axis not in LOAD_AXES:
+                raise SceneError(f"{key}.axis", f"must be 'x' or 'y' (got {axis!r})")
+            shape = entry["shape"]
+            if shape not in LOAD_SHAPES:
+                raise SceneError(f"{key}.shape", f"must be one of {', '.join(LOAD_SHAPES)} (got {shape!r})")
+            numbers = {}
+            for k in ("amplitude", "start", "duration"):
+                if k not in entry:
+                    continue
+                v = entry[k]
+                if not _is_number(v) or not math.isfinite(float(v)):
+                    raise SceneError(f"{key}.{k}", f"must be a finite number (got {v!r})")
+                numbers[k] = float(v)
+            start = numbers.get("start", 0.0)
+            if start < 0.0:
+                raise SceneError(f"{key}.start", f"must be >= 0 (got {start:g})")
+            duration = numbers.get("duration", math.inf)
+            if shape == "raised_cosine_pulse" and "duration" not in numbers:
+                raise SceneError(f"{key}.duration", "missing (a pulse needs a duration)")
+            if duration <= 0.0:
+                raise SceneError(f"{key}.duration", f"must be > 0 (got {duration:g})")
+            out.append(Load(node=int(node), axis=axis, shape=shape,
+                            amplitude=numbers["amplitude"], start=start, duration=duration))
+        return tuple(out)
