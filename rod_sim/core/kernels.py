@@ -6,8 +6,11 @@ them: ``rhs(t, y, chain, extra, loads, held, t_side, out)`` writes dy/dt into ``
 - ``chain`` = (l, m, mu, Kt, kappa, nu, Mt, C): arrays (n,) of rod length [m], mass per
   length [kg/m], node mass [kg], 4 EI / l [N m/rad], hinge stiffness [N m/rad], hinge damping
   [N m s/rad], tail mass M_k [kg] and m l^2 / 12 [kg m].
-- ``extra``: model constants (reduced: P = [kappa^{gamma phi}]^T [b^{gamma gamma}]^{-1} split
-  into its alpha and beta halves (n, n) each; other models: the same shapes, unused).
+- ``extra`` = (P_alpha, P_beta, B_inv, work): reduced-model constants P = [kappa^{gamma phi}]^T
+  [b^{gamma gamma}]^{-1} split into its alpha and beta halves (n, n) each and
+  B_inv = [b^{gamma gamma}]^{-1} (2n, 2n) (other models: zeros, unused), and ``work``, a
+  scratch array of ``workspace_size(n)`` floats so that a call allocates nothing (the
+  kernels are therefore not re-entrant: one model instance per thread).
 - ``loads`` = (node, axis, shape, amplitude, start, duration) arrays describing scripted loads;
   ``held`` (n, 2) the held (commanded) nodal forces [N]; ``t_side`` a time strictly inside the
   current segment between load breakpoints, which decides which side of a jump applies.
@@ -61,50 +64,55 @@ def generalized_forces(l, c, s, forces, out):
 
 
 @njit
-def mass_blocks(phi, chain, A, Ma, Mb):
-    """Inertia blocks m^{phi phi} (A), m^{phi alpha} (Ma), m^{phi beta} (Mb), each (n, n)."""
+def assemble(c, s, dphi, chain, A, Ma, Mb, g_phi, g_alpha):
+    """One pass over rod pairs, given c = cos(phi), s = sin(phi) (n,) and phi_dot (n,):
+    the inertia blocks m^{phi phi} (A), m^{phi alpha} (Ma), m^{phi beta} (Mb), each (n, n),
+    g^{phi phi} Lambda phi_dot into g_phi (n,) and g^{alpha phi} Lambda phi_dot into
+    g_alpha (n,) (g^{beta phi} Lambda phi_dot = -g_alpha)."""
     l, m, mu, Kt, kappa, nu, Mt, C = chain
     n = l.shape[0]
-    c = np.cos(phi)
-    s = np.sin(phi)
     for k in range(n):
+        gp = 0.0
+        ga = 0.0
         for j in range(n):
             ckj = c[k] * c[j] + s[k] * s[j]
+            skj = s[k] * c[j] - c[k] * s[j]
+            w = dphi[j] * dphi[j]
             if j < k:
-                A[k, j] = l[k] * l[j] * ckj * Mt[k]
+                llM = l[k] * l[j] * Mt[k]
+                A[k, j] = llM * ckj
+                gp += llM * skj * w
+                ga += C[k] * l[j] * skj * w
                 Ma[k, j] = 0.0
                 Mb[k, j] = 0.0
             elif j > k:
-                A[k, j] = l[k] * l[j] * ckj * Mt[j]
+                llM = l[k] * l[j] * Mt[j]
+                A[k, j] = llM * ckj
+                gp += llM * skj * w
                 Ma[k, j] = C[j] * l[k] * ckj
                 Mb[k, j] = -Ma[k, j]
         ml3 = m[k] * l[k] ** 3
         A[k, k] = l[k] ** 2 * (Mt[k] - m[k] * l[k] / 2.0) + ml3 / 3.0
         Ma[k, k] = ml3 / 30.0
         Mb[k, k] = -ml3 / 20.0
+        g_phi[k] = gp
+        g_alpha[k] = ga
+
+
+@njit
+def mass_blocks(phi, chain, A, Ma, Mb):
+    """Inertia blocks m^{phi phi} (A), m^{phi alpha} (Ma), m^{phi beta} (Mb), each (n, n)."""
+    n = phi.shape[0]
+    assemble(np.cos(phi), np.sin(phi), np.zeros(n), chain, A, Ma, Mb, np.empty(n), np.empty(n))
 
 
 @njit
 def rigid_velocity_terms(phi, dphi, chain, g_phi, g_alpha):
     """g^{phi phi} Lambda phi_dot into g_phi (n,), g^{alpha phi} Lambda phi_dot into g_alpha
     (n,); g^{beta phi} Lambda phi_dot = -g_alpha."""
-    l, m, mu, Kt, kappa, nu, Mt, C = chain
-    n = l.shape[0]
-    c = np.cos(phi)
-    s = np.sin(phi)
-    for k in range(n):
-        gp = 0.0
-        ga = 0.0
-        for j in range(n):
-            skj = s[k] * c[j] - c[k] * s[j]
-            w = dphi[j] * dphi[j]
-            if j < k:
-                gp += l[k] * l[j] * skj * Mt[k] * w
-                ga += C[k] * l[j] * skj * w
-            elif j > k:
-                gp += l[k] * l[j] * skj * Mt[j] * w
-        g_phi[k] = gp
-        g_alpha[k] = ga
+    n = phi.shape[0]
+    assemble(np.cos(phi), np.sin(phi), dphi, chain, np.empty((n, n)), np.empty((n, n)),
+             np.empty((n, n)), g_phi, g_alpha)
 
 
 @njit
@@ -166,24 +174,40 @@ def _fill_nan(out):
 
 
 @njit
+def workspace_size(n):
+    """Length of the scratch array a kernel needs for n rods (see ``extra``)."""
+    return 5 * n * n + 16 * n
+
+
+@njit
+def _carve(ws, n):
+    """Scratch views: three (n, n) blocks and ten (n,) vectors (no allocation)."""
+    nn = n * n
+    A = ws[0:nn].reshape((n, n))
+    Ma = ws[nn:2 * nn].reshape((n, n))
+    Mb = ws[2 * nn:3 * nn].reshape((n, n))
+    o = 5 * nn
+    return (A, Ma, Mb, ws[3 * nn:4 * nn].reshape((n, n)), ws[4 * nn:5 * nn].reshape((n, n)),
+            ws[o:o + n], ws[o + n:o + 2 * n], ws[o + 2 * n:o + 3 * n], ws[o + 3 * n:o + 4 * n],
+            ws[o + 4 * n:o + 5 * n], ws[o + 5 * n:o + 6 * n], ws[o + 6 * n:o + 7 * n],
+            ws[o + 7 * n:o + 8 * n], ws[o + 8 * n:o + 9 * n], ws[o + 9 * n:o + 11 * n].reshape((n, 2)),
+            ws[o + 11 * n:o + 12 * n + 1])
+
+
+@njit
 def rigid_rhs(t, y, chain, extra, loads, held, t_side, out):
     """Rigid chain (EI -> infinity): y = [phi, phi_dot] (2n,)."""
     l, m, mu, Kt, kappa, nu, Mt, C = chain
     n = l.shape[0]
     phi = y[:n]
     dphi = y[n:]
-    A = np.empty((n, n))
-    Ma = np.empty((n, n))
-    Mb = np.empty((n, n))
-    mass_blocks(phi, chain, A, Ma, Mb)
-    f = np.empty((n, 2))
+    A, Ma, Mb, W1, W2, c, s, gp, ga, rhs, tau, v1, v2, v3, f, tau1 = _carve(extra[3], n)
+    for k in range(n):
+        c[k] = math.cos(phi[k])
+        s[k] = math.sin(phi[k])
+    assemble(c, s, dphi, chain, A, Ma, Mb, gp, ga)
     load_forces(t, loads, held, t_side, f)
-    rhs = np.empty(n)
-    generalized_forces(l, np.cos(phi), np.sin(phi), f, rhs)
-    gp = np.empty(n)
-    ga = np.empty(n)
-    rigid_velocity_terms(phi, dphi, chain, gp, ga)
-    tau = np.empty(n)
+    generalized_forces(l, c, s, f, rhs)
     rigid_hinge_moments(phi, dphi, kappa, nu, tau)
     for k in range(n):
         rhs[k] -= gp[k] + tau[k]
@@ -205,37 +229,38 @@ def reduced_rhs(t, y, chain, extra, loads, held, t_side, out):
     n = l.shape[0]
     phi = y[:n]
     dphi = y[n:]
-    A = np.empty((n, n))
-    Ma = np.empty((n, n))
-    Mb = np.empty((n, n))
-    mass_blocks(phi, chain, A, Ma, Mb)
-    f = np.empty((n, 2))
+    A, Ma, Mb, W1, W2, c, s, gp, ga, rhs, tau, v1, v2, v3, f, tau1 = _carve(extra[3], n)
+    for k in range(n):
+        c[k] = math.cos(phi[k])
+        s[k] = math.sin(phi[k])
+    assemble(c, s, dphi, chain, A, Ma, Mb, gp, ga)
     load_forces(t, loads, held, t_side, f)
-    rhs = np.empty(n)
-    generalized_forces(l, np.cos(phi), np.sin(phi), f, rhs)
-    gp = np.empty(n)
-    ga = np.empty(n)
-    rigid_velocity_terms(phi, dphi, chain, gp, ga)
-    tau = np.empty(n)
+    generalized_forces(l, c, s, f, rhs)
     rigid_hinge_moments(phi, dphi, kappa, nu, tau)
-    a_al = np.empty(n)
-    a_be = np.empty(n)
+    a_al = v1
+    a_be = v2
     for k in range(n):
         nxt = tau[k + 1] if k + 1 < n else 0.0
         a_al[k] = ga[k] + tau[k]
         a_be[k] = -ga[k] - nxt
         rhs[k] -= gp[k] + tau[k] - nxt
-    # M_r = A - P_alpha m^{alpha phi} - P_beta m^{beta phi}, m^{alpha phi} = Ma^T
+    # M_r = A - P_alpha m^{alpha phi} - P_beta m^{beta phi} with m^{alpha phi} = Ma^T.
+    # Off the diagonal Ma[i, j] = C_j l_i cos(phi_i - phi_j) = -Mb[i, j] (j > i), so
+    # sum_{j>i} (Pa - Pb)[k, j] C_j cos(phi_i - phi_j) = c_i U[k, i] + s_i V[k, i] with
+    # suffix sums U, V: O(n^2) instead of O(n^3).
     for k in range(n):
         acc = 0.0
         for j in range(n):
             acc += Pa[k, j] * a_al[j] + Pb[k, j] * a_be[j]
         rhs[k] += acc
-        for i in range(n):
-            acc = 0.0
-            for j in range(i, n):
-                acc += Pa[k, j] * Ma[i, j] + Pb[k, j] * Mb[i, j]
-            A[k, i] -= acc
+        su = 0.0
+        sv = 0.0
+        for i in range(n - 1, -1, -1):
+            A[k, i] -= (Pa[k, i] * Ma[i, i] + Pb[k, i] * Mb[i, i]
+                        + l[i] * (c[i] * su + s[i] * sv))
+            r = (Pa[k, i] - Pb[k, i]) * C[i]
+            su += r * c[i]
+            sv += r * s[i]
     out[:n] = dphi
     if not solve_inplace(A, rhs):
         _fill_nan(out)
@@ -257,22 +282,13 @@ def full_rhs(t, y, chain, extra, loads, held, t_side, out):
     dphi = y[3 * n:4 * n]
     dal = y[4 * n:5 * n]
     dbe = y[5 * n:6 * n]
-    A = np.empty((n, n))
-    Ma = np.empty((n, n))
-    Mb = np.empty((n, n))
-    mass_blocks(phi, chain, A, Ma, Mb)
-    f = np.empty((n, 2))
+    A, Ma, Mb, Wa, Wb, c, s, gp, ga, Fp, Fa, Fb, ia, ib, f, tau = _carve(extra[3], n)
+    for k in range(n):
+        c[k] = math.cos(phi[k])
+        s[k] = math.sin(phi[k])
+    assemble(c, s, dphi, chain, A, Ma, Mb, gp, ga)
     load_forces(t, loads, held, t_side, f)
-    c = np.cos(phi)
-    s = np.sin(phi)
-    Fp = np.empty(n)
     generalized_forces(l, c, s, f, Fp)
-    Fa = np.empty(n)
-    Fb = np.empty(n)
-    gp = np.empty(n)
-    ga = np.empty(n)
-    rigid_velocity_terms(phi, dphi, chain, gp, ga)
-    tau = np.empty(n + 1)
     for h in range(n):
         if h == 0:
             d = phi[0] + al[0]
@@ -292,8 +308,6 @@ def full_rhs(t, y, chain, extra, loads, held, t_side, out):
         Fa[k] = -ga[k] - tau[k] - Kt[k] * (al[k] + 0.5 * be[k])
         Fb[k] = ga[k] + tau[k + 1] - Kt[k] * (0.5 * al[k] + be[k])
     # bending block per rod: [[a, b], [b, a]], a = m l^3/105, b = -m l^3/140
-    ia = np.empty(n)
-    ib = np.empty(n)
     for j in range(n):
         ml3 = m[j] * l[j] ** 3
         a = ml3 / 105.0
@@ -301,13 +315,11 @@ def full_rhs(t, y, chain, extra, loads, held, t_side, out):
         det = a * a - b * b
         ia[j] = a / det
         ib[j] = -b / det
-    Wa = np.empty((n, n))
-    Wb = np.empty((n, n))
     for k in range(n):
         for j in range(n):
             Wa[k, j] = Ma[k, j] * ia[j] + Mb[k, j] * ib[j]
             Wb[k, j] = Ma[k, j] * ib[j] + Mb[k, j] * ia[j]
-    x = np.empty(n)
+    x = gp  # g_phi is folded into Fp above; reuse its storage for the solve
     for k in range(n):
         acc = Fp[k]
         for j in range(k, n):

@@ -70,7 +70,10 @@ class ChainModel:
                       p.tail_mass(), p.m * p.l**2 / 12.0)
         self.loads = load_table(scene)
         z = np.zeros((self.n, self.n))
-        self.extra = (z, z, np.zeros((2 * self.n, 2 * self.n)))
+        self.extra = (z, z, np.zeros((2 * self.n, 2 * self.n)), self._workspace())
+
+    def _workspace(self) -> np.ndarray:
+        return np.zeros(kernels.workspace_size(self.n))
 
     # ----- layout -----
     @property
@@ -197,7 +200,8 @@ class ReducedModel(ChainModel):
         B_inv = np.linalg.inv(B)
         P = K_gp.T @ B_inv                       # (n, 2n), constant
         n = self.n
-        self.extra = (np.ascontiguousarray(P[:, :n]), np.ascontiguousarray(P[:, n:]), B_inv)
+        self.extra = (np.ascontiguousarray(P[:, :n]), np.ascontiguousarray(P[:, n:]), B_inv,
+                      self._workspace())
 
     def bending(self, t, y, held=None):
         """gamma = -[b]^{-1} (m^{gamma phi} phi_ddot + (g Lambda + v) phi_dot + kappa phi)."""

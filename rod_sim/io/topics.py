@@ -1,0 +1,263 @@
+"""Snapshot -> ROS 2 message dicts for the topics of SPEC section 4 (no rclpy needed).
+
+Messages are nested dicts and lists of plain Python numbers/strings, the form mcap_ros2's CDR
+encoder takes (``header: {stamp: {sec, nanosec}, frame_id}``); the ROS node can fill rclpy
+messages from the same dicts. Field names are checked against the schemas in
+:mod:`rod_sim.io.msgdefs` by the log writer, since the encoder silently writes defaults for
+misspelled fields.
+
+Numbering (paper terms): hinges ``hinge_0..hinge_{n-1}``, rods ``rod_1..rod_n``, nodes 0..n.
+Units: angles [rad], rates [rad/s], moments [N m], positions [m], forces [N], times [s].
+"""
+from __future__ import annotations
+
+import math
+from typing import Any, Callable, Iterable, Mapping
+
+import numpy as np
+
+from rod_sim.core.kinematics import rod_points
+from rod_sim.core.scene import Scene
+from rod_sim.core.snapshot import Snapshot
+
+Msg = dict[str, Any]
+
+TOPIC_TYPES: dict[str, str] = {
+    "joint_states": "sensor_msgs/msg/JointState",
+    "rod_states": "sensor_msgs/msg/JointState",
+    "bending": "sensor_msgs/msg/JointState",
+    "node_poses": "geometry_msgs/msg/PoseArray",
+    "markers": "visualization_msgs/msg/MarkerArray",
+    "applied_forces": "std_msgs/msg/Float64MultiArray",
+    "diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
+    "clock": "rosgraph_msgs/msg/Clock",
+}
+"""Published topics (relative names; ``clock`` is ``/clock`` on a node) -> ROS type names."""
+
+DEFAULT_TOPICS = ("joint_states", "rod_states", "bending", "node_poses", "applied_forces",
+                  "markers")
+"""Topics :func:`snapshot_messages` builds when ``topics`` is None."""
+
+SNAPSHOT_TOPICS = DEFAULT_TOPICS + ("clock",)
+"""Topics that a snapshot alone determines (``diagnostics`` needs :func:`diagnostics`)."""
+
+FORCE_LAYOUT_LABELS = ("node", "xy")
+"""``applied_forces``/``nodal_forces`` layout: a row-major (n, 2) array, dim[0] 'node'
+(size n, stride 2n), dim[1] 'xy' (size 2, stride 2): data[2(k-1) + j] is X_k (j=0), Y_k (j=1)."""
+
+ROD_COLOR = {"r": 0.25, "g": 0.5, "b": 1.0, "a": 1.0}
+NODE_COLOR = {"r": 1.0, "g": 0.5, "b": 0.0, "a": 1.0}
+MARKER_DENSITY = 7850.0
+"""[kg/m^3] density of the spheres drawn for the node masses (steel), sets their diameter."""
+
+NS_PER_S = 1_000_000_000
+
+MARKER_LINE_STRIP = 4
+MARKER_SPHERE_LIST = 7
+MARKER_ADD = 0
+
+
+# ----- time -----
+
+def time_ns(t: float) -> int:
+    """Simulated time ``t`` [s] as integer nanoseconds (rounded to the nearest ns).
+
+    Raises ValueError for negative or non-finite times (ROS stamps are unsigned here).
+    """
+    t = float(t)
+    if not math.isfinite(t) or t < 0.0:
+        raise ValueError(f"time must be finite and >= 0 s (got {t!r})")
+    return int(round(t * NS_PER_S))
+
+
+def stamp(t: float) -> dict[str, int]:
+    """``builtin_interfaces/Time`` dict ``{'sec', 'nanosec'}`` of ``t`` [s], exact to 1 ns."""
+    return stamp_from_ns(time_ns(t))
+
+
+def stamp_from_ns(t_ns: int) -> dict[str, int]:
+    """``{'sec', 'nanosec'}`` of an integer time in ns (>= 0)."""
+    if t_ns < 0:
+        raise ValueError(f"time must be >= 0 ns (got {t_ns})")
+    sec, nanosec = divmod(int(t_ns), NS_PER_S)
+    return {"sec": sec, "nanosec": nanosec}
+
+
+def header(t: float, frame_id: str) -> Msg:
+    """``std_msgs/Header`` dict stamped at ``t`` [s]."""
+    return {"stamp": stamp(t), "frame_id": frame_id}
+
+
+def _floats(a: Iterable[float]) -> list[float]:
+    return [float(v) for v in np.asarray(a, dtype=float).ravel()]
+
+
+def _joint_state(t: float, frame_id: str, names: list[str], position, velocity=(),
+                 effort=()) -> Msg:
+    return {"header": header(t, frame_id), "name": names, "position": _floats(position),
+            "velocity": _floats(velocity), "effort": _floats(effort)}
+
+
+# ----- one builder per topic -----
+
+def joint_states(snapshot: Snapshot, frame_id: str = "world") -> Msg:
+    """``sensor_msgs/JointState``: hinges ``hinge_0..hinge_{n-1}``; position = relative rigid
+    hinge angle [rad], velocity = its rate [rad/s], effort = elastic + viscous moment [N m]."""
+    names = [f"hinge_{h}" for h in range(snapshot.n)]
+    return _joint_state(snapshot.t, frame_id, names, snapshot.hinge_angle, snapshot.hinge_rate,
+                        snapshot.hinge_moment)
+
+
+def rod_states(snapshot: Snapshot, frame_id: str = "world") -> Msg:
+    """``sensor_msgs/JointState``: ``rod_1..rod_n``; position = phi_k [rad], velocity =
+    phi_dot_k [rad/s], effort empty."""
+    names = [f"rod_{k}" for k in range(1, snapshot.n + 1)]
+    return _joint_state(snapshot.t, frame_id, names, snapshot.phi, snapshot.phi_rate)
+
+
+def bending(snapshot: Snapshot, frame_id: str = "world") -> Msg:
+    """``sensor_msgs/JointState``: ``alpha_1..alpha_n, beta_1..beta_n``; position = end slopes
+    [rad] in that order; velocity and effort empty."""
+    n = snapshot.n
+    names = [f"alpha_{k}" for k in range(1, n + 1)] + [f"beta_{k}" for k in range(1, n + 1)]
+    return _joint_state(snapshot.t, frame_id, names,
+                        np.concatenate([snapshot.alpha, snapshot.beta]))
+
+
+def yaw_quaternion(angle: float) -> Msg:
+    """``geometry_msgs/Quaternion`` of a rotation by ``angle`` [rad] about z."""
+    return {"x": 0.0, "y": 0.0, "z": math.sin(0.5 * angle), "w": math.cos(0.5 * angle)}
+
+
+def node_poses(snapshot: Snapshot, frame_id: str = "world") -> Msg:
+    """``geometry_msgs/PoseArray`` of nodes 0..n: position (x_k, y_k, 0) [m]; orientation = the
+    chord direction phi_k of rod k, the rod ending at node k (node 0: rod 1)."""
+    nodes = np.asarray(snapshot.nodes, dtype=float)
+    phi = np.asarray(snapshot.phi, dtype=float)
+    poses = []
+    for k in range(len(nodes)):
+        angle = phi[max(k, 1) - 1]
+        poses.append({"position": {"x": float(nodes[k, 0]), "y": float(nodes[k, 1]), "z": 0.0},
+                      "orientation": yaw_quaternion(float(angle))})
+    return {"header": header(snapshot.t, frame_id), "poses": poses}
+
+
+def _marker(t: float, frame_id: str, ns: str, marker_id: int, marker_type: int,
+            width: float, color: Msg, points: np.ndarray) -> Msg:
+    return {
+        "header": header(t, frame_id),
+        "ns": ns,
+        "id": marker_id,
+        "type": marker_type,
+        "action": MARKER_ADD,
+        "pose": {"position": {"x": 0.0, "y": 0.0, "z": 0.0},
+                 "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
+        "scale": {"x": width, "y": width, "z": width},
+        "color": dict(color),
+        "lifetime": {"sec": 0, "nanosec": 0},
+        "frame_locked": False,
+        "points": [{"x": float(x), "y": float(y), "z": 0.0} for x, y in points],
+    }
+
+
+def marker_sizes(scene: Scene) -> tuple[float, float]:
+    """(rod line width, node sphere diameter) [m] for ``markers``.
+
+    Line width: 2 % of the mean rod length. Spheres: the diameter of a steel sphere
+    (:data:`MARKER_DENSITY`) of the mean positive node mass, kept between 1.5 line widths and
+    a quarter of the shortest rod; 2 line widths when every node mass is zero.
+    """
+    length = np.asarray(scene.length, dtype=float)
+    width = 0.02 * float(np.mean(length))
+    masses = np.asarray(scene.node_mass, dtype=float)
+    masses = masses[masses > 0.0]
+    if masses.size == 0:
+        return width, 2.0 * width
+    diameter = (6.0 * float(np.mean(masses)) / (math.pi * MARKER_DENSITY)) ** (1.0 / 3.0)
+    return width, min(max(diameter, 1.5 * width), 0.25 * float(np.min(length)))
+
+
+def markers(snapshot: Snapshot, scene: Scene, frame_id: str = "world",
+            points_per_rod: int = 11) -> Msg:
+    """``visualization_msgs/MarkerArray``: one LINE_STRIP per rod (ns ``rods``, id k = 1..n)
+    through ``points_per_rod`` points of the bent rod (paper eq. (4)), and one SPHERE_LIST
+    (ns ``nodes``, id 0) at nodes 1..n for the node masses (size from :func:`marker_sizes`).
+    All ADD, lifetime 0 (forever), not frame-locked, z = 0."""
+    width, diameter = marker_sizes(scene)
+    pts = rod_points(np.asarray(scene.length, dtype=float), np.asarray(snapshot.phi, dtype=float),
+                     np.asarray(snapshot.alpha, dtype=float),
+                     np.asarray(snapshot.beta, dtype=float), points_per_rod)
+    items = [_marker(snapshot.t, frame_id, "rods", k + 1, MARKER_LINE_STRIP, width, ROD_COLOR,
+                     pts[k]) for k in range(snapshot.n)]
+    nodes = np.asarray(snapshot.nodes, dtype=float)[1:]
+    items.append(_marker(snapshot.t, frame_id, "nodes", 0, MARKER_SPHERE_LIST, diameter,
+                         NODE_COLOR, nodes))
+    return {"markers": items}
+
+
+def force_array(forces: np.ndarray) -> Msg:
+    """``std_msgs/Float64MultiArray`` of nodal forces (n, 2) [N]: data = [X_1, Y_1, ..., X_n,
+    Y_n] with the layout of :data:`FORCE_LAYOUT_LABELS`."""
+    f = np.asarray(forces, dtype=float).reshape(-1, 2)
+    n = f.shape[0]
+    return {"layout": {"dim": [{"label": FORCE_LAYOUT_LABELS[0], "size": n, "stride": 2 * n},
+                               {"label": FORCE_LAYOUT_LABELS[1], "size": 2, "stride": 2}],
+                       "data_offset": 0},
+            "data": _floats(f)}
+
+
+def applied_forces(snapshot: Snapshot) -> Msg:
+    """``std_msgs/Float64MultiArray`` of the applied forces of ``snapshot`` (see :func:`force_array`)."""
+    return force_array(snapshot.forces)
+
+
+def clock(t: float) -> Msg:
+    """``rosgraph_msgs/Clock`` at simulated time ``t`` [s]."""
+    return {"clock": stamp(t)}
+
+
+DIAGNOSTIC_OK, DIAGNOSTIC_WARN, DIAGNOSTIC_ERROR, DIAGNOSTIC_STALE = 0, 1, 2, 3
+
+
+def diagnostics(t: float, values: Mapping[str, Any], hardware_id: str, *,
+                level: int = DIAGNOSTIC_OK, message: str = "", frame_id: str = "") -> Msg:
+    """``diagnostic_msgs/DiagnosticArray`` with one status named ``rod_sim``.
+
+    ``values``: key -> value (non-strings are converted with ``str``); ``hardware_id``: the
+    scene name; ``level``: 0 OK, 1 WARN, 2 ERROR, 3 STALE.
+    """
+    if level not in (DIAGNOSTIC_OK, DIAGNOSTIC_WARN, DIAGNOSTIC_ERROR, DIAGNOSTIC_STALE):
+        raise ValueError(f"diagnostic level must be 0..3 (got {level!r})")
+    status = {"level": int(level), "name": "rod_sim", "message": str(message),
+              "hardware_id": str(hardware_id),
+              "values": [{"key": str(k), "value": v if isinstance(v, str) else str(v)}
+                         for k, v in values.items()]}
+    return {"header": header(t, frame_id), "status": [status]}
+
+
+_BUILDERS: dict[str, Callable[[Snapshot, Scene, str], Msg]] = {
+    "joint_states": lambda s, scene, f: joint_states(s, f),
+    "rod_states": lambda s, scene, f: rod_states(s, f),
+    "bending": lambda s, scene, f: bending(s, f),
+    "node_poses": lambda s, scene, f: node_poses(s, f),
+    "markers": lambda s, scene, f: markers(s, scene, f),
+    "applied_forces": lambda s, scene, f: applied_forces(s),
+    "clock": lambda s, scene, f: clock(s.t),
+}
+
+
+def snapshot_messages(snapshot: Snapshot, scene: Scene, frame_id: str = "world",
+                      topics: Iterable[str] | None = None) -> dict[str, Msg]:
+    """Message dicts of ``snapshot`` keyed by relative topic name (types in :data:`TOPIC_TYPES`).
+
+    ``topics`` defaults to :data:`DEFAULT_TOPICS`; any of :data:`SNAPSHOT_TOPICS` may be asked
+    for. Raises ValueError for other names or a snapshot that does not match the scene.
+    """
+    if snapshot.n != scene.n:
+        raise ValueError(f"snapshot has {snapshot.n} rods but the scene {scene.name!r} has {scene.n}")
+    wanted = DEFAULT_TOPICS if topics is None else tuple(topics)
+    unknown = [t for t in wanted if t not in _BUILDERS]
+    if unknown:
+        raise ValueError(f"cannot build topic(s) {', '.join(unknown)} from a snapshot "
+                         f"(choose from {', '.join(SNAPSHOT_TOPICS)})")
+    return {name: _BUILDERS[name](snapshot, scene, frame_id) for name in wanted}
