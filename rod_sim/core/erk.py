@@ -290,3 +290,53 @@ def fixed_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b
             Y_out[i_out, :] = y
             i_out += 1
     return y, t, STATUS_OK
+
+
+# Module-level entry points, one per model kernel. Passing a kernel as an argument from
+# Python would make numba compile (and never cache) a new specialisation in every process;
+# these wrappers take only arrays, so their machine code is cached on disk.
+from . import kernels as _k  # noqa: E402
+
+
+@njit
+def _dop853_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
+                  max_step, max_steps, Y_out, stats):
+    return dop853_run(_k.rigid_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
+                      atol, h_init, max_step, max_steps, Y_out, stats)
+
+
+@njit
+def _dop853_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
+                    max_step, max_steps, Y_out, stats):
+    return dop853_run(_k.reduced_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
+                      atol, h_init, max_step, max_steps, Y_out, stats)
+
+
+@njit
+def _dop853_full(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
+                 max_step, max_steps, Y_out, stats):
+    return dop853_run(_k.full_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
+                      atol, h_init, max_step, max_steps, Y_out, stats)
+
+
+@njit
+def _fixed_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c, Y_out, stats):
+    return fixed_run(_k.rigid_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max,
+                     A, b, c, Y_out, stats)
+
+
+@njit
+def _fixed_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c, Y_out,
+                   stats):
+    return fixed_run(_k.reduced_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max,
+                     A, b, c, Y_out, stats)
+
+
+@njit
+def _fixed_full(chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c, Y_out, stats):
+    return fixed_run(_k.full_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max,
+                     A, b, c, Y_out, stats)
+
+
+DOP853 = {"rigid": _dop853_rigid, "reduced": _dop853_reduced, "full": _dop853_full}
+FIXED = {"rigid": _fixed_rigid, "reduced": _fixed_reduced, "full": _fixed_full}

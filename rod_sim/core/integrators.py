@@ -110,8 +110,8 @@ class JitDop853(Integrator):
         y0, t_out, held = self._prepare(model, y0, t_out, held)
         Y = np.empty((t_out.size, y0.size))
         stats = np.zeros(3, dtype=np.int64)
-        y, t, h, status = erk.dop853_run(
-            model.kernel, model.chain, model.extra, model.loads, held, y0, float(t0), t_out,
+        y, t, h, status = erk.DOP853[model.name](
+            model.chain, model.extra, model.loads, held, y0, float(t0), t_out,
             self._breaks(model, t0, t_out[-1]), self.rtol, self.abs_tol, self._h,
             self.max_step, self.max_steps, Y, stats)
         self.stats.add(stats)
@@ -142,7 +142,7 @@ class JitFixedStep(Integrator):
         Y = np.empty((t_out.size, y0.size))
         stats = np.zeros(3, dtype=np.int64)
         A, b, c = self._tableau
-        y, t, status = erk.fixed_run(model.kernel, model.chain, model.extra, model.loads, held,
+        y, t, status = erk.FIXED[model.name](model.chain, model.extra, model.loads, held,
                                      y0, float(t0), t_out, self._breaks(model, t0, t_out[-1]),
                                      float(self.step), A, b, c, Y, stats)
         self.stats.add(stats)
