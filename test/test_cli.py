@@ -1,0 +1,129 @@
+"""The rod-sim command line: offline runs, logs, and bad input (exit 2, one line, no log)."""
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rod_sim.core.integrators import make_integrator
+from rod_sim.core.models import make_model
+from rod_sim.core.simulator import Simulator
+from rod_sim.io.mcap_log import LogReader, read_rod_states
+from rod_sim.io.scene_yaml import load_scene, scene_from_yaml_text
+from rod_sim.tools import cli
+
+ROOT = Path(__file__).resolve().parents[1]
+GOOD = """
+name: t
+rods: {count: 3, length: 1.0, mass_per_length: 2.0, bending_stiffness: 1.0e4}
+nodes: {mass: 1.0}
+hinges: {stiffness: 20.0, damping: 0.1}
+loads:
+  - {node: 3, axis: y, shape: raised_cosine_pulse, amplitude: 30.0, duration: 0.4}
+"""
+
+
+def rod_sim(*args):
+    return subprocess.run([sys.executable, "-m", "rod_sim.tools.cli", *args], cwd=ROOT,
+                          capture_output=True, text=True, timeout=120)
+
+
+@pytest.mark.parametrize("model", ["reduced", "full", "rigid"])
+def test_simulate_writes_the_run_it_claims(tmp_path, model):
+    scene_file = tmp_path / "s.yaml"
+    scene_file.write_text(GOOD)
+    out = tmp_path / "run.mcap"
+    assert cli.main(["simulate", str(scene_file), "--model", model, "--t-end", "1.0",
+                     "--out", str(out), "--rate", "50", "--rtol", "1e-10"]) == 0
+    t, phi, phi_rate = read_rod_states(out)
+    assert np.allclose(t, np.arange(51) / 50.0, atol=1e-12)
+    traj = Simulator(make_model(model, load_scene(scene_file)),
+                     make_integrator("dop853-jit", rtol=1e-10)).run(1.0, 50.0)
+    assert np.max(np.abs(phi - traj.phi)) < 1e-9
+    assert np.max(np.abs(phi_rate - traj.phi_rate)) < 1e-9
+    with LogReader(out) as log:
+        meta = log.metadata()
+        assert meta["model"] == model
+        assert "dop853-jit" in meta["integrator"]
+        assert scene_from_yaml_text(meta["scene"]).to_dict() == load_scene(scene_file).to_dict()
+        topics = log.topics()
+    for topic in ("/joint_states", "/rod_states", "/bending", "/node_poses", "/applied_forces"):
+        assert topic in topics
+
+
+def test_simulate_refuses_to_overwrite(tmp_path, capsys):
+    scene_file = tmp_path / "s.yaml"
+    scene_file.write_text(GOOD)
+    out = tmp_path / "run.mcap"
+    out.write_bytes(b"keep me")
+    assert cli.main(["simulate", str(scene_file), "--t-end", "0.1", "--out", str(out)]) == 2
+    assert out.read_bytes() == b"keep me"
+    err = capsys.readouterr().err
+    assert "exists" in err and len(err.strip().splitlines()) == 1
+
+
+BAD_SCENES = {
+    "unknown key": ("rods: {count: 2, length: 1, mass_per_length: 1, bending_stiffness: 1, colour: red}\n"
+                    "nodes: {mass: 1}\nhinges: {stiffness: 1, damping: 0}", "rods.colour"),
+    "wrong length": ("rods: {count: 2, length: [1, 2, 3], mass_per_length: 1, bending_stiffness: 1}\n"
+                     "nodes: {mass: 1}\nhinges: {stiffness: 1, damping: 0}", "rods.length"),
+    "non-finite": ("rods: {count: 2, length: 1, mass_per_length: .nan, bending_stiffness: 1}\n"
+                   "nodes: {mass: 1}\nhinges: {stiffness: 1, damping: 0}", "rods.mass_per_length"),
+    "l <= 0": ("rods: {count: 2, length: [1, 0], mass_per_length: 1, bending_stiffness: 1}\n"
+               "nodes: {mass: 1}\nhinges: {stiffness: 1, damping: 0}", "rods.length"),
+    "m < 0": ("rods: {count: 2, length: 1, mass_per_length: -1, bending_stiffness: 1}\n"
+              "nodes: {mass: 1}\nhinges: {stiffness: 1, damping: 0}", "rods.mass_per_length"),
+    "EI <= 0": ("rods: {count: 2, length: 1, mass_per_length: 1, bending_stiffness: 0}\n"
+                "nodes: {mass: 1}\nhinges: {stiffness: 1, damping: 0}", "rods.bending_stiffness"),
+    "kappa < 0": ("rods: {count: 2, length: 1, mass_per_length: 1, bending_stiffness: 1}\n"
+                  "nodes: {mass: 1}\nhinges: {stiffness: -1, damping: 0}", "hinges.stiffness"),
+    "nu < 0": ("rods: {count: 2, length: 1, mass_per_length: 1, bending_stiffness: 1}\n"
+               "nodes: {mass: 1}\nhinges: {stiffness: 1, damping: -0.5}", "hinges.damping"),
+    "no inertia": ("rods: {count: 2, length: 1, mass_per_length: 0, bending_stiffness: 1}\n"
+                   "nodes: {mass: 0}\nhinges: {stiffness: 1, damping: 0}", "nodes.mass"),
+    "yaml syntax": ("rods: {count: 2, length: [1, 2\n", "scene"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_SCENES))
+def test_bad_scene_exit_2_one_line_no_log(tmp_path, capsys, case):
+    text, key = BAD_SCENES[case]
+    scene_file = tmp_path / "bad.yaml"
+    scene_file.write_text(text)
+    out = tmp_path / "run.mcap"
+    assert cli.main(["simulate", str(scene_file), "--t-end", "0.1", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and key in err, err
+    assert not out.exists()
+
+
+def test_full_model_rejects_massless_rod(tmp_path, capsys):
+    scene_file = tmp_path / "s.yaml"
+    scene_file.write_text(GOOD.replace("mass_per_length: 2.0", "mass_per_length: [2.0, 0.0, 1.0]"))
+    out = tmp_path / "run.mcap"
+    assert cli.main(["simulate", str(scene_file), "--model", "full", "--t-end", "0.1",
+                     "--out", str(out)]) == 2
+    assert "rod 2" in capsys.readouterr().err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("args", [
+    ["simulate", "config/paper_example.yaml", "--t-end", "-1", "--out", "x.mcap"],
+    ["simulate", "config/paper_example.yaml", "--t-end", "1", "--out", "x.mcap", "--integrator", "nope"],
+    ["simulate", "config/paper_example.yaml", "--t-end", "1", "--out", "x.mcap", "--model", "nope"],
+    ["simulate", "missing.yaml", "--t-end", "1", "--out", "x.mcap"],
+    ["simulate", "config/paper_example.yaml", "--t-end", "1", "--out", "no/such/dir/x.mcap"],
+])
+def test_bad_arguments_in_a_real_process(args):
+    proc = rod_sim(*args)
+    assert proc.returncode == 2, proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert proc.stderr.strip() and not os.path.exists(ROOT / "x.mcap")
+
+
+def test_every_subcommand_has_help():
+    for sub in ("simulate", "table1"):
+        proc = rod_sim(sub, "--help")
+        assert proc.returncode == 0 and "usage" in proc.stdout
