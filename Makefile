@@ -37,7 +37,7 @@ demo: venv
 		--out out/paper_example_reduced.mcap
 
 bench: venv
-	$(VPY) -m rod_sim.tools.benchmark
+	$(VENV)/bin/rod-sim bench
 
 clean:
 	rm -rf build install log out .pytest_cache *.egg-info

@@ -68,7 +68,27 @@ def build_parser() -> argparse.ArgumentParser:
                                     "reduced models and print it beside the published values.")
     t1.add_argument("--json", action="store_true", help="machine-readable output")
     t1.add_argument("--scene", default=str(PAPER_EXAMPLE), help=argparse.SUPPRESS)
+    bench = sub.add_parser("bench", help="speed against error on the seed's example",
+                           description="Wall time, real-time factor and max phi error of each "
+                                       "model and integrator setting (SPEC section 6).")
+    bench.add_argument("--json", action="store_true", help="machine-readable output")
+    bench.add_argument("--quick", action="store_true", help="compiled integrators only")
+    bench.add_argument("--repeats", type=int, default=5, help="timing repeats (median)")
+    bench.add_argument("--scene", default=str(PAPER_EXAMPLE), help="scene YAML file")
     return parser
+
+
+def cmd_bench(args) -> int:
+    from . import bench
+
+    scene = _load_scene(args.scene)
+    rows = bench.run_bench(scene, quick=args.quick, repeats=max(1, args.repeats))
+    if args.json:
+        print(json.dumps(bench.as_json(rows), indent=1))
+    else:
+        print(bench.format_rows(rows))
+        print(json.dumps(bench.targets(rows), indent=1))
+    return EXIT_OK
 
 
 def _load_scene(path: str):
@@ -136,7 +156,7 @@ def cmd_table1(args) -> int:
     return EXIT_OK
 
 
-COMMANDS = {"simulate": cmd_simulate, "table1": cmd_table1}
+COMMANDS = {"simulate": cmd_simulate, "table1": cmd_table1, "bench": cmd_bench}
 
 
 def run(args: argparse.Namespace) -> int:
