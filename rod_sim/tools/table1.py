@@ -102,8 +102,8 @@ def compute(scene, rtol: float = 1e-11) -> list[Row]:
 def format_table(rows: list[Row]) -> str:
     """Plain-text table: for each variable, rod and model, paper / ours / difference."""
     head = f"{'var':9s}{'rod':>4s} {'model':8s}" + "".join(
-        f"{'t=%.1f s' % t:>33s}" for t in TIMES)
-    sub = " " * 22 + "".join(f"{'paper':>11s}{'ours':>11s}{'diff':>11s}" for _ in TIMES)
+        f"{'t = %.1f s' % t:>34s}" for t in TIMES)
+    sub = " " * 22 + "".join(f"{'paper':>12s}{'ours':>12s}{'diff':>10s}" for _ in TIMES)
     lines = [head, sub]
     by_key: dict[tuple, list[Row]] = {}
     for r in rows:
@@ -111,7 +111,7 @@ def format_table(rows: list[Row]) -> str:
     for (var, rod, model_name), cells in by_key.items():
         line = f"{var:9s}{rod:>4d} {model_name:8s}"
         for c in cells:
-            line += f"{c.paper:>11.5g}{c.ours:>11.5g}{c.diff:>11.2g}"
+            line += f" {c.paper:>11.5g} {c.ours:>11.5g} {c.diff:>9.2g}"
         lines.append(line)
     return "\n".join(lines)
 
