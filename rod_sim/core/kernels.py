@@ -195,12 +195,12 @@ def _carve(ws, n):
 
 
 @njit
-def rigid_rhs(t, y, chain, extra, loads, held, t_side, out):
-    """Rigid chain (EI -> infinity): y = [phi, phi_dot] (2n,)."""
+def _rigid_terms(t, phi, dphi, chain, extra, loads, held, t_side):
+    """What the rigid and reduced kernels share, in scratch views of ``extra[3]``: the inertia
+    blocks, cos/sin of phi, the velocity terms, Q (in ``rhs``) and the gamma = 0 hinge
+    moments (in ``tau``); v1, v2 are free (n,) scratch vectors."""
     l, m, mu, Kt, kappa, nu, Mt, C = chain
     n = l.shape[0]
-    phi = y[:n]
-    dphi = y[n:]
     A, Ma, Mb, W1, W2, c, s, gp, ga, rhs, tau, v1, v2, v3, f, tau1 = _carve(extra[3], n)
     for k in range(n):
         c[k] = math.cos(phi[k])
@@ -209,6 +209,18 @@ def rigid_rhs(t, y, chain, extra, loads, held, t_side, out):
     load_forces(t, loads, held, t_side, f)
     generalized_forces(l, c, s, f, rhs)
     rigid_hinge_moments(phi, dphi, kappa, nu, tau)
+    return A, Ma, Mb, c, s, gp, ga, rhs, tau, v1, v2
+
+
+@njit
+def rigid_rhs(t, y, chain, extra, loads, held, t_side, out):
+    """Rigid chain (EI -> infinity): y = [phi, phi_dot] (2n,)."""
+    l, m, mu, Kt, kappa, nu, Mt, C = chain
+    n = l.shape[0]
+    phi = y[:n]
+    dphi = y[n:]
+    A, Ma, Mb, c, s, gp, ga, rhs, tau, v1, v2 = _rigid_terms(t, phi, dphi, chain, extra, loads,
+                                                             held, t_side)
     for k in range(n):
         rhs[k] -= gp[k] + tau[k]
         if k + 1 < n:
@@ -222,21 +234,15 @@ def rigid_rhs(t, y, chain, extra, loads, held, t_side, out):
 
 @njit
 def reduced_rhs(t, y, chain, extra, loads, held, t_side, out):
-    """Reduced model, eq. (15): y = [phi, phi_dot] (2n,); extra = (P_alpha, P_beta)."""
+    """Reduced model, eq. (15): y = [phi, phi_dot] (2n,); extra = (P_alpha, P_beta, ...)."""
     l, m, mu, Kt, kappa, nu, Mt, C = chain
     Pa = extra[0]
     Pb = extra[1]
     n = l.shape[0]
     phi = y[:n]
     dphi = y[n:]
-    A, Ma, Mb, W1, W2, c, s, gp, ga, rhs, tau, v1, v2, v3, f, tau1 = _carve(extra[3], n)
-    for k in range(n):
-        c[k] = math.cos(phi[k])
-        s[k] = math.sin(phi[k])
-    assemble(c, s, dphi, chain, A, Ma, Mb, gp, ga)
-    load_forces(t, loads, held, t_side, f)
-    generalized_forces(l, c, s, f, rhs)
-    rigid_hinge_moments(phi, dphi, kappa, nu, tau)
+    A, Ma, Mb, c, s, gp, ga, rhs, tau, v1, v2 = _rigid_terms(t, phi, dphi, chain, extra, loads,
+                                                             held, t_side)
     a_al = v1
     a_be = v2
     for k in range(n):
