@@ -1,0 +1,141 @@
+"""Health bookkeeping for the node's ``diagnostics`` topic (pure Python, no ROS).
+
+- :class:`EnergyLedger`: the energy balance E - E0 - integral(P_load - P_damper) dt, the
+  integral taken with the trapezoid rule over each control period.
+- :class:`DiagnosticReport`: the values of one ``diagnostics`` message and its level/message,
+  from plain numbers the node collects.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from rod_sim.io.topics import DIAGNOSTIC_ERROR, DIAGNOSTIC_OK, DIAGNOSTIC_WARN
+
+BENDING_WARN_RAD = 0.2
+"""[rad] end slope above which the small-bending assumption is reported as questionable."""
+RTF_WARN_FRACTION = 0.9
+"""A measured real-time factor below this fraction of the target is reported (WARN)."""
+MIN_RTF_WINDOW_S = 0.5
+"""[s] of wall time a window needs before its measured real-time factor is judged."""
+
+
+class EnergyLedger:
+    """Mechanical energy balance of the chain over simulated time.
+
+    ``start(E0)`` at t = 0 (or after a reset); for each control period of length dt [s]
+    ``add_period(dt, p_start, p_end, energy_end)`` with the net power P = P_load - P_damper [W]
+    at the start and end of the period (same held forces) and the energy at its end [J].
+    ``residual`` = E - E0 - W [J], W the trapezoid integral of P: close to 0 for an accurate
+    integration of an energy-consistent model.
+    """
+
+    def __init__(self, energy0: float = 0.0):
+        self.start(energy0)
+
+    def start(self, energy0: float) -> None:
+        """Begin a new balance at energy ``energy0`` [J]."""
+        self.energy0 = float(energy0)
+        self.energy = float(energy0)
+        self.work = 0.0
+
+    def add_period(self, dt: float, p_start: float, p_end: float, energy_end: float) -> None:
+        """Account one period of ``dt`` [s]: net powers [W] at its ends, energy [J] at its end."""
+        self.work += 0.5 * float(dt) * (float(p_start) + float(p_end))
+        self.energy = float(energy_end)
+
+    @property
+    def residual(self) -> float:
+        """E - E0 - integral of the net power [J]."""
+        return self.energy - self.energy0 - self.work
+
+
+@dataclass
+class DiagnosticReport:
+    """Everything one ``diagnostics`` status says; :meth:`status` gives level, message, values.
+
+    Times in [s], costs in [ms], energies in [J], slopes in [rad]. ``rtf_target`` 0 means as
+    fast as possible, None lockstep (no target). ``wall_window`` [s] is the wall time the
+    measured factor and costs cover. ``error`` is the cause of an integration failure.
+    """
+
+    mode: str
+    state: str
+    sim_time: float
+    rtf_target: float | None
+    rtf_measured: float
+    wall_window: float
+    step_cost_mean: float
+    step_cost_max: float
+    step_budget: float | None
+    steps: int
+    dropped_periods: int
+    energy: float
+    energy_residual: float
+    commands_received: int
+    commands_rejected: int
+    last_rejection: str
+    command_active: bool
+    max_abs_alpha: float
+    max_abs_beta: float
+    model: str
+    integrator: str
+    error: str | None = None
+    extra: dict[str, str] = field(default_factory=dict)
+
+    def _warnings(self) -> list[str]:
+        out = []
+        running = self.state == "running"
+        if (running and self.rtf_target and self.wall_window >= MIN_RTF_WINDOW_S
+                and self.rtf_measured < RTF_WARN_FRACTION * self.rtf_target):
+            out.append(f"slower than real time: measured RTF {self.rtf_measured:.3g} < target "
+                       f"{self.rtf_target:g}")
+        bend = max(self.max_abs_alpha, self.max_abs_beta)
+        if bend > BENDING_WARN_RAD:
+            out.append(f"large bending slope {bend:.3g} rad (small-bending assumption "
+                       f"questionable above {BENDING_WARN_RAD} rad)")
+        return out
+
+    def status(self) -> tuple[int, str, dict[str, str]]:
+        """(level 0 OK / 1 WARN / 2 ERROR, one-line message, key -> value strings)."""
+        if self.error:
+            level, message = DIAGNOSTIC_ERROR, f"paused after an integration error: {self.error}"
+        else:
+            warnings = self._warnings()
+            level = DIAGNOSTIC_WARN if warnings else DIAGNOSTIC_OK
+            message = "; ".join(warnings) if warnings else f"{self.state} ({self.mode})"
+        return level, message, self.values()
+
+    def values(self) -> dict[str, str]:
+        """The key/value pairs of the status (units in the key names)."""
+        def num(x: float | None) -> str:
+            return "n/a" if x is None or not math.isfinite(x) else f"{x:.6g}"
+
+        values = {
+            "mode": self.mode,
+            "state": self.state,
+            "sim_time_s": f"{self.sim_time:.9f}",
+            "real_time_factor_target": ("lockstep" if self.rtf_target is None else
+                                        "as fast as possible" if self.rtf_target == 0 else
+                                        num(self.rtf_target)),
+            "real_time_factor_measured": num(self.rtf_measured),
+            "window_wall_s": num(self.wall_window),
+            "step_cost_mean_ms": num(self.step_cost_mean),
+            "step_cost_max_ms": num(self.step_cost_max),
+            "step_budget_ms": num(self.step_budget),
+            "steps_in_window": str(self.steps),
+            "dropped_periods": str(self.dropped_periods),
+            "energy_J": num(self.energy),
+            "energy_balance_residual_J": num(self.energy_residual),
+            "commands_received": str(self.commands_received),
+            "commands_rejected": str(self.commands_rejected),
+            "last_rejection": self.last_rejection or "none",
+            "command_active": "true" if self.command_active else "false",
+            "max_abs_alpha_rad": num(self.max_abs_alpha),
+            "max_abs_beta_rad": num(self.max_abs_beta),
+            "model": self.model,
+            "integrator": self.integrator,
+            "error": self.error or "none",
+        }
+        values.update(self.extra)
+        return values

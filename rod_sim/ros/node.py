@@ -1,0 +1,777 @@
+"""The rod_sim ROS 2 node (SPEC section 4): a chain of elastic rods driven by nodal forces.
+
+Run it as ``sim_node`` / ``rod-sim node`` / ``python -m rod_sim.ros.node``, e.g.::
+
+    python -m rod_sim.ros.node --ros-args --params-file config/sim_node.params.yaml \\
+        -p scene_file:=config/paper_example.yaml -p sync_mode:=true
+
+How time advances
+-----------------
+The node owns a :class:`~rod_sim.core.simulator.Simulator` and advances it only in whole
+control periods dt = 1/rate_hz of simulated time, holding the command force constant over each
+period (zero-order hold). The subscription callback never integrates: it validates and stores.
+
+- Real time (``real_time_factor`` > 0, ``sync_mode`` false): a steady wall-clock timer ticks;
+  at each tick a :class:`~rod_sim.ros.pacing.RealTimePacer` compares the simulated time with
+  ``real_time_factor`` x the wall time since the clock was anchored and the node advances the
+  whole periods it is behind (a tick is not assumed to be one period). When stepping costs more
+  than the wall time it represents, at most a few periods are advanced per tick and the rest of
+  the backlog is dropped (the clock is re-anchored): the ``diagnostics`` then show a measured
+  real-time factor below the target instead of the executor stalling.
+- As fast as possible (``real_time_factor`` 0): a zero-period timer advances periods for a
+  bounded wall-time budget per tick, so commands and services are still served between ticks.
+- Lockstep (``sync_mode`` true): exactly one period per received valid command, then the
+  outputs are published. Before the first command nothing advances (no freewheeling: the chain
+  stays at its initial state at t = 0); a command received while paused is held but does not
+  step. The same sequence of commands gives bit-for-bit the same states and log.
+
+Each period: the held command is chosen (the latest valid one, or zero once it is older than
+``command_timeout``: wall time at a real-time pace, simulated time when running as fast as
+possible and for ``~/step``; in lockstep every period applies the command that triggered it),
+``applied_forces`` = scripted scene loads + held command is published at the start time of the
+period (on the topic only when it changes; in the log every period, so a log alone replays the
+run), the simulator advances, and the states are published stamped at the end of the period.
+Every header stamp and log time is simulated time.
+
+Outputs nobody subscribes to are only built when a log is being recorded (``markers`` is the
+costly one). ``/clock`` (best effort, depth 1, like rclcpp's ClockQoS) is not recorded: log
+times already are simulated times and players publish their own clock.
+
+Recording (``record_path``): the SPEC section 5 log with the commands as received (``/nodal_forces``
+at the simulated time of reception, rejected ones included), ``/applied_forces``, every output
+topic and ``/diagnostics`` (which carries wall-clock measurements and so differs between
+otherwise identical runs). ``~/reset`` sends simulated time back to 0, so the recording goes on
+in a new file ``<stem>_<k><suffix>`` next to the first. The log is closed with its summary on
+SIGINT, SIGTERM and shutdown; after SIGKILL it stays readable up to its last complete chunk.
+
+Integration failures pause the simulation, are logged and reported with level ERROR on
+``diagnostics``; ``~/reset`` (or resuming with ``~/pause`` false) continues.
+"""
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+import rclpy
+from rcl_interfaces.msg import (FloatingPointRange, ParameterDescriptor, ParameterType,
+                                SetParametersResult)
+from rclpy.clock import Clock, ClockType
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from rclpy.utilities import remove_ros_args
+from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import SetBool, Trigger
+
+from rod_sim import __version__
+from rod_sim.core.integrators import INTEGRATORS, IntegrationError, make_integrator
+from rod_sim.core.models import MODELS, ModelError, make_model
+from rod_sim.core.scene import SceneError
+from rod_sim.core.simulator import Simulator
+from rod_sim.io import topics
+from rod_sim.io.mcap_log import LogWriteError, LogWriter, offered_qos_yaml
+from rod_sim.io.scene_yaml import load_scene, scene_to_yaml
+from rod_sim.ros.conversions import (CommandError, command_forces, message_class,
+                                     message_to_dict, to_message)
+from rod_sim.ros.monitor import DiagnosticReport, EnergyLedger
+from rod_sim.ros.pacing import (NS_PER_S, RateMeter, RealTimePacer, period_ns,
+                                tick_period_s)
+
+NODE_NAME = "rod_sim"
+COMMAND_TOPIC = "nodal_forces"
+COMMAND_TYPE = "std_msgs/msg/Float64MultiArray"
+STATE_TOPICS = ("joint_states", "rod_states", "bending", "node_poses", "markers")
+"""Published at the end of every control period (if subscribed or recorded)."""
+
+DIAGNOSTICS_PERIOD_S = 1.0
+"""[s] wall period of the ``diagnostics`` messages."""
+FAST_TICK_BUDGET_NS = 20_000_000
+"""[ns] wall time one tick may spend stepping when running as fast as possible."""
+SYNC_BATCH = 16
+"""Lockstep commands processed per executor callback before yielding to other callbacks."""
+THROTTLE_S = 2.0
+"""[s] minimum interval between repeated warnings of one kind."""
+
+STATE_QOS = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
+                       reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+APPLIED_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
+                         reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+"""``applied_forces`` is published only when it changes: late subscribers get the latest one."""
+CLOCK_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
+                       reliability=ReliabilityPolicy.BEST_EFFORT,
+                       durability=DurabilityPolicy.VOLATILE)
+"""rclcpp's ClockQoS, which rclpy's TimeSource and rosbag2's player also use."""
+COMMAND_QOS = STATE_QOS
+
+
+class NodeConfigError(ValueError):
+    """A parameter or the scene it names is unusable; ``str(err)`` is one line."""
+
+
+# ----- parameters -----
+
+@dataclass(frozen=True)
+class ParameterSpec:
+    """One node parameter: default (its type sets the ROS type), description with units,
+    whether it can change at run time, an optional closed range and a constraint text."""
+
+    name: str
+    default: Any
+    description: str
+    read_only: bool = True
+    range: tuple[float, float] | None = None
+    constraints: str = ""
+
+    def descriptor(self) -> ParameterDescriptor:
+        kinds = {bool: ParameterType.PARAMETER_BOOL, float: ParameterType.PARAMETER_DOUBLE,
+                 str: ParameterType.PARAMETER_STRING}
+        d = ParameterDescriptor(name=self.name, type=kinds[type(self.default)],
+                                description=self.description, read_only=self.read_only,
+                                additional_constraints=self.constraints)
+        if self.range is not None:
+            d.floating_point_range = [FloatingPointRange(
+                from_value=float(self.range[0]), to_value=float(self.range[1]), step=0.0)]
+        return d
+
+
+PARAMETERS = (
+    ParameterSpec("scene_file", "", "scene YAML file (SPEC section 2), relative to the working "
+                  "directory; required", constraints="an existing, valid scene file"),
+    ParameterSpec("model", "reduced", "fidelity level of the chain model",
+                  constraints="one of: " + ", ".join(MODELS)),
+    ParameterSpec("rate_hz", 100.0, "control and publish rate [Hz]; every control period "
+                  "1/rate_hz [s] of simulated time holds one command", range=(0.1, 10000.0)),
+    ParameterSpec("real_time_factor", 1.0, "simulated seconds per wall second [1]: 1.0 = "
+                  "wall-clock pace, 0 = as fast as possible; ignored in sync_mode",
+                  read_only=False, range=(0.0, 1000.0)),
+    ParameterSpec("sync_mode", False, "lockstep: advance exactly one control period per "
+                  "received valid nodal_forces command, nothing before the first"),
+    ParameterSpec("record_path", "", "MCAP log to write (SPEC section 5); '' = no recording; "
+                  "an existing file is refused"),
+    ParameterSpec("command_timeout", 0.5, "[s] after the last valid command at which the "
+                  "command force falls back to zero: wall time at a real-time pace, simulated "
+                  "time when as fast as possible or stepped by ~/step; 0 = hold forever",
+                  read_only=False, range=(0.0, 3600.0)),
+    ParameterSpec("integrator", "dop853-jit", "time stepper",
+                  constraints="one of: " + ", ".join(INTEGRATORS)),
+    ParameterSpec("rtol", 1e-8, "relative and absolute tolerance of adaptive integrators [1]",
+                  range=(1e-14, 1e-2)),
+    ParameterSpec("publish_clock", True, "publish simulated time on /clock"),
+    ParameterSpec("frame_id", "world", "frame_id of the published headers", read_only=False),
+)
+
+
+@dataclass(frozen=True)
+class NodeSettings:
+    """The node's parameters, read once at start (see :data:`PARAMETERS` for units)."""
+
+    scene_file: str
+    model: str
+    rate_hz: float
+    real_time_factor: float
+    sync_mode: bool
+    record_path: str
+    command_timeout: float
+    integrator: str
+    rtol: float
+    publish_clock: bool
+    frame_id: str
+
+    def check(self) -> None:
+        """Raise NodeConfigError for values the descriptors' ranges do not cover."""
+        if not self.scene_file:
+            raise NodeConfigError("scene_file: parameter is required (e.g. -p scene_file:="
+                                  "config/paper_example.yaml)")
+        if self.model not in MODELS:
+            raise NodeConfigError(f"model: unknown model {self.model!r} "
+                                  f"(choose from {', '.join(MODELS)})")
+        if self.integrator not in INTEGRATORS:
+            raise NodeConfigError(f"integrator: unknown integrator {self.integrator!r} "
+                                  f"(choose from {', '.join(INTEGRATORS)})")
+        if not self.frame_id:
+            raise NodeConfigError("frame_id: must not be empty")
+
+
+def _one_line(text: Any) -> str:
+    return " ".join(str(text).split())
+
+
+@dataclass(frozen=True)
+class Command:
+    """A valid command: forces (n, 2) [N], received at wall ``wall_ns`` (monotonic) and at
+    simulated time ``sim_ns``."""
+
+    forces: np.ndarray
+    wall_ns: int
+    sim_ns: int
+
+
+# ----- the node -----
+
+class RodSimNode(Node):
+    """The simulator node. ``node_kwargs`` go to :class:`rclpy.node.Node` (``context``,
+    ``parameter_overrides``, ``namespace``, ...). Raises NodeConfigError for bad parameters, a
+    missing or invalid scene, or a log that cannot be created."""
+
+    def __init__(self, **node_kwargs):
+        super().__init__(NODE_NAME, **node_kwargs)
+        self._log: LogWriter | None = None
+        self._timers: list = []
+        try:
+            self.settings = self._declare_parameters()
+            self._build_simulation()
+            self._warm_up()
+            self._init_state()
+            self._log_path = Path(self.settings.record_path) if self.settings.record_path else None
+            self._log_count = 0
+            if self._log_path is not None:
+                self._log = self._open_log(self._log_path)
+            self._create_interfaces()
+        except BaseException:
+            self.destroy_node()
+            raise
+        self._publish_state(self.sim.snapshot())
+        self.get_logger().info(
+            f"scene {self.scene.name!r} (n = {self.scene.n}), model {self.model.name}, "
+            f"{self.sim.integrator.describe()}, {self.settings.rate_hz:g} Hz, {self._mode()}"
+            + (f", recording to {self._log_path}" if self._log_path else ""))
+
+    # ----- construction -----
+
+    def _declare_parameters(self) -> NodeSettings:
+        values = {}
+        for spec in PARAMETERS:
+            try:
+                values[spec.name] = self.declare_parameter(
+                    spec.name, spec.default, spec.descriptor()).value
+            except ParameterException as exc:
+                raise NodeConfigError(f"{spec.name}: {_one_line(exc)}") from None
+        settings = NodeSettings(**values)
+        settings.check()
+        self.add_on_set_parameters_callback(self._validate_parameters)
+        self.add_post_set_parameters_callback(self._apply_parameters)
+        return settings
+
+    def _build_simulation(self) -> None:
+        s = self.settings
+        try:
+            self.scene = load_scene(s.scene_file)
+            self.model = make_model(s.model, self.scene)
+            integrator = make_integrator(s.integrator, rtol=s.rtol)
+            self.period_ns = period_ns(s.rate_hz)
+        except (SceneError, ModelError) as exc:
+            raise NodeConfigError(f"scene_file {s.scene_file}: {_one_line(exc)}") from None
+        except ValueError as exc:
+            raise NodeConfigError(_one_line(exc)) from None
+        self.sim = Simulator(self.model, integrator)
+
+    def _warm_up(self) -> None:
+        """Load the compiled kernels and message types once, before the clock starts, so that
+        the first real period does not pay for them."""
+        scratch = Simulator(self.model, make_integrator(self.settings.integrator,
+                                                        rtol=self.settings.rtol))
+        try:
+            scratch.advance(self.period_ns / NS_PER_S)
+        except IntegrationError:
+            return
+        snap = scratch.snapshot()
+        self.model.energies(snap.t, scratch.y, scratch.held)
+        self.model.powers(snap.t, scratch.y, scratch.held)
+        for name, data in topics.snapshot_messages(snap, self.scene, "world",
+                                                   STATE_TOPICS).items():
+            to_message(topics.TOPIC_TYPES[name], data)
+
+    def _init_state(self) -> None:
+        n = self.scene.n
+        self._zero = np.zeros((n, 2))
+        self._paused = False
+        self._error: str | None = None
+        self._latest: Command | None = None
+        self._sync_queue: deque[Command] = deque()
+        self._command_active = False
+        self._received = 0
+        self._rejected = 0
+        self._last_rejection = ""
+        self._dropped = 0
+        self._applied_last: np.ndarray | None = None
+        self._ledger = EnergyLedger(self._energy(self.sim.held))
+        self._meter = RateMeter(time.monotonic_ns())
+        self._max_alpha = 0.0
+        self._max_beta = 0.0
+        self._pacer: RealTimePacer | None = None
+        self._tick_timer = None
+        self._frame_id = self.settings.frame_id
+        self._rtf = self.settings.real_time_factor
+        self._timeout_ns = int(round(self.settings.command_timeout * NS_PER_S))
+
+    def _create_interfaces(self) -> None:
+        self._pubs = {name: self.create_publisher(
+            message_class(topics.TOPIC_TYPES[name]), name,
+            APPLIED_QOS if name == "applied_forces" else STATE_QOS)
+            for name in STATE_TOPICS + ("applied_forces", "diagnostics")}
+        self._clock_pub = (self.create_publisher(message_class(topics.TOPIC_TYPES["clock"]),
+                                                 "/clock", CLOCK_QOS)
+                           if self.settings.publish_clock else None)
+        self.create_subscription(Float64MultiArray, COMMAND_TOPIC, self._on_command, COMMAND_QOS)
+        self.create_service(Trigger, "~/reset", self._on_reset)
+        self.create_service(Trigger, "~/step", self._on_step)
+        self.create_service(SetBool, "~/pause", self._on_pause)
+        self._sync_trigger = self.create_guard_condition(self._on_sync_trigger)
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._diag_timer = self.create_timer(DIAGNOSTICS_PERIOD_S, self.publish_diagnostics,
+                                             clock=self._steady)
+        self._configure_pacing()
+
+    def _configure_pacing(self) -> None:
+        """(Re)create the pacing timer for the current mode and real-time factor."""
+        if self._tick_timer is not None:
+            self.destroy_timer(self._tick_timer)
+            self._tick_timer = None
+        self._pacer = None
+        if self.settings.sync_mode:
+            return
+        if self._rtf > 0.0:
+            self._pacer = RealTimePacer(self.period_ns, self._rtf)
+            period = tick_period_s(self.period_ns, self._rtf)
+        else:
+            period = 0.0
+        self._tick_timer = self.create_timer(period, self._on_tick, clock=self._steady)
+
+    # ----- parameters at run time -----
+
+    def _validate_parameters(self, params) -> SetParametersResult:
+        for p in params:
+            if p.name == "frame_id" and not p.value:
+                return SetParametersResult(successful=False, reason="frame_id: must not be empty")
+        return SetParametersResult(successful=True)
+
+    def _apply_parameters(self, params) -> None:
+        for p in params:
+            if p.name == "real_time_factor":
+                self._rtf = float(p.value)
+                self._configure_pacing()
+                self._meter.restart(time.monotonic_ns())
+            elif p.name == "command_timeout":
+                self._timeout_ns = int(round(float(p.value) * NS_PER_S))
+            elif p.name == "frame_id":
+                self._frame_id = str(p.value)
+
+    # ----- state queries -----
+
+    @property
+    def sim_time(self) -> float:
+        """Simulated time [s]."""
+        return self.sim.t
+
+    @property
+    def paused(self) -> bool:
+        return self._paused
+
+    @property
+    def error(self) -> str | None:
+        """The cause of the last integration failure (None when running normally)."""
+        return self._error
+
+    @property
+    def commands_rejected(self) -> int:
+        return self._rejected
+
+    @property
+    def log_path(self) -> Path | None:
+        """The log being written (None when not recording)."""
+        return self._log.path if self._log is not None else None
+
+    def matched_subscribers(self, topic: str) -> int:
+        """Subscriptions matched to our publisher of ``topic`` (a name of STATE_TOPICS,
+        ``applied_forces`` or ``diagnostics``)."""
+        return self._pubs[topic].get_subscription_count()
+
+    def _mode(self) -> str:
+        if self.settings.sync_mode:
+            return "lockstep"
+        return "as fast as possible" if self._rtf == 0.0 else f"real time x{self._rtf:g}"
+
+    def _state(self) -> str:
+        if self._error:
+            return "error"
+        if self._paused:
+            return "paused"
+        if self.settings.sync_mode and self._latest is None:
+            return "waiting for the first command"
+        return "running"
+
+    # ----- commands -----
+
+    def _on_command(self, msg: Float64MultiArray) -> None:
+        """Validate and store a command (never integrates)."""
+        self._received += 1
+        self._record("/" + COMMAND_TOPIC, COMMAND_TYPE, self.sim.t_ns, message_to_dict(msg))
+        try:
+            forces = command_forces(msg, self.scene.n)
+        except CommandError as exc:
+            self._rejected += 1
+            self._last_rejection = str(exc)
+            self.get_logger().warning(
+                f"rejected a nodal_forces command: {exc} ({self._rejected} rejected so far); "
+                "keeping the last valid command", throttle_duration_sec=THROTTLE_S)
+            return
+        command = Command(forces, time.monotonic_ns(), self.sim.t_ns)
+        self._latest = command
+        if self.settings.sync_mode and not self._paused and self._error is None:
+            self._sync_queue.append(command)
+            self._sync_trigger.trigger()
+
+    def _held_command(self, wall_age: bool) -> np.ndarray:
+        """The command force to hold over the next period: the latest valid command, or zero
+        once it is older than ``command_timeout`` (wall age if ``wall_age``, else simulated)."""
+        cmd = self._latest
+        active = cmd is not None
+        if active and self._timeout_ns > 0:
+            age = (time.monotonic_ns() - cmd.wall_ns) if wall_age else (self.sim.t_ns - cmd.sim_ns)
+            active = age <= self._timeout_ns
+        if self._command_active and not active:
+            self.get_logger().info(
+                f"no valid {COMMAND_TOPIC} command for {self._timeout_ns / NS_PER_S:g} s: "
+                "command force set to zero", throttle_duration_sec=THROTTLE_S)
+        self._command_active = active
+        return cmd.forces if active else self._zero
+
+    # ----- stepping -----
+
+    def _running(self) -> bool:
+        return not self._paused and self._error is None
+
+    def _on_tick(self) -> None:
+        """Pacing timer: advance the periods that are due (never in lockstep)."""
+        if not self._running():
+            if self._pacer is not None:
+                self._pacer.unanchor()
+            return
+        if self._pacer is None:
+            deadline = time.monotonic_ns() + FAST_TICK_BUDGET_NS
+            while self._running() and time.monotonic_ns() < deadline:
+                self._step_period(self._held_command(wall_age=False))
+            return
+        decision = self._pacer.decide(time.monotonic_ns(), self.sim.t_ns)
+        if decision.dropped:
+            self._dropped += decision.dropped
+            self.get_logger().warning(
+                f"stepping is slower than real time x{self._rtf:g}: dropped {decision.dropped} "
+                f"period(s) of backlog ({self._dropped} in all)", throttle_duration_sec=THROTTLE_S)
+        for _ in range(decision.periods):
+            if not self._step_period(self._held_command(wall_age=True)):
+                break
+
+    def _on_sync_trigger(self) -> None:
+        """Lockstep: one period per queued command, a bounded batch per callback."""
+        for _ in range(SYNC_BATCH):
+            if not self._sync_queue or not self._running():
+                break
+            self._command_active = True
+            self._step_period(self._sync_queue.popleft().forces)
+        if self._sync_queue and self._running():
+            self._sync_trigger.trigger()
+
+    def _step_period(self, held: np.ndarray) -> bool:
+        """Advance one control period holding ``held`` (n, 2) [N] plus the scripted loads, and
+        publish. Returns False (and pauses) when the integration fails."""
+        sim = self.sim
+        sim.set_forces(held)
+        t0_ns, y0 = sim.t_ns, sim.y
+        self._publish_applied(t0_ns)
+        p_start = self._net_power(held)
+        start = time.perf_counter_ns()
+        try:
+            sim.advance(self.period_ns / NS_PER_S)
+            if not np.all(np.isfinite(sim.y)):
+                raise IntegrationError("non-finite state", sim.t)
+        except (IntegrationError, ArithmeticError) as exc:
+            sim.y, sim.t_ns = y0, t0_ns
+            self._fail(exc)
+            return False
+        self._meter.add_step(self.period_ns, time.perf_counter_ns() - start)
+        self._ledger.add_period(self.period_ns / NS_PER_S, p_start, self._net_power(held),
+                                self._energy(held))
+        self._publish_state(sim.snapshot())
+        return True
+
+    def _energy(self, held: np.ndarray) -> float:
+        return self.model.energies(self.sim.t, self.sim.y, held).total
+
+    def _net_power(self, held: np.ndarray) -> float:
+        load, damper = self.model.powers(self.sim.t, self.sim.y, held)
+        return load - damper
+
+    def _fail(self, exc: Exception) -> None:
+        """Pause after a failed period (the state stays at the period's start), log the cause
+        and report it on diagnostics."""
+        if isinstance(exc, IntegrationError):
+            reason, t = exc.reason, exc.t
+        else:  # an arithmetic failure inside the stepper, e.g. a division by zero
+            reason, t = f"{type(exc).__name__}: {_one_line(exc)}", self.sim.t
+        self._paused = True
+        self._error = (f"{reason} at t = {t:.6g} s "
+                       f"({self.model.name} model, {self.sim.integrator.describe()})")
+        self.get_logger().error(f"integration failed: {self._error}; simulation paused "
+                                "(call ~/reset, or ~/pause false to retry)")
+        if self._pacer is not None:
+            self._pacer.unanchor()
+        self.publish_diagnostics()
+
+    # ----- publishing -----
+
+    def _wants(self, name: str) -> bool:
+        return self._log is not None or self._pubs[name].get_subscription_count() > 0
+
+    def _emit(self, name: str, t_ns: int, data: dict) -> None:
+        """Record ``data`` on ``/name`` at ``t_ns`` and publish it if anyone listens."""
+        type_name = topics.TOPIC_TYPES[name]
+        self._record("/" + name, type_name, t_ns, data)
+        if self._pubs[name].get_subscription_count() > 0:
+            self._pubs[name].publish(to_message(type_name, data))
+
+    def _publish_applied(self, t_ns: int) -> None:
+        """Applied forces (scripted + held) from ``t_ns`` on: recorded every period, published
+        when they change (and the first time)."""
+        applied = self.model.forces(t_ns / NS_PER_S, self.sim.held)
+        data = topics.force_array(applied)
+        self._record("/applied_forces", topics.TOPIC_TYPES["applied_forces"], t_ns, data)
+        if self._applied_last is None or not np.array_equal(applied, self._applied_last):
+            self._applied_last = applied
+            self._pubs["applied_forces"].publish(
+                to_message(topics.TOPIC_TYPES["applied_forces"], data))
+
+    def _publish_state(self, snap) -> None:
+        """Everything a state determines, stamped at its simulated time."""
+        t_ns = self.sim.t_ns
+        self._max_alpha = max(self._max_alpha, float(np.max(np.abs(snap.alpha), initial=0.0)))
+        self._max_beta = max(self._max_beta, float(np.max(np.abs(snap.beta), initial=0.0)))
+        wanted = [name for name in STATE_TOPICS if self._wants(name)]
+        if wanted:
+            for name, data in topics.snapshot_messages(snap, self.scene, self._frame_id,
+                                                       wanted).items():
+                self._emit(name, t_ns, data)
+        if self._clock_pub is not None:
+            self._clock_pub.publish(to_message(topics.TOPIC_TYPES["clock"],
+                                               {"clock": topics.stamp_from_ns(t_ns)}))
+
+    def diagnostic_report(self) -> DiagnosticReport:
+        """The health of the simulation over the window since the last diagnostics."""
+        wall = time.monotonic_ns()
+        mean_ms, max_ms = self._meter.step_cost_ms()
+        rtf_target = None if self.settings.sync_mode else self._rtf
+        budget = (self.period_ns / 1e6 / self._rtf) if rtf_target else None
+        return DiagnosticReport(
+            mode=self._mode(), state=self._state(), sim_time=self.sim.t,
+            rtf_target=rtf_target, rtf_measured=self._meter.real_time_factor(wall),
+            wall_window=self._meter.window_s(wall),
+            step_cost_mean=mean_ms, step_cost_max=max_ms, step_budget=budget,
+            steps=self._meter.steps, dropped_periods=self._dropped,
+            energy=self._ledger.energy, energy_residual=self._ledger.residual,
+            commands_received=self._received, commands_rejected=self._rejected,
+            last_rejection=self._last_rejection, command_active=self._command_active,
+            max_abs_alpha=self._max_alpha, max_abs_beta=self._max_beta,
+            model=self.model.name, integrator=self.sim.integrator.describe(), error=self._error,
+            extra={"scene": self.scene.name, "rate_hz": f"{self.settings.rate_hz:g}",
+                   "recording": str(self.log_path) if self.log_path else "off"})
+
+    def publish_diagnostics(self) -> None:
+        """Publish (and record) one ``diagnostics`` message and start a new window."""
+        level, message, values = self.diagnostic_report().status()
+        data = topics.diagnostics(self.sim.t, values, self.scene.name, level=level,
+                                  message=message, frame_id="")
+        self._emit("diagnostics", self.sim.t_ns, data)
+        self._meter.restart(time.monotonic_ns())
+        self._max_alpha = self._max_beta = 0.0
+
+    # ----- services -----
+
+    def _on_reset(self, request, response):
+        """Back to the scene's initial state at t = 0 (commands and errors cleared)."""
+        self.sim.reset()
+        self._latest = None
+        self._sync_queue.clear()
+        self._command_active = False
+        self._error = None
+        self._applied_last = None
+        self._ledger.start(self._energy(self.sim.held))
+        self._meter.restart(time.monotonic_ns())
+        if self._pacer is not None:
+            self._pacer.unanchor()
+        note = self._roll_log()
+        self._publish_state(self.sim.snapshot())
+        response.success = True
+        response.message = "reset to the initial state at t = 0 s" + note
+        self.get_logger().info(response.message)
+        return response
+
+    def _on_step(self, request, response):
+        """One control period, only while paused."""
+        if not self._paused:
+            response.success = False
+            response.message = ("~/step works only while paused: call ~/pause with data: true "
+                                "first")
+            return response
+        ok = self._step_period(self._held_command(wall_age=False))
+        response.success = ok
+        response.message = (f"stepped to t = {self.sim.t:.9g} s" if ok else
+                            f"step failed: {self._error}")
+        return response
+
+    def _on_pause(self, request, response):
+        """data true: pause; false: resume (re-anchors the real-time clock)."""
+        if request.data:
+            self._paused = True
+            response.message = f"paused at t = {self.sim.t:.9g} s"
+        else:
+            note = f" (after the integration error: {self._error})" if self._error else ""
+            self._paused = False
+            self._error = None
+            response.message = f"resumed at t = {self.sim.t:.9g} s{note}"
+        if self._pacer is not None:
+            self._pacer.unanchor()
+        response.success = True
+        self.get_logger().info(response.message)
+        return response
+
+    # ----- recording -----
+
+    def _open_log(self, path: Path) -> LogWriter:
+        s = self.settings
+        metadata = {"scene": scene_to_yaml(self.scene), "model": self.model.name,
+                    "integrator": s.integrator, "version": __version__,
+                    "rtol": repr(s.rtol), "rate_hz": repr(s.rate_hz),
+                    "source": "rod_sim node", "mode": self._mode()}
+        qos = {"/applied_forces": offered_qos_yaml(depth=1, durability="transient_local")}
+        try:
+            return LogWriter(path, metadata=metadata, qos=qos)
+        except (OSError, ValueError) as exc:
+            raise NodeConfigError(f"record_path: {_one_line(exc)}") from None
+
+    def _roll_log(self) -> str:
+        """After a reset: close the log and continue in ``<stem>_<k><suffix>``."""
+        if self._log is None:
+            return ""
+        self._close_log()
+        self._log_count += 1
+        base = self._log_path
+        path = base.with_name(f"{base.stem}_{self._log_count}{base.suffix}")
+        try:
+            self._log = self._open_log(path)
+        except NodeConfigError as exc:
+            self.get_logger().error(f"recording stopped: {exc}")
+            return "; recording stopped"
+        return f"; recording continues in {path}"
+
+    def _record(self, topic: str, type_name: str, t_ns: int, data: dict) -> None:
+        if self._log is None:
+            return
+        try:
+            self._log.write(topic, type_name, t_ns, data)
+        except (LogWriteError, OSError) as exc:
+            self.get_logger().error(f"recording stopped: {_one_line(exc)}")
+            self._close_log()
+
+    def _close_log(self) -> None:
+        log, self._log = self._log, None
+        if log is None:
+            return
+        try:
+            log.close()
+            self.get_logger().info(f"log closed: {log.path}")
+        except OSError as exc:
+            self.get_logger().error(f"cannot close the log {log.path}: {_one_line(exc)}")
+
+    def destroy_node(self) -> None:
+        """Close the log (with its summary), then destroy the node."""
+        self._close_log()
+        super().destroy_node()
+
+
+# ----- entry point -----
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="sim_node", description="rod_sim ROS 2 node: a chain of elastic rods driven by "
+        "nodal forces (SPEC section 4). Configure it with ROS arguments, e.g. "
+        "--ros-args --params-file config/sim_node.params.yaml -p scene_file:=SCENE.yaml",
+        epilog="parameters: " + "; ".join(f"{p.name} (default {p.default!r}): {p.description}"
+                                          for p in PARAMETERS))
+    return parser
+
+
+class StopRequest:
+    """SIGINT/SIGTERM handler: the first signal asks the spin loop to stop (so that the log is
+    closed between callbacks, never in the middle of a write); a second one interrupts."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self):
+        self.event = threading.Event()
+        self._previous: dict[int, Any] = {}
+
+    def __enter__(self) -> "StopRequest":
+        for sig in self.SIGNALS:
+            self._previous[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+
+    def _handle(self, signum, frame) -> None:
+        if self.event.is_set():
+            raise KeyboardInterrupt
+        self.event.set()
+
+    @property
+    def requested(self) -> bool:
+        return self.event.is_set()
+
+
+def spin_until(executor, stop: StopRequest, done: Callable[[], bool] = lambda: False,
+               timeout_sec: float = 0.1) -> None:
+    """Spin ``executor`` until a stop is requested, ``done()`` is true or its context ends."""
+    context = executor.context
+    while not stop.requested and not done() and context.ok():
+        executor.spin_once(timeout_sec=timeout_sec)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the node until SIGINT/SIGTERM. Returns 0, or 2 (with a one-line reason on stderr)
+    for bad parameters or scenes."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    build_parser().parse_args(remove_ros_args(["sim_node", *args])[1:])  # --help, typos
+    rclpy.init(args=["sim_node", *args], signal_handler_options=SignalHandlerOptions.NO)
+    node = None
+    with StopRequest() as stop:
+        try:
+            node = RodSimNode()
+            executor = SingleThreadedExecutor()
+            executor.add_node(node)
+            spin_until(executor, stop)
+        except NodeConfigError as exc:
+            print(f"sim_node: error: {exc}", file=sys.stderr)
+            return 2
+        except (KeyboardInterrupt, ExternalShutdownException):
+            pass
+        finally:
+            if node is not None:
+                node.destroy_node()
+            rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,169 @@
+"""Real-time pacing of a fixed-period simulation against a wall clock (pure logic, no ROS).
+
+The node's timer ticks at roughly the control period; at each tick it asks a
+:class:`RealTimePacer` how many whole control periods to advance. The pacer never assumes one
+tick equals one period: it computes the target simulated time from the wall time elapsed since
+an *anchor* times the real-time factor, and returns the number of whole periods between the
+current simulated time and that target. So ticks that come late, early or irregularly do not
+make the simulation drift from the wall clock.
+
+When stepping costs more than the wall time it represents, the backlog would grow without
+bound; the pacer therefore advances at most ``max_periods_per_tick`` periods per tick and,
+when the backlog is larger than that, drops the rest and re-anchors the clock at the current
+wall time (the simulation then runs slower than requested, which the node reports as a
+measured real-time factor below the target, instead of stalling the executor).
+
+All times are integer nanoseconds: wall readings from a monotonic clock, simulated times as
+kept by :class:`rod_sim.core.simulator.Simulator`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+NS_PER_S = 1_000_000_000
+MIN_TICK_S = 0.001
+"""[s] shortest wall period of the node's pacing timer."""
+
+
+def period_ns(rate_hz: float) -> int:
+    """The control period 1/rate_hz as whole nanoseconds (rate_hz [Hz] > 0)."""
+    if not (math.isfinite(rate_hz) and rate_hz > 0.0):
+        raise ValueError(f"rate_hz: must be a positive number (got {rate_hz!r})")
+    period = int(round(NS_PER_S / rate_hz))
+    if period <= 0:
+        raise ValueError(f"rate_hz: {rate_hz} Hz gives a period shorter than 1 ns")
+    return period
+
+
+def tick_period_s(period: int, real_time_factor: float) -> float:
+    """Wall period [s] of the pacing timer for a control period [ns] and a real-time factor
+    (> 0): one control period of wall time, but not shorter than :data:`MIN_TICK_S`."""
+    if not real_time_factor > 0.0:
+        raise ValueError("tick_period_s: real_time_factor must be > 0 (0 = as fast as possible "
+                         "has no pacing timer period)")
+    return max(period / NS_PER_S / real_time_factor, MIN_TICK_S)
+
+
+def max_periods_per_tick(period: int, real_time_factor: float, minimum: int = 4) -> int:
+    """How many periods one tick may advance: twice the periods a tick normally covers (more
+    than one when the timer cannot tick once per period), and at least ``minimum``."""
+    per_tick = tick_period_s(period, real_time_factor) * real_time_factor * NS_PER_S / period
+    return max(int(minimum), 2 * int(math.ceil(per_tick - 1e-9)))
+
+
+@dataclass
+class PacingDecision:
+    """What one tick should do: ``periods`` to advance now; ``dropped`` periods of backlog
+    given up (the clock was re-anchored)."""
+
+    periods: int
+    dropped: int = 0
+
+
+class RealTimePacer:
+    """Decides how many control periods to advance at each tick so that simulated time follows
+    ``real_time_factor`` x wall time without drift.
+
+    ``period``: control period [ns]; ``real_time_factor`` > 0 (1.0 = wall-clock pace);
+    ``max_periods`` per tick (default :func:`max_periods_per_tick`).
+
+    Call :meth:`anchor` whenever the simulation starts, resumes, is reset or stepped by hand;
+    then :meth:`decide` at each tick. The pacer is unanchored until the first call of either
+    (the first :meth:`decide` anchors and returns 0 periods).
+    """
+
+    def __init__(self, period: int, real_time_factor: float, max_periods: int | None = None):
+        if period <= 0:
+            raise ValueError(f"period: must be > 0 ns (got {period})")
+        if not (math.isfinite(real_time_factor) and real_time_factor > 0.0):
+            raise ValueError(f"real_time_factor: must be > 0 for pacing (got {real_time_factor!r})")
+        self.period = int(period)
+        self.real_time_factor = float(real_time_factor)
+        self.max_periods = (max_periods_per_tick(self.period, self.real_time_factor)
+                            if max_periods is None else int(max_periods))
+        if self.max_periods < 1:
+            raise ValueError(f"max_periods: must be >= 1 (got {max_periods})")
+        self._wall0: int | None = None
+        self._sim0 = 0
+        self.dropped_total = 0
+        """Periods of backlog dropped since construction."""
+
+    @property
+    def anchored(self) -> bool:
+        return self._wall0 is not None
+
+    def anchor(self, wall_ns: int, sim_ns: int) -> None:
+        """Simulated time ``sim_ns`` corresponds to wall reading ``wall_ns`` from now on."""
+        self._wall0 = int(wall_ns)
+        self._sim0 = int(sim_ns)
+
+    def unanchor(self) -> None:
+        """Forget the anchor (e.g. while paused); the next :meth:`decide` re-anchors."""
+        self._wall0 = None
+
+    def target_ns(self, wall_ns: int) -> int:
+        """Simulated time [ns] the simulation should have reached at wall reading ``wall_ns``."""
+        if self._wall0 is None:
+            raise RuntimeError("RealTimePacer.target_ns: not anchored")
+        elapsed = max(int(wall_ns) - self._wall0, 0)
+        return self._sim0 + int(elapsed * self.real_time_factor)
+
+    def decide(self, wall_ns: int, sim_ns: int) -> PacingDecision:
+        """Periods to advance at wall reading ``wall_ns`` when the simulation is at ``sim_ns``.
+
+        Whole periods only: the remainder waits for a later tick. At most ``max_periods``; a
+        larger backlog is dropped and the clock re-anchored so that, after advancing, the
+        simulation is on time again.
+        """
+        if self._wall0 is None:
+            self.anchor(wall_ns, sim_ns)
+            return PacingDecision(0)
+        behind = (self.target_ns(wall_ns) - int(sim_ns)) // self.period
+        if behind <= 0:
+            return PacingDecision(0)
+        if behind <= self.max_periods:
+            return PacingDecision(int(behind))
+        dropped = int(behind) - self.max_periods
+        self.dropped_total += dropped
+        self.anchor(wall_ns, int(sim_ns) + self.max_periods * self.period)
+        return PacingDecision(self.max_periods, dropped)
+
+
+class RateMeter:
+    """Measured real-time factor over a window: simulated time advanced / wall time elapsed,
+    plus the wall cost of each step (mean and max, [ms])."""
+
+    def __init__(self, wall_ns: int):
+        self.restart(wall_ns)
+
+    def restart(self, wall_ns: int) -> None:
+        """Start a new window at wall reading ``wall_ns``. The window sums the advances it is
+        told of, so resets of the simulated time do not distort it."""
+        self._wall0 = int(wall_ns)
+        self._advanced_ns = 0
+        self._costs_ns: list[int] = []
+
+    def add_step(self, sim_dt_ns: int, cost_ns: int) -> None:
+        """One step advanced ``sim_dt_ns`` of simulated time and cost ``cost_ns`` of wall time."""
+        self._advanced_ns += int(sim_dt_ns)
+        self._costs_ns.append(int(cost_ns))
+
+    def window_s(self, wall_ns: int) -> float:
+        """Wall time [s] since the window started."""
+        return (int(wall_ns) - self._wall0) / NS_PER_S
+
+    def real_time_factor(self, wall_ns: int) -> float:
+        """Simulated seconds per wall second since the window started (0 if no wall time)."""
+        elapsed = int(wall_ns) - self._wall0
+        return self._advanced_ns / elapsed if elapsed > 0 else 0.0
+
+    def step_cost_ms(self) -> tuple[float, float]:
+        """(mean, max) wall cost of the window's steps [ms]; (0, 0) without steps."""
+        if not self._costs_ns:
+            return 0.0, 0.0
+        return (sum(self._costs_ns) / len(self._costs_ns) / 1e6, max(self._costs_ns) / 1e6)
+
+    @property
+    def steps(self) -> int:
+        return len(self._costs_ns)
