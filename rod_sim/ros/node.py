@@ -207,6 +207,16 @@ def _one_line(text: Any) -> str:
     return " ".join(str(text).split())
 
 
+def _parameter_error(spec: ParameterSpec, exc: ParameterException) -> str:
+    """One line for a rejected parameter value (rclpy appends the name; we lead with it)."""
+    text = _one_line(exc)
+    if text.endswith(f": {spec.name}"):
+        text = text[:-len(spec.name) - 2]
+    if isinstance(spec.default, float) and "of type 'INTEGER'" in text:
+        text += " (write a double, e.g. 100.0)"
+    return f"{spec.name}: {text}"
+
+
 @dataclass(frozen=True)
 class Command:
     """A valid command: forces (n, 2) [N], received at wall ``wall_ns`` (monotonic) and at
@@ -227,7 +237,6 @@ class RodSimNode(Node):
     def __init__(self, **node_kwargs):
         super().__init__(NODE_NAME, **node_kwargs)
         self._log: LogWriter | None = None
-        self._timers: list = []
         try:
             self.settings = self._declare_parameters()
             self._build_simulation()
@@ -256,7 +265,7 @@ class RodSimNode(Node):
                 values[spec.name] = self.declare_parameter(
                     spec.name, spec.default, spec.descriptor()).value
             except ParameterException as exc:
-                raise NodeConfigError(f"{spec.name}: {_one_line(exc)}") from None
+                raise NodeConfigError(_parameter_error(spec, exc)) from None
         settings = NodeSettings(**values)
         settings.check()
         self.add_on_set_parameters_callback(self._validate_parameters)
@@ -270,9 +279,9 @@ class RodSimNode(Node):
             self.model = make_model(s.model, self.scene)
             integrator = make_integrator(s.integrator, rtol=s.rtol)
             self.period_ns = period_ns(s.rate_hz)
-        except (SceneError, ModelError) as exc:
+        except SceneError as exc:
             raise NodeConfigError(f"scene_file {s.scene_file}: {_one_line(exc)}") from None
-        except ValueError as exc:
+        except (ModelError, ValueError) as exc:
             raise NodeConfigError(_one_line(exc)) from None
         self.sim = Simulator(self.model, integrator)
 
@@ -283,8 +292,8 @@ class RodSimNode(Node):
                                                         rtol=self.settings.rtol))
         try:
             scratch.advance(self.period_ns / NS_PER_S)
-        except IntegrationError:
-            return
+        except (IntegrationError, ArithmeticError):
+            return  # the real run reports it
         snap = scratch.snapshot()
         self.model.energies(snap.t, scratch.y, scratch.held)
         self.model.powers(snap.t, scratch.y, scratch.held)
@@ -416,7 +425,8 @@ class RodSimNode(Node):
     def _on_command(self, msg: Float64MultiArray) -> None:
         """Validate and store a command (never integrates)."""
         self._received += 1
-        self._record("/" + COMMAND_TOPIC, COMMAND_TYPE, self.sim.t_ns, message_to_dict(msg))
+        if self._log is not None:
+            self._record("/" + COMMAND_TOPIC, COMMAND_TYPE, self.sim.t_ns, message_to_dict(msg))
         try:
             forces = command_forces(msg, self.scene.n)
         except CommandError as exc:
@@ -562,7 +572,7 @@ class RodSimNode(Node):
             for name, data in topics.snapshot_messages(snap, self.scene, self._frame_id,
                                                        wanted).items():
                 self._emit(name, t_ns, data)
-        if self._clock_pub is not None:
+        if self._clock_pub is not None and self._clock_pub.get_subscription_count() > 0:
             self._clock_pub.publish(to_message(topics.TOPIC_TYPES["clock"],
                                                {"clock": topics.stamp_from_ns(t_ns)}))
 
@@ -639,6 +649,8 @@ class RodSimNode(Node):
             self._paused = False
             self._error = None
             response.message = f"resumed at t = {self.sim.t:.9g} s{note}"
+            if self._sync_queue:
+                self._sync_trigger.trigger()  # commands received before the pause
         if self._pacer is not None:
             self._pacer.unanchor()
         response.success = True
@@ -655,7 +667,11 @@ class RodSimNode(Node):
                     "source": "rod_sim node", "mode": self._mode()}
         qos = {"/applied_forces": offered_qos_yaml(depth=1, durability="transient_local")}
         try:
+            path.parent.mkdir(parents=True, exist_ok=True)
             return LogWriter(path, metadata=metadata, qos=qos)
+        except FileExistsError:
+            raise NodeConfigError(f"record_path: {path} exists; remove it or choose another "
+                                  "record_path") from None
         except (OSError, ValueError) as exc:
             raise NodeConfigError(f"record_path: {_one_line(exc)}") from None
 
