@@ -63,6 +63,8 @@ def _initial_step(rhs, chain, extra, loads, held, t_side, t0, y0, f0, t_bound, r
     else:
         h0 = 0.01 * d0 / d1
     h0 = min(h0, length)
+    if not h0 > 0.0:   # f0 infinite or NaN: no usable step; the caller reports underflow
+        return 0.0
     y1 = y0 + h0 * f0
     f1 = np.empty(n)
     rhs(t0 + h0, y1, chain, extra, loads, held, t_side, f1)

@@ -25,12 +25,9 @@ from __future__ import annotations
 import sys
 
 import numpy as np
-import rclpy
 from geometry_msgs.msg import PoseArray
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
@@ -38,7 +35,7 @@ from rod_sim.core.scene import SceneError
 from rod_sim.io import topics
 from rod_sim.io.scene_yaml import load_scene
 from rod_sim.ros.conversions import to_message
-from rod_sim.ros.node import StopRequest, spin_until
+from rod_sim.ros.node import run_node
 
 CONTROLLER_NAME = "rod_sim_controller"
 
@@ -143,26 +140,7 @@ class HingePDController(Node):
 def main(argv: list[str] | None = None) -> int:
     """Run the controller until SIGINT/SIGTERM; 2 for a bad scene_file."""
     args = list(sys.argv[1:] if argv is None else argv)
-    rclpy.init(args=["rod_sim_controller", *args],
-               signal_handler_options=SignalHandlerOptions.NO)
-    node = None
-    with StopRequest() as stop:
-        try:
-            node = HingePDController()
-            executor = SingleThreadedExecutor()
-            executor.add_node(node)
-            spin_until(executor, stop)
-        except SceneError as exc:
-            print(f"rod_sim_controller: error: {exc}", file=sys.stderr)
-            return 2
-        except (KeyboardInterrupt, ExternalShutdownException):
-            pass
-        finally:
-            if node is not None:
-                node.destroy_node()
-            rclpy.try_shutdown()
-    return 0
-
+    return run_node("rod_sim_controller", HingePDController, args, SceneError)
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -769,16 +769,23 @@ def main(argv: list[str] | None = None) -> int:
     for bad parameters or scenes."""
     args = list(sys.argv[1:] if argv is None else argv)
     build_parser().parse_args(remove_ros_args(["sim_node", *args])[1:])  # --help, typos
-    rclpy.init(args=["sim_node", *args], signal_handler_options=SignalHandlerOptions.NO)
+    return run_node("sim_node", RodSimNode, args, NodeConfigError)
+
+
+def run_node(prog: str, make_node, args: list[str], config_errors) -> int:
+    """Create ``make_node()`` under rclpy and spin it until SIGINT/SIGTERM, then destroy it
+    and shut rclpy down. Returns 0, or 2 with a one-line reason on stderr when creating the
+    node raises one of ``config_errors``."""
+    rclpy.init(args=[prog, *args], signal_handler_options=SignalHandlerOptions.NO)
     node = None
     with StopRequest() as stop:
         try:
-            node = RodSimNode()
+            node = make_node()
             executor = SingleThreadedExecutor()
             executor.add_node(node)
             spin_until(executor, stop)
-        except NodeConfigError as exc:
-            print(f"sim_node: error: {exc}", file=sys.stderr)
+        except config_errors as exc:
+            print(f"{prog}: error: {exc}", file=sys.stderr)
             return 2
         except (KeyboardInterrupt, ExternalShutdownException):
             pass
@@ -787,7 +794,6 @@ def main(argv: list[str] | None = None) -> int:
                 node.destroy_node()
             rclpy.try_shutdown()
     return 0
-
 
 if __name__ == "__main__":
     sys.exit(main())
