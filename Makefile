@@ -1,6 +1,6 @@
 # rod_sim developer tasks. `make test` is what CI runs (through .ci/run).
 # The virtual environment is created from scratch when missing; the package (with its ROS 2
-# Jazzy wheels, test and plot extras) is reinstalled only when setup.py changes.
+# Jazzy wheels and every optional extra) is reinstalled only when setup.py changes.
 
 PYTHON ?= python3
 VENV ?= .venv
@@ -23,7 +23,7 @@ $(VPY):
 
 $(STAMP): setup.py | $(VPY)
 	$(VPY) -m pip install --upgrade pip
-	$(VPY) -m pip install -e '.[ros,test,plot]'
+	$(VPY) -m pip install -e '.[ros,test,plot,peer,sweep]'
 	touch $(STAMP)
 
 test: venv

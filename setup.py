@@ -32,6 +32,8 @@ setup(
         "ros": ["ros-jazzy-rclpy[fastrtps]", "ros-jazzy-common-interfaces"],
         "test": ["pytest", "pytest-timeout", "rosbags", "sympy"],
         "plot": ["matplotlib"],
+        "peer": ["mujoco"],                                     # bench: MuJoCo side by side
+        "sweep": ["dask[distributed]", "pyarrow", "tqdm"],      # rod-sim sweep on a cluster
     },
     zip_safe=True,
     entry_points={

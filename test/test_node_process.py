@@ -233,6 +233,16 @@ def test_bad_input_exits_2_with_one_line(tmp_path, params, match):
     assert len(errors) == 1 and match in errors[0], done.stderr
 
 
+def test_rod_sim_node_subcommand_is_the_node(tmp_path):
+    """`rod-sim node --ros-args ...` hands the ROS arguments to the node untouched."""
+    args = [sys.executable, "-m", "rod_sim.tools.cli", "node", "--ros-args",
+            "-p", f"scene_file:={PAPER}", "-p", "model:=stiff"]
+    done = subprocess.run(args, cwd=REPO, env=ros_env(DOMAIN_BAD), capture_output=True,
+                          text=True, timeout=STARTUP_S)
+    assert done.returncode == 2 and "unknown model" in done.stderr, done.stderr
+    assert "Traceback" not in done.stderr and "unrecognized arguments" not in done.stderr
+
+
 def test_help_exits_0():
     done = subprocess.run([sys.executable, "-m", "rod_sim.ros.node", "--help"], cwd=REPO,
                           env=ros_env(DOMAIN_BAD), capture_output=True, text=True, timeout=30)

@@ -3,15 +3,20 @@
 ``build_parser()`` builds the parser, ``run(args) -> int`` does the work and returns the exit
 status (0 success, 1 a check failed or the run stopped, 2 bad input), ``main()`` wraps both
 and turns library errors into one-line messages on stderr.
+
+``simulate``, ``table1``, ``bench`` and ``node`` are defined here; every other module of
+``rod_sim.tools`` that defines ``COMMAND`` adds its own subcommand (see
+:mod:`rod_sim.tools.common`).
 """
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import math
+import pkgutil
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -21,22 +26,26 @@ from ..core.models import MODELS, ModelError, make_model
 from ..core.scene import SceneError
 from ..core.simulator import Simulator
 
-EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT = 0, 1, 2
-PAPER_EXAMPLE = Path(__file__).resolve().parents[2] / "config" / "paper_example.yaml"
+from .common import (EXIT_BAD_INPUT, EXIT_CHECK_FAILED, EXIT_OK, PAPER_EXAMPLE, UsageError,
+                     load_scene, new_output_path)
+from .common import positive_float as _positive_float
+
+__all__ = ["EXIT_OK", "EXIT_CHECK_FAILED", "EXIT_BAD_INPUT", "PAPER_EXAMPLE", "UsageError",
+           "build_parser", "run", "main"]
 
 
-class UsageError(ValueError):
-    """Bad command-line input that argparse cannot see (e.g. an existing output file)."""
+def plugin_modules() -> dict:
+    """``{COMMAND: module}`` of the ``rod_sim.tools`` modules that define a subcommand."""
+    from .. import tools
 
-
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be a positive finite number (got {text})")
-    return value
+    found = {}
+    for info in pkgutil.iter_modules(tools.__path__):
+        if info.name in ("cli", "common"):
+            continue
+        module = importlib.import_module(f"{tools.__name__}.{info.name}")
+        if hasattr(module, "COMMAND"):
+            found[module.COMMAND] = module
+    return found
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -75,13 +84,30 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--quick", action="store_true", help="compiled integrators only")
     bench.add_argument("--repeats", type=int, default=5, help="timing repeats (median)")
     bench.add_argument("--scene", default=str(PAPER_EXAMPLE), help="scene YAML file")
+
+    node = sub.add_parser("node", help="the ROS 2 simulator node (SPEC section 4)",
+                          description="Run the rod_sim ROS 2 node until SIGINT/SIGTERM. ROS "
+                                      "arguments follow --ros-args, e.g. --ros-args -p "
+                                      "scene_file:=config/paper_example.yaml -p sync_mode:=true "
+                                      "(see `python -m rod_sim.ros.node --help`).")
+    node.add_argument("ros_args", nargs=argparse.REMAINDER, metavar="--ros-args ...",
+                      help="ROS 2 arguments (parameters, remappings, --params-file)")
+
+    for name, module in sorted(plugin_modules().items()):
+        module.configure(sub.add_parser(name, help=module.HELP, description=module.HELP))
     return parser
+
+
+def cmd_node(args) -> int:
+    from ..ros.node import main as node_main
+
+    return node_main(list(args.ros_args))       # reached only through run(); main() forwards
 
 
 def cmd_bench(args) -> int:
     from . import bench
 
-    scene = _load_scene(args.scene)
+    scene = load_scene(args.scene)
     rows = bench.run_bench(scene, quick=args.quick, repeats=max(1, args.repeats))
     if args.json:
         print(json.dumps(bench.as_json(rows), indent=1))
@@ -91,24 +117,14 @@ def cmd_bench(args) -> int:
     return EXIT_OK
 
 
-def _load_scene(path: str):
-    from ..io.scene_yaml import load_scene
-
-    return load_scene(path)
-
-
 def cmd_simulate(args) -> int:
     from ..io.mcap_log import LogWriter
     from ..io.scene_yaml import scene_to_yaml
 
-    scene = _load_scene(args.scene)
+    scene = load_scene(args.scene)
     model = make_model(args.model, scene)
     integrator = make_integrator(args.integrator, rtol=args.rtol, atol=args.atol, step=args.step)
-    out = Path(args.out)
-    if out.exists():
-        raise UsageError(f"--out: {out} exists; refusing to overwrite it")
-    if not out.parent.is_dir():
-        raise UsageError(f"--out: directory {out.parent} does not exist")
+    out = new_output_path(args.out)
     Simulator(model, make_integrator(args.integrator, step=args.step)).advance(1e-3)  # JIT warm-up
     sim = Simulator(model, integrator)
     metadata = {"scene": scene_to_yaml(scene), "model": model.name,
@@ -144,7 +160,7 @@ def cmd_simulate(args) -> int:
 def cmd_table1(args) -> int:
     from . import table1
 
-    scene = _load_scene(args.scene)
+    scene = load_scene(args.scene)
     rows = table1.compute(scene)
     if args.json:
         print(json.dumps({"rows": [r.as_dict() for r in rows]}, indent=1))
@@ -156,15 +172,25 @@ def cmd_table1(args) -> int:
     return EXIT_OK
 
 
-COMMANDS = {"simulate": cmd_simulate, "table1": cmd_table1, "bench": cmd_bench}
+COMMANDS = {"simulate": cmd_simulate, "table1": cmd_table1, "bench": cmd_bench,
+            "node": cmd_node}
 
 
 def run(args: argparse.Namespace) -> int:
     """Run a parsed command; library errors propagate (``main`` reports them)."""
-    return COMMANDS[args.command](args)
+    if args.command in COMMANDS:
+        return COMMANDS[args.command](args)
+    return plugin_modules()[args.command].run(args)
 
 
 def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ["node"]:
+        # argparse cannot hand "--ros-args ..." through a subparser untouched; the node has
+        # its own parser (for --help and typos) and reports bad parameters with status 2.
+        from ..ros.node import main as node_main
+
+        return node_main(argv[1:])
     parser = build_parser()
     args = parser.parse_args(argv)
     try:

@@ -1,0 +1,53 @@
+"""What every ``rod-sim`` subcommand shares: exit statuses, the usage error, argument types.
+
+A subcommand lives in its own module under ``rod_sim/tools`` and is found by
+:func:`rod_sim.tools.cli.build_parser` when the module defines
+
+- ``COMMAND`` (the subcommand name) and ``HELP`` (one line for ``rod-sim --help``),
+- ``configure(parser)`` adding its arguments to an ``argparse`` subparser,
+- ``run(args) -> int`` returning an exit status.
+
+Modules import their heavy dependencies (ROS, matplotlib, dask, ...) inside ``run`` so that
+``rod-sim --help`` stays fast and works without the optional extras.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+PAPER_EXAMPLE = Path(__file__).resolve().parents[2] / "config" / "paper_example.yaml"
+
+
+class UsageError(ValueError):
+    """Bad command-line input that argparse cannot see (e.g. an existing output file).
+    ``rod-sim`` prints its first line and exits with status 2."""
+
+
+def positive_float(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a positive finite number (got {text})")
+    return value
+
+
+def load_scene(path: str):
+    """Read a scene YAML file (raises SceneError/UsageError with a one-line reason)."""
+    from ..io.scene_yaml import load_scene as _load
+
+    return _load(path)
+
+
+def new_output_path(text: str, option: str = "--out") -> Path:
+    """A file path that does not exist yet, in an existing directory (UsageError otherwise)."""
+    out = Path(text)
+    if out.exists():
+        raise UsageError(f"{option}: {out} exists; refusing to overwrite it")
+    if not out.parent.is_dir():
+        raise UsageError(f"{option}: directory {out.parent} does not exist")
+    return out
