@@ -33,12 +33,57 @@ _TABLEAUX = {
 class IntegrationError(RuntimeError):
     """The integration could not go on (divergence, non-finite state, step underflow).
 
-    ``t`` is the simulated time [s] reached, ``reason`` a one-line cause."""
+    ``t`` is the simulated time [s] reached, ``reason`` a one-line cause (it names the
+    quantity and rod that went non-finite or grew fastest when the integrator knows them)."""
 
     def __init__(self, reason: str, t: float):
         self.reason = reason
         self.t = t
         super().__init__(f"integration stopped at t = {t:.6g} s: {reason}")
+
+
+_GROUPS = {1: (("phi", "rad"), ("phi_rate", "rad/s")),
+           3: (("phi", "rad"), ("alpha", "rad"), ("beta", "rad"), ("phi_rate", "rad/s"),
+               ("alpha_rate", "rad/s"), ("beta_rate", "rad/s"))}
+
+
+def state_component(model, i: int) -> tuple[str, int, str]:
+    """(quantity, rod 1..n, unit) of component ``i`` of the model's state vector."""
+    name, unit = _GROUPS[model.dof_per_rod][i // model.n]
+    return name, i % model.n + 1, unit
+
+
+def explain_state(model, t: float, y, held=None) -> str:
+    """Why the state ``y`` at ``t`` [s] stops an integration, in words: the first non-finite
+    component, else the first non-finite derivative, else the largest rate (the likely
+    divergence). Never raises."""
+    try:
+        y = np.asarray(y, dtype=float)
+        bad = np.flatnonzero(~np.isfinite(y))
+        if bad.size:
+            name, rod, _ = state_component(model, int(bad[0]))
+            return f"{name} of rod {rod} is {y[bad[0]]} ({bad.size} non-finite components)"
+        dy = model.rhs(t, y, held)
+        bad = np.flatnonzero(~np.isfinite(dy))
+        if bad.size:
+            name, rod, _ = state_component(model, int(bad[0]))
+            return f"the time derivative of {name} of rod {rod} is {dy[bad[0]]}"
+        half = y.size // 2
+        i = half + int(np.argmax(np.abs(y[half:])))
+        j = half + int(np.argmax(np.abs(dy[half:])))
+        name, rod, unit = state_component(model, i)
+        acc_name, acc_rod, _ = state_component(model, j)
+        f = np.abs(model.forces(t, held))
+        k = np.unravel_index(int(np.argmax(f)), f.shape)
+        return (f"largest rate: {name} of rod {rod} = {y[i]:.3g} {unit}; largest "
+                f"acceleration: d({acc_name})/dt of rod {acc_rod} = {dy[j]:.3g} {unit}/s; "
+                f"largest applied force: {'xy'[k[1]]} at node {k[0] + 1} = {f[k]:.3g} N")
+    except Exception as exc:  # the explanation must never hide the original failure
+        return f"state not inspectable ({type(exc).__name__})"
+
+
+def _failure(model, status_text: str, t: float, y, held) -> IntegrationError:
+    return IntegrationError(f"{status_text}; {explain_state(model, t, y, held)}", float(t))
 
 
 @dataclass
@@ -116,7 +161,7 @@ class JitDop853(Integrator):
             self.max_step, self.max_steps, Y, stats)
         self.stats.add(stats)
         if status != erk.STATUS_OK:
-            raise IntegrationError(erk.STATUS_TEXT[status], t)
+            raise _failure(model, erk.STATUS_TEXT[status], t, y, held)
         self._h = h
         return Y
 
@@ -147,8 +192,21 @@ class JitFixedStep(Integrator):
                                      float(self.step), A, b, c, Y, stats)
         self.stats.add(stats)
         if status != erk.STATUS_OK:
-            raise IntegrationError(erk.STATUS_TEXT[status], t)
+            raise _failure(model, erk.STATUS_TEXT[status], t, y, held)
         return Y
+
+
+STALL_CALLS = 20_000
+"""scipy paths: right-hand side calls without progress in time before giving up."""
+
+
+class _NonFinite(Exception):
+    """Raised inside a scipy right-hand side call that meets a non-finite state/derivative
+    (or makes no progress in time)."""
+
+    def __init__(self, t, y, reason):
+        super().__init__(reason)
+        self.t, self.y, self.reason = float(t), y, reason
 
 
 @dataclass
@@ -173,22 +231,41 @@ class ScipyIntegrator(Integrator):
                 continue
             side = 0.5 * (a + b)
 
-            def fun(t, yy, side=side):
+            progress = [a, 0]                    # latest time seen, calls since it grew
+
+            def fun(t, yy, side=side, progress=progress):
                 out = np.empty(yy.shape[0])
                 kernel(t, yy, chain, extra, loads, held, side, out)
+                if not (np.all(np.isfinite(yy)) and np.all(np.isfinite(out))):
+                    raise _NonFinite(t, np.array(yy), erk.STATUS_TEXT[erk.STATUS_NONFINITE])
+                if t > progress[0]:
+                    progress[0], progress[1] = t, 0
+                else:
+                    progress[1] += 1
+                    if progress[1] > STALL_CALLS:    # e.g. LSODA looping at one time
+                        raise _NonFinite(t, np.array(yy), f"no progress in time after "
+                                         f"{STALL_CALLS} derivative evaluations (it diverges)")
                 return out
 
             stop = done
             while stop < t_out.size and t_out[stop] <= b:
                 stop += 1
-            sol = solve_ivp(fun, (a, b), y, method=self.name, rtol=self.rtol,
-                            atol=self.abs_tol, dense_output=stop > done)
+            try:
+                with np.errstate(all="ignore"):
+                    sol = solve_ivp(fun, (a, b), y, method=self.name, rtol=self.rtol,
+                                    atol=self.abs_tol, dense_output=stop > done)
+            except _NonFinite as exc:
+                raise _failure(model, exc.reason, exc.t, exc.y, held) from None
+            except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+                raise _failure(model, f"{self.name} failed ({type(exc).__name__}: {exc})",
+                               a, y, held) from None
             self.stats.nfev += sol.nfev
             self.stats.steps += max(sol.t.size - 1, 0)
             if sol.status != 0 or not np.all(np.isfinite(sol.y)):
-                raise IntegrationError(sol.message if sol.status != 0 else
-                                       erk.STATUS_TEXT[erk.STATUS_NONFINITE],
-                                       float(sol.t[-1]) if sol.t.size else a)
+                t_fail = float(sol.t[-1]) if sol.t.size else a
+                y_fail = sol.y[:, -1] if sol.t.size else y
+                raise _failure(model, sol.message if sol.status != 0 else
+                               erk.STATUS_TEXT[erk.STATUS_NONFINITE], t_fail, y_fail, held)
             if stop > done:
                 Y[done:stop] = sol.sol(t_out[done:stop]).T
             y = sol.y[:, -1]

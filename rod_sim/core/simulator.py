@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .integrators import Integrator, make_integrator
+from .integrators import Integrator, IntegrationError, explain_state, make_integrator
 from .models import ChainModel
 from .snapshot import Snapshot
 
@@ -85,8 +85,18 @@ class Simulator:
             raise ValueError(f"dt: must be > 0 (got {dt!r})")
         t1_ns = self.t_ns + dt_ns
         Y = self.integrator.integrate(self.model, self.y, self.t, [t1_ns / NS_PER_S], self.held)
+        self._check_finite(np.array([t1_ns / NS_PER_S]), Y)
         self.y = Y[-1].copy()
         self.t_ns = t1_ns
+
+    def _check_finite(self, t: np.ndarray, Y: np.ndarray) -> None:
+        """Never hand out a NaN: IntegrationError naming the first non-finite sample."""
+        bad = ~np.all(np.isfinite(Y), axis=1)
+        if np.any(bad):
+            i = int(np.argmax(bad))
+            raise IntegrationError("the state became non-finite (NaN/Inf); "
+                                   + explain_state(self.model, float(t[i]), Y[i], self.held),
+                                   float(t[i]))
 
     def snapshot(self) -> Snapshot:
         """The chain now."""
@@ -111,6 +121,7 @@ class Simulator:
             ticks = np.concatenate([ticks, [end_ns]])
         t = ticks / NS_PER_S
         Y = self.integrator.integrate(self.model, self.y, self.t, t, self.held)
+        self._check_finite(t, Y)
         self.y = Y[-1].copy()
         self.t_ns = end_ns
         return Trajectory(self.model, t, Y)
