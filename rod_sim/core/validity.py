@@ -1,0 +1,279 @@
+"""Validity monitor: is the chosen model still right for what the scene is doing?
+
+Pure (numpy only). Three checks, each giving :class:`Finding` records:
+
+- **small bending**: |alpha|, |beta| above :data:`SMALL_BENDING_RAD`. The shape functions (1)
+  are linear small-deflection beam theory: the curvature is taken as w'' instead of
+  w'' / (1 + w'^2)^(3/2) (relative error ~ 3/2 theta^2: 6 % at 0.2 rad) and the chord is
+  assumed not to shorten (relative shortening ~ theta^2 / 15: 0.3 % at 0.2 rad). 0.2 rad keeps
+  the neglected geometric terms at a few per cent of the bending moments.
+- **load spectrum near the first bending mode**: the reduced model drops the bending inertia,
+  so it is only right while the loads change slowly compared with the first bending mode
+  f1 of the rods. A harmonic load at f gives a dynamic amplification 1 / (1 - (f/f1)^2), i.e.
+  the quasi-static bending is wrong by ~ (f/f1)^2: :data:`FREQUENCY_RATIO_WARN` = 0.1 keeps that
+  below 1 %. A raised cosine pulse of duration D has its spectrum below ~2/D (main lobe); a
+  jump of the forces (step loads, held commands changing at a control rate) excites every
+  mode: the bending vibration it starts has the amplitude of the quasi-static slope jump, which
+  :func:`force_jump_slopes` computes and :data:`JUMP_SLOPE_WARN_RAD` judges.
+- **energy balance**: E - E0 - integral(P_load - P_damper) dt relative to the energy scale
+  above :data:`ENERGY_RESIDUAL_WARN`. The rigid model conserves it to the integrator's
+  tolerance; the bending models only to first order in the bending (see test_physics), so a
+  growing residual means the bending is no longer small or the integration is inaccurate.
+
+Entry points: :func:`bending_frequencies` (per-rod, analytic), :func:`chain_bending_frequency`
+(the full model's linearization), :func:`assess_trajectory` (a whole run; what ``simulate``
+and ``compare`` call) and :class:`ValidityMonitor` (incremental, per control period; the node).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+SMALL_BENDING_RAD = 0.2
+"""[rad] largest end slope for which the small-bending shape functions are trusted."""
+FREQUENCY_RATIO_WARN = 0.1
+"""Load frequency / first bending frequency above which the quasi-static reduction is off by
+more than ~1 %."""
+JUMP_SLOPE_WARN_RAD = 1e-3
+"""[rad] jump of the quasi-static end slopes (caused by a jump of the forces) above which the
+unmodelled bending vibration is reported."""
+ENERGY_RESIDUAL_WARN = 1e-2
+"""Energy balance residual / energy scale above which the run is reported."""
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One validity warning: ``kind`` ('bending', 'frequency', 'force_jump', 'energy'), the
+    simulated time ``t`` [s] (first occurrence), the rod 1..n (0 = the whole chain), the
+    measured ``value`` and the ``limit`` it crossed, and a one-line ``message``."""
+
+    kind: str
+    t: float
+    rod: int
+    value: float
+    limit: float
+    message: str
+
+
+def bending_frequencies(scene) -> np.ndarray:
+    """First bending eigenfrequency of each rod [Hz] (n,), chord held fixed.
+
+    With the slopes (alpha, beta) of the shape functions (1) and the chord fixed, the rod's
+    mass matrix is m l^3 [[1/105, -1/140], [-1/140, 1/105]] and its stiffness
+    2 EI / l [[2, 1], [1, 2]]; the antisymmetric mode alpha = -beta gives
+    omega^2 = 120 EI / (m l^4) (the exact pinned-pinned beam has pi^4 = 97.4 instead of 120).
+    Massless rods have no bending inertia: inf."""
+    EI = np.asarray(scene.bending_stiffness, float)
+    m = np.asarray(scene.mass_per_length, float)
+    l = np.asarray(scene.length, float)
+    with np.errstate(divide="ignore"):
+        omega = np.sqrt(120.0 * EI / (m * l**4))
+    return omega / (2.0 * math.pi)
+
+
+def chain_bending_frequency(scene, phi=None, eps: float = 1e-7) -> float:
+    """Lowest eigenfrequency [Hz] of the full model's linearization about ``phi`` (default the
+    initial angles, at rest, no load) whose mode is mostly bending (more than half of its
+    modal kinetic energy in alpha, beta). inf if a rod is massless.
+
+    The linearization is taken numerically: K = -d(accelerations)/dq by central differences of
+    the full model's right-hand side, M from the kinetic energy, modes from eig(K)."""
+    from .models import FullModel  # local: the models import nothing from here
+
+    if np.any(np.asarray(scene.mass_per_length) <= 0.0):
+        return math.inf
+    model = FullModel(scene)
+    n = model.n
+    y0 = model.initial_state()
+    if phi is not None:
+        y0[:n] = phi
+    y0[3 * n:] = 0.0
+    J = np.empty((3 * n, 3 * n))
+    zero = np.zeros((n, 2))
+    for j in range(3 * n):
+        h = eps * max(1.0, abs(y0[j]))
+        yp, ym = y0.copy(), y0.copy()
+        yp[j] += h
+        ym[j] -= h
+        J[:, j] = (model.rhs(0.0, yp, zero)[3 * n:] - model.rhs(0.0, ym, zero)[3 * n:]) / (2 * h)
+    w2, vecs = np.linalg.eig(-J)
+    order = np.argsort(w2.real)
+    A, Ma, Mb = model.mass_blocks(y0[:n])
+    p = model.params
+    ml3 = p.m * p.l**3
+    Mbb = np.block([[np.diag(ml3 / 105), np.diag(-ml3 / 140)],
+                    [np.diag(-ml3 / 140), np.diag(ml3 / 105)]])
+    M = np.block([[A, Ma, Mb], [np.hstack([Ma, Mb]).T, Mbb]])
+    for k in order:
+        v = vecs[:, k].real
+        total = v @ M @ v
+        bend = v[n:] @ M[n:, n:] @ v[n:]
+        if total > 0 and bend > 0.5 * total and w2[k].real > 0:
+            return float(math.sqrt(w2[k].real) / (2.0 * math.pi))
+    return math.inf
+
+
+def load_frequency(scene) -> float:
+    """Highest characteristic frequency [Hz] of the scripted loads: 2 / duration for a raised
+    cosine pulse (edge of its spectrum's main lobe); inf for a step or a constant load switched
+    on (a jump; judged by :func:`force_jump_slopes` instead); 0 without loads."""
+    f = 0.0
+    for ld in scene.loads:
+        if ld.shape == "raised_cosine_pulse":
+            f = max(f, 2.0 / ld.duration)
+        elif ld.amplitude != 0.0:
+            f = math.inf
+    return f
+
+
+def force_jump_slopes(scene, y_phi, phi_rate, before, after) -> np.ndarray:
+    """|jump| of the quasi-static end slopes (2n,) [rad] when the nodal forces (n, 2) [N] jump
+    from ``before`` to ``after`` at the rod angles/rates given: the amplitude of the bending
+    vibration that such a jump starts (and the reduced model does not carry)."""
+    model = _reduced_cache(scene)
+    y = np.concatenate([np.asarray(y_phi, float), np.asarray(phi_rate, float)])
+    a0, b0 = model.bending(0.0, y, before)
+    a1, b1 = model.bending(0.0, y, after)
+    return np.abs(np.concatenate([a1 - a0, b1 - b0]))
+
+
+_CACHE: dict = {}
+
+
+def _reduced_cache(scene):
+    from .models import ReducedModel
+
+    key = id(scene)
+    hit = _CACHE.get(key)
+    if hit is None or hit[0] is not scene:
+        if len(_CACHE) > 8:
+            _CACHE.clear()
+        hit = (scene, ReducedModel(scene.with_changes(loads=())))
+        _CACHE[key] = hit
+    return hit[1]
+
+
+def frequency_findings(scene, model_name: str, command_rate_hz: float | None = None,
+                       f1: float | None = None) -> list[Finding]:
+    """Static check of the scene's load spectrum against the first bending mode (only the
+    reduced model relies on the quasi-static bending; the rigid model has none, the full model
+    carries the bending dynamics)."""
+    if model_name != "reduced":
+        return []
+    f1 = chain_bending_frequency(scene) if f1 is None else f1
+    out = []
+    fl = load_frequency(scene)
+    if math.isfinite(fl) and fl > FREQUENCY_RATIO_WARN * f1:
+        out.append(Finding("frequency", 0.0, 0, fl, FREQUENCY_RATIO_WARN * f1,
+                           f"scripted loads reach {fl:.3g} Hz, near the first bending mode "
+                           f"{f1:.3g} Hz (ratio {fl / f1:.2g} > {FREQUENCY_RATIO_WARN}): the "
+                           f"reduced model's quasi-static bending is off; use the full model"))
+    if command_rate_hz and command_rate_hz > FREQUENCY_RATIO_WARN * f1:
+        out.append(Finding("frequency", 0.0, 0, command_rate_hz, FREQUENCY_RATIO_WARN * f1,
+                           f"held commands change at {command_rate_hz:.3g} Hz, near the first "
+                           f"bending mode {f1:.3g} Hz: their jumps excite bending vibration "
+                           f"the reduced model does not carry"))
+    return out
+
+
+class ValidityMonitor:
+    """Incremental validity checks of one run. Feed it every state with :meth:`update`
+    (``t`` [s], state ``y``, held forces (n, 2) [N]); :meth:`findings` lists the first
+    occurrence of each kind of problem (per rod). ``energy_residual`` [J] and ``energy_scale``
+    [J] come from the caller's energy ledger (optional)."""
+
+    def __init__(self, model, command_rate_hz: float | None = None):
+        self.model = model
+        self.scene = model.scene
+        self.f1 = (chain_bending_frequency(self.scene) if model.name == "reduced" else math.inf)
+        self._found: dict[tuple[str, int], Finding] = {}
+        for f in frequency_findings(self.scene, model.name, command_rate_hz, self.f1):
+            self._found[(f.kind, f.rod)] = f
+        self.max_abs_alpha = 0.0
+        self.max_abs_beta = 0.0
+        self._held = None
+        self._energy0 = None
+
+    def _add(self, f: Finding) -> None:
+        self._found.setdefault((f.kind, f.rod), f)
+
+    def update(self, t: float, y, held=None, alpha=None, beta=None) -> None:
+        """Check one state (alpha, beta [rad] may be given to save recomputing them)."""
+        n = self.model.n
+        held = np.zeros((n, 2)) if held is None else np.asarray(held, float).reshape(n, 2)
+        if alpha is None or beta is None:
+            alpha, beta = self.model.bending(t, y, held)
+        a, b = np.abs(alpha), np.abs(beta)
+        self.max_abs_alpha = max(self.max_abs_alpha, float(np.max(a, initial=0.0)))
+        self.max_abs_beta = max(self.max_abs_beta, float(np.max(b, initial=0.0)))
+        worst = np.maximum(a, b)
+        for k in np.flatnonzero(worst > SMALL_BENDING_RAD):
+            self._add(Finding("bending", float(t), int(k) + 1, float(worst[k]),
+                              SMALL_BENDING_RAD,
+                              f"rod {k + 1}: end slope {worst[k]:.3g} rad at t = {t:.4g} s "
+                              f"leaves the small-bending range (> {SMALL_BENDING_RAD} rad)"))
+        if (self.model.name == "reduced" and self._held is not None
+                and not np.array_equal(held, self._held)):
+            jump = force_jump_slopes(self.scene, self.model.phi(y), self.model.phi_rate(y),
+                                     self._held, held)
+            k = int(np.argmax(jump))
+            if jump[k] > JUMP_SLOPE_WARN_RAD:
+                self._add(Finding("force_jump", float(t), k % n + 1, float(jump[k]),
+                                  JUMP_SLOPE_WARN_RAD,
+                                  f"a jump of the held forces at t = {t:.4g} s starts bending "
+                                  f"vibration of ~{jump[k]:.2g} rad at rod {k % n + 1} (first "
+                                  f"bending mode {self.f1:.3g} Hz) that the reduced model "
+                                  f"does not carry"))
+        self._held = held.copy()
+
+    def update_energy(self, t: float, residual: float, scale: float) -> None:
+        """Judge an energy balance residual [J] against the energy scale [J] at time t [s]."""
+        if scale > 0 and math.isfinite(residual) and abs(residual) > ENERGY_RESIDUAL_WARN * scale:
+            self._add(Finding("energy", float(t), 0, abs(residual) / scale, ENERGY_RESIDUAL_WARN,
+                              f"energy balance residual {residual:.3g} J is {abs(residual) / scale:.2g}"
+                              f" of the energy scale {scale:.3g} J at t = {t:.4g} s (> "
+                              f"{ENERGY_RESIDUAL_WARN:g}): bending not small or integration "
+                              f"inaccurate"))
+
+    def findings(self) -> list[Finding]:
+        return sorted(self._found.values(), key=lambda f: (f.t, f.kind, f.rod))
+
+    def summary(self) -> str:
+        """One line: the findings' messages (first per kind), or '' when all is well."""
+        seen, parts = set(), []
+        for f in self.findings():
+            if f.kind not in seen:
+                seen.add(f.kind)
+                parts.append(f.message)
+        return "; ".join(parts)
+
+
+def assess_trajectory(model, t, y, held=None, command_rate_hz: float | None = None
+                      ) -> ValidityMonitor:
+    """Run every check over samples ``t`` (N,) [s], states ``y`` (N, state_size) with held
+    forces ``held`` ((n, 2), or (N, n, 2) per sample); the energy balance uses the trapezoid
+    rule over the samples. Returns the monitor (``findings()``, ``summary()``)."""
+    mon = ValidityMonitor(model, command_rate_hz)
+    t = np.asarray(t, float)
+    n = model.n
+    if held is None:
+        held = np.zeros((n, 2))
+    held = np.asarray(held, float)
+    per_sample = held.ndim == 3
+    energy, power = np.empty(t.size), np.empty(t.size)
+    for i in range(t.size):
+        h = held[i] if per_sample else held
+        mon.update(t[i], y[i], h)
+        energy[i] = model.energies(t[i], y[i], h).total
+        load, damp = model.powers(t[i], y[i], h)
+        power[i] = load - damp
+    if t.size > 1:
+        work = np.concatenate([[0.0], np.cumsum(0.5 * np.diff(t) * (power[1:] + power[:-1]))])
+        residual = energy - energy[0] - work
+        scale = max(float(np.max(np.abs(energy))),
+                    float(np.sum(0.5 * np.diff(t) * np.abs(power[1:] + power[:-1]))))
+        i = int(np.argmax(np.abs(residual)))
+        mon.update_energy(t[i], float(residual[i]), scale)
+    return mon

@@ -1,0 +1,136 @@
+"""``rod-sim advise SCENE --tolerance X``: the cheapest fidelity and integrator settings that
+meet a tolerance on a short trial.
+
+Every candidate (rigid, reduced, full model; dop853-jit at a few tolerances) is run over the
+trial [0, T] and compared, at 100 Hz samples, with a full-model reference at rtol 1e-11
+(itself checked against rtol 1e-10: if the two differ by more than a tenth of the tolerance
+the reference is not converged and the command fails). The error is max over rods and samples
+of |phi - phi_ref| [rad] (SPEC section 6). Among the candidates whose error is at most
+:data:`MARGIN` x tolerance, the one with the smallest wall time wins; the speed-up is against
+the full model at the default settings. Exit 0 with a recommendation, 1 when none meets the
+tolerance. The advice holds for the trial's loads and duration only.
+"""
+from __future__ import annotations
+
+import json
+import time
+
+import numpy as np
+
+COMMAND = "advise"
+HELP = "recommend the cheapest model and integrator settings that meet a tolerance"
+MARGIN = 0.5
+"""A candidate must be within MARGIN x tolerance on the trial (room for longer runs)."""
+CANDIDATES = (("rigid", 1e-4), ("rigid", 1e-6), ("rigid", 1e-8),
+              ("reduced", 1e-4), ("reduced", 1e-6), ("reduced", 1e-8), ("reduced", 1e-10),
+              ("full", 1e-6), ("full", 1e-8), ("full", 1e-10))
+DEFAULT_RTOL = 1e-8
+REFERENCE_RTOL = (1e-10, 1e-11)
+RATE_HZ = 100.0
+
+
+def configure(parser) -> None:
+    from .common import positive_float
+
+    parser.add_argument("scene", help="scene YAML file")
+    parser.add_argument("--tolerance", type=positive_float, required=True,
+                        help="largest acceptable max |phi - phi_full_ref| [rad]")
+    parser.add_argument("--t-end", type=positive_float, default=1.0,
+                        help="length of the trial [s of simulated time] (default 1)")
+    parser.add_argument("--repeats", type=int, default=3, help="timing repeats (minimum taken)")
+    parser.add_argument("--json", action="store_true", help="machine-readable output")
+
+
+def _run(scene, model_name: str, rtol: float, t_end: float, repeats: int = 1):
+    """(phi (N, n), best wall time [s], nfev) of one model/tolerance over [0, t_end]."""
+    from ..core.integrators import make_integrator
+    from ..core.models import make_model
+    from ..core.simulator import Simulator
+
+    model = make_model(model_name, scene)
+    Simulator(model, make_integrator(rtol=rtol)).advance(1e-4)       # compile outside timing
+    best, phi, nfev = np.inf, None, 0
+    for _ in range(max(1, repeats)):
+        sim = Simulator(model, make_integrator(rtol=rtol))
+        start = time.perf_counter()
+        traj = sim.run(t_end, RATE_HZ)
+        best = min(best, time.perf_counter() - start)
+        phi, nfev = traj.phi, sim.integrator.stats.nfev
+    return phi, best, nfev
+
+
+def advise(scene, tolerance: float, t_end: float = 1.0, repeats: int = 3) -> dict:
+    """The recommendation and every trial as a dict (see the module docstring).
+    Raises IntegrationError if the reference cannot be computed."""
+    from ..core.integrators import IntegrationError
+
+    ref_loose, _, _ = _run(scene, "full", REFERENCE_RTOL[0], t_end)
+    ref, _, _ = _run(scene, "full", REFERENCE_RTOL[1], t_end)
+    ref_check = float(np.max(np.abs(ref - ref_loose)))
+    trials = []
+    full_default_wall = None
+    for model_name, rtol in CANDIDATES:
+        row = {"model": model_name, "integrator": "dop853-jit", "rtol": rtol}
+        try:
+            phi, wall, nfev = _run(scene, model_name, rtol, t_end, repeats)
+        except IntegrationError as exc:
+            row.update(error=str(exc), max_phi_error=None, wall_s=None, nfev=None, ok=False)
+            trials.append(row)
+            continue
+        err = float(np.max(np.abs(phi - ref)))
+        row.update(max_phi_error=err, wall_s=wall, nfev=nfev, ok=err <= MARGIN * tolerance)
+        if model_name == "full" and rtol == DEFAULT_RTOL:
+            full_default_wall = wall
+        trials.append(row)
+    ok = [r for r in trials if r["ok"]]
+    best = min(ok, key=lambda r: r["wall_s"]) if ok else None
+    out = {"scene": scene.name, "n": scene.n, "t_end": t_end, "tolerance": tolerance,
+           "margin": MARGIN, "reference": {"model": "full", "integrator": "dop853-jit",
+                                           "rtol": REFERENCE_RTOL[1],
+                                           "self_check_rtol_1e-10": ref_check},
+           "reference_converged": ref_check <= 0.1 * tolerance,
+           "full_default_wall_s": full_default_wall, "trials": trials, "recommendation": None}
+    if best is not None and out["reference_converged"]:
+        rec = dict(best)
+        rec["speedup_vs_full"] = (full_default_wall / best["wall_s"]
+                                  if full_default_wall and best["wall_s"] > 0 else None)
+        rec["simulate_args"] = ["--model", best["model"], "--integrator", "dop853-jit",
+                                "--rtol", f"{best['rtol']:g}"]
+        out["recommendation"] = rec
+    return out
+
+
+def format_text(res: dict) -> str:
+    lines = [f"{res['scene']} (n = {res['n']}): trial 0..{res['t_end']:g} s, tolerance "
+             f"{res['tolerance']:g} rad on max |phi - phi_ref| (full model, rtol 1e-11; "
+             f"reference self-check {res['reference']['self_check_rtol_1e-10']:.2g} rad)",
+             f"{'model':8} {'rtol':>7} {'max phi error':>14} {'wall [s]':>10} {'nfev':>9}  meets"]
+    for r in res["trials"]:
+        if r.get("error"):
+            lines.append(f"{r['model']:8} {r['rtol']:7.0e}  failed: {r['error']}")
+            continue
+        lines.append(f"{r['model']:8} {r['rtol']:7.0e} {r['max_phi_error']:14.3g} "
+                     f"{r['wall_s']:10.4f} {r['nfev']:9d}  {'yes' if r['ok'] else 'no'}")
+    rec = res["recommendation"]
+    if rec is None:
+        why = ("the reference is not converged to a tenth of the tolerance"
+               if not res["reference_converged"] else
+               f"no candidate is within {res['margin']:g} x the tolerance")
+        lines.append(f"no recommendation: {why}")
+    else:
+        sp = rec["speedup_vs_full"]
+        lines.append(f"recommended: --model {rec['model']} --integrator dop853-jit --rtol "
+                     f"{rec['rtol']:g} (error {rec['max_phi_error']:.3g} rad, "
+                     + (f"{sp:.3g}x faster than the full model at rtol 1e-8)" if sp else ")"))
+    return "\n".join(lines)
+
+
+def run(args) -> int:
+    from .common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, load_scene
+
+    if args.t_end > 100.0:
+        raise UsageError("--t-end: a trial longer than 100 s is not a short trial")
+    scene = load_scene(args.scene)
+    res = advise(scene, args.tolerance, args.t_end, max(1, args.repeats))
+    print(json.dumps(res, indent=1) if args.json else format_text(res))
+    return EXIT_OK if res["recommendation"] is not None else EXIT_CHECK_FAILED
