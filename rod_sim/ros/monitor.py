@@ -10,10 +10,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from rod_sim.core.validity import SMALL_BENDING_RAD
 from rod_sim.io.topics import DIAGNOSTIC_ERROR, DIAGNOSTIC_OK, DIAGNOSTIC_WARN
 
-BENDING_WARN_RAD = 0.2
-"""[rad] end slope above which the small-bending assumption is reported as questionable."""
+BENDING_WARN_RAD = SMALL_BENDING_RAD
+"""[rad] end slope above which the small-bending assumption is reported as questionable
+(justified in :mod:`rod_sim.core.validity`)."""
 RTF_WARN_FRACTION = 0.9
 """A measured real-time factor below this fraction of the target is reported (WARN)."""
 MIN_RTF_WINDOW_S = 0.5
@@ -38,11 +40,18 @@ class EnergyLedger:
         self.energy0 = float(energy0)
         self.energy = float(energy0)
         self.work = 0.0
+        self.abs_work = 0.0
 
     def add_period(self, dt: float, p_start: float, p_end: float, energy_end: float) -> None:
         """Account one period of ``dt`` [s]: net powers [W] at its ends, energy [J] at its end."""
         self.work += 0.5 * float(dt) * (float(p_start) + float(p_end))
+        self.abs_work += 0.5 * float(dt) * abs(float(p_start) + float(p_end))
         self.energy = float(energy_end)
+
+    @property
+    def scale(self) -> float:
+        """[J] the energy scale the residual is judged against: max(|E0|, |E|, sum |P| dt)."""
+        return max(abs(self.energy0), abs(self.energy), self.abs_work)
 
     @property
     def residual(self) -> float:
@@ -82,6 +91,8 @@ class DiagnosticReport:
     integrator: str
     error: str | None = None
     extra: dict[str, str] = field(default_factory=dict)
+    validity: list[str] = field(default_factory=list)
+    """Messages of the validity monitor (:mod:`rod_sim.core.validity`) since the last reset."""
 
     def _warnings(self) -> list[str]:
         out = []
@@ -94,6 +105,7 @@ class DiagnosticReport:
         if bend > BENDING_WARN_RAD:
             out.append(f"large bending slope {bend:.3g} rad (small-bending assumption "
                        f"questionable above {BENDING_WARN_RAD} rad)")
+        out.extend(self.validity)
         return out
 
     def status(self) -> tuple[int, str, dict[str, str]]:
@@ -136,6 +148,7 @@ class DiagnosticReport:
             "model": self.model,
             "integrator": self.integrator,
             "error": self.error or "none",
+            "validity": "; ".join(self.validity) or "ok",
         }
         values.update(self.extra)
         return values

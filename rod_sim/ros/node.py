@@ -83,6 +83,7 @@ from rod_sim.io.mcap_log import LogWriteError, LogWriter, offered_qos_yaml
 from rod_sim.io.scene_yaml import load_scene, scene_to_yaml
 from rod_sim.ros.conversions import (CommandError, command_forces, message_class,
                                      message_to_dict, to_message)
+from rod_sim.core.validity import ValidityMonitor
 from rod_sim.ros.monitor import DiagnosticReport, EnergyLedger
 from rod_sim.ros.pacing import (NS_PER_S, RateMeter, RealTimePacer, period_ns,
                                 tick_period_s)
@@ -315,6 +316,7 @@ class RodSimNode(Node):
         self._dropped = 0
         self._applied_last: np.ndarray | None = None
         self._ledger = EnergyLedger(self._energy(self.sim.held))
+        self._validity = ValidityMonitor(self.model)
         self._meter = RateMeter(time.monotonic_ns())
         self._max_alpha = 0.0
         self._max_beta = 0.0
@@ -513,7 +515,10 @@ class RodSimNode(Node):
         self._meter.add_step(self.period_ns, time.perf_counter_ns() - start)
         self._ledger.add_period(self.period_ns / NS_PER_S, p_start, self._net_power(held),
                                 self._energy(held))
-        self._publish_state(sim.snapshot())
+        snap = sim.snapshot()
+        self._validity.update(sim.t, sim.y, held, snap.alpha, snap.beta)
+        self._validity.update_energy(sim.t, self._ledger.residual, self._ledger.scale)
+        self._publish_state(snap)
         return True
 
     def _energy(self, held: np.ndarray) -> float:
@@ -593,6 +598,7 @@ class RodSimNode(Node):
             last_rejection=self._last_rejection, command_active=self._command_active,
             max_abs_alpha=self._max_alpha, max_abs_beta=self._max_beta,
             model=self.model.name, integrator=self.sim.integrator.describe(), error=self._error,
+            validity=[f.message for f in self._validity.findings() if f.kind != "bending"],
             extra={"scene": self.scene.name, "rate_hz": f"{self.settings.rate_hz:g}",
                    "recording": str(self.log_path) if self.log_path else "off"})
 
@@ -616,6 +622,7 @@ class RodSimNode(Node):
         self._error = None
         self._applied_last = None
         self._ledger.start(self._energy(self.sim.held))
+        self._validity = ValidityMonitor(self.model)
         self._meter.restart(time.monotonic_ns())
         if self._pacer is not None:
             self._pacer.unanchor()

@@ -130,6 +130,9 @@ def cmd_simulate(args) -> int:
     metadata = {"scene": scene_to_yaml(scene), "model": model.name,
                 "integrator": integrator.describe(), "version": __version__,
                 "rate_hz": repr(args.rate), "source": "rod-sim simulate"}
+    from ..core.validity import ValidityMonitor
+
+    validity = ValidityMonitor(model)
     wall = 0.0
     samples = 0
     status = EXIT_OK
@@ -142,18 +145,35 @@ def cmd_simulate(args) -> int:
             try:
                 traj = sim.run(t_next, args.rate)
             except IntegrationError as err:
-                print(f"rod-sim: {err}; the log holds the samples up to there", file=sys.stderr)
+                # redo the chunk one sample at a time so the log keeps every finite sample
+                try:
+                    while True:
+                        part = sim.run(min(t_next, sim.t + 1.0 / args.rate), args.rate)
+                        for i in range(0 if first else 1, part.t.size):
+                            log.write_snapshot(part.snapshot(i), scene, frame_id=args.frame_id)
+                            samples += 1
+                        first = False
+                except IntegrationError as again:
+                    err = again
+                except ValueError:
+                    pass
+                print(f"rod-sim: {err}; the log holds the samples up to t = {sim.t:g} s",
+                      file=sys.stderr)
                 status = EXIT_CHECK_FAILED
                 break
             wall += time.perf_counter() - started
             for i in range(0 if first else 1, traj.t.size):
-                log.write_snapshot(traj.snapshot(i), scene, frame_id=args.frame_id)
+                snap = traj.snapshot(i)
+                validity.update(snap.t, traj.y[i], None, snap.alpha, snap.beta)
+                log.write_snapshot(snap, scene, frame_id=args.frame_id)
                 samples += 1
             first = False
     rtf = sim.t / wall if wall > 0 else math.inf
     print(f"{scene.name}: {model.name} model, {integrator.describe()}, t = 0..{sim.t:g} s, "
           f"{samples} samples -> {out} (integration {wall:.3f} s wall, {rtf:.0f}x real time, "
           f"{integrator.stats.nfev} rhs evaluations)")
+    if validity.summary():
+        print(f"rod-sim simulate: validity warning: {validity.summary()}", file=sys.stderr)
     return status
 
 
