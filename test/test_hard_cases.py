@@ -176,7 +176,12 @@ def test_long_undamped_runs_agree_with_tight_runs(model):
     t_end = 1000.0 if model == "reduced" else 30.0
     traj, _ = run(scene, model, t_end, rate=10.0)
     ref, _ = run(scene, model, t_end, rate=10.0, rtol=1e-11)
-    assert max_err(traj, ref) < 1e-4
+    # an undamped oscillation accumulates phase error linearly in time: about 1e-3 rad per
+    # 1000 s at rtol 1e-8 (docs/hard_cases.md); a tenfold tighter rtol must shrink it
+    err = max_err(traj, ref)
+    assert err < 1e-2
+    tighter, _ = run(scene, model, t_end, rate=10.0, rtol=1e-9)
+    assert max_err(tighter, ref) < 0.3 * err or err < 1e-8
 
 
 @pytest.mark.parametrize("model", ["reduced", "full"])
