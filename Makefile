@@ -29,12 +29,12 @@ $(STAMP): setup.py | $(VPY)
 test: venv
 	$(ROS_ENV) $(VPY) -m pytest $(PYTEST_ARGS)
 
+# The mission end to end: Table 1, then the ROS 2 node (reduced model, real time) with the hinge
+# PD controller over topics, recorded to out/demo.mcap.
 demo: venv
 	$(VENV)/bin/rod-sim table1
 	mkdir -p out
-	rm -f out/paper_example_reduced.mcap
-	$(VENV)/bin/rod-sim simulate config/paper_example.yaml --model reduced --t-end 2 \
-		--out out/paper_example_reduced.mcap
+	$(ROS_ENV) $(VPY) -m rod_sim.ros.demo --out out/demo.mcap --duration 3 --force
 
 bench: venv
 	$(VENV)/bin/rod-sim bench

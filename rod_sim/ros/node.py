@@ -511,13 +511,14 @@ class RodSimNode(Node):
             self._fail(exc)
             return False
         self._meter.add_step(self.period_ns, time.perf_counter_ns() - start)
+        snap = sim.snapshot()
         self._ledger.add_period(self.period_ns / NS_PER_S, p_start, self._net_power(held),
-                                self._energy(held))
-        self._publish_state(sim.snapshot())
+                                self._energy(held, bending=(snap.alpha, snap.beta)))
+        self._publish_state(snap)
         return True
 
-    def _energy(self, held: np.ndarray) -> float:
-        return self.model.energies(self.sim.t, self.sim.y, held).total
+    def _energy(self, held: np.ndarray, bending=None) -> float:
+        return self.model.energies(self.sim.t, self.sim.y, held, bending=bending).total
 
     def _net_power(self, held: np.ndarray) -> float:
         load, damper = self.model.powers(self.sim.t, self.sim.y, held)
