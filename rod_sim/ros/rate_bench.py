@@ -14,7 +14,7 @@ arrival with a monotonic clock. After a warm-up (JIT load, discovery) the window
   arrived (gaps in the header stamps: periods the node dropped or messages lost).
 
 ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is LOCALHOST and ``ROS_DOMAIN_ID`` is ``--domain`` (default
-230) for both processes: nothing leaves the machine.
+226) for both processes: nothing leaves the machine.
 """
 from __future__ import annotations
 
@@ -44,7 +44,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--duration", type=float, default=10.0, help="measured wall window [s]")
     p.add_argument("--warmup", type=float, default=3.0, help="wall seconds ignored first")
     p.add_argument("--record", action="store_true", help="let the node record an MCAP log too")
-    p.add_argument("--domain", type=int, default=230, help="ROS_DOMAIN_ID of both processes")
+    p.add_argument("--domain", type=int, default=226,
+                   help="ROS_DOMAIN_ID of both processes (FastDDS allows 0..232)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     return p
 
