@@ -11,7 +11,9 @@ arrival with a monotonic clock. After a warm-up (JIT load, discovery) the window
 - ``rate_hz``: messages per wall second;
 - ``rtf``: simulated time advanced (header stamps) per wall second of arrivals;
 - inter-arrival times [ms]: median, p99 and max; ``missing``: control periods whose states never
-  arrived (gaps in the header stamps: periods the node dropped or messages lost).
+  arrived (gaps in the header stamps: periods the node dropped or messages lost);
+- ``node_cpu_fraction``: CPU time of the node process per wall second (Linux /proc), the
+  headroom left on its core.
 
 ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is LOCALHOST and ``ROS_DOMAIN_ID`` is ``--domain`` (default
 226) for both processes: nothing leaves the machine.
@@ -82,6 +84,15 @@ def ros_arg(value) -> str:
     return repr(value)
 
 
+def process_cpu_s(pid: int) -> float | None:
+    """CPU time [s] (user + system) used so far by process ``pid``; None where /proc is absent."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return None
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def summarize(wall_ns: np.ndarray, stamp_ns: np.ndarray, rate_hz: float) -> dict:
     """Statistics of arrivals: wall arrival times and header stamps [ns], both (N,)."""
     dt_wall = np.diff(wall_ns) / 1e6
@@ -138,11 +149,12 @@ def measure(args) -> dict:
             if not wall:
                 raise RuntimeError("no rod_states within 60 s")
             start = time.monotonic()
-            first_kept = None
+            first_kept = cpu0 = None
             while time.monotonic() < start + args.warmup + args.duration:
                 executor.spin_once(timeout_sec=0.05)
                 if first_kept is None and time.monotonic() >= start + args.warmup:
-                    first_kept = len(wall)
+                    first_kept, cpu0 = len(wall), process_cpu_s(node_proc.pid)
+            cpu1 = process_cpu_s(node_proc.pid)
             node.destroy_node()
         finally:
             rclpy.try_shutdown()
@@ -154,6 +166,8 @@ def measure(args) -> dict:
         result = summarize(np.array(wall[first_kept:], dtype=np.int64),
                            np.array(stamps[first_kept:], dtype=np.int64), args.rate)
     from rod_sim.io.scene_yaml import load_scene
+    if cpu0 is not None and cpu1 is not None:
+        result["node_cpu_fraction"] = (cpu1 - cpu0) / args.duration
     result.update({"scene": Path(args.scene).name,
                    "n": args.rods if args.rods else load_scene(args.scene).n,
                    "model": args.model, "rate_hz_set": args.rate, "record": args.record,
@@ -172,7 +186,8 @@ def main(argv: list[str] | None = None) -> int:
               f"{' + recording' if args.record else ''}: {result['rate_hz']:.1f} msg/s, "
               f"RTF {result['rtf']:.3f}, inter-arrival median {ia['median']:.3f} ms, "
               f"p99 {ia['p99']:.3f} ms, max {ia['max']:.2f} ms, "
-              f"{result['missing_periods']} missing periods of {result['messages']}")
+              f"{result['missing_periods']} missing periods of {result['messages']}, "
+              f"node CPU {100 * result.get('node_cpu_fraction', float('nan')):.0f}% of a core")
     return 0
 
 
