@@ -301,11 +301,18 @@ class HingeModel(ChainModel):
         return replace(snap, hinge_moment=moment)
 
     # ----- integration with events -----
-    def integrate_events(self, integrator, y0, t0, t_out, held, events: list) -> np.ndarray:
+    def initial_mode(self) -> np.ndarray:
+        """The mode at t = 0: no latch fired, (n,) bool."""
+        return np.zeros(self.n, dtype=bool)
+
+    def integrate_events(self, integrator, y0, t0, t_out, held, events: list, mode=None):
         """States (len(t_out), state_size) at the sorted times t_out [s], integrating from
-        (t0, y0) with ``integrator``'s method and tolerances (``dop853-jit`` runs as scipy's
-        DOP853), stopping at every latch crossing to lock the hinge and project the velocity.
-        Events are appended to ``events``."""
+        (t0, y0) in ``mode`` (latched hinges, (n,) bool; None = the model's current one) with
+        ``integrator``'s method and tolerances (``dop853-jit`` runs as scipy's DOP853),
+        stopping at every latch crossing to lock the hinge and project the velocity.
+        Events are appended to ``events``. Returns (states, mode at the end)."""
+        if mode is not None:
+            self.latched = np.array(mode, dtype=bool)
         name = integrator.name
         if name == "dop853-jit":
             method = "DOP853"
@@ -357,7 +364,7 @@ class HingeModel(ChainModel):
         while done < t_out.size:
             Y[done] = y
             done += 1
-        return Y
+        return Y, self.latched.copy()
 
     def _event_functions(self):
         """solve_ivp event functions: latch crossings (terminal) of unlocked hinges, and

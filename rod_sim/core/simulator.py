@@ -61,12 +61,13 @@ class Simulator:
     def reset(self) -> None:
         """Back to the scene's initial state at t = 0 with zero held forces."""
         self.t_ns = 0
+        self.events = []    # hinge events (latch, stop contact), see rod_sim.core.hinges
+        self.mode = None    # hinge models: which latches have fired
+        if hasattr(self.model, "initial_mode"):
+            self.mode = self.model.initial_mode()
+            self.model.latched = self.mode.copy()
         self.y = self.model.initial_state()
         self.held = np.zeros((self.model.n, 2))
-        self.events = []    # hinge events (latch, stop contact), see rod_sim.core.hinges
-        if hasattr(self.model, "reset_mode"):
-            self.model.reset_mode()
-            self.y = self.model.initial_state()
         if hasattr(self.integrator, "reset"):
             self.integrator.reset()
 
@@ -95,8 +96,9 @@ class Simulator:
     def _integrate(self, t_out) -> np.ndarray:
         """States at t_out from now; models with hinge events integrate themselves."""
         if hasattr(self.model, "integrate_events"):
-            return self.model.integrate_events(self.integrator, self.y, self.t, t_out,
-                                               self.held, self.events)
+            Y, self.mode = self.model.integrate_events(self.integrator, self.y, self.t, t_out,
+                                                       self.held, self.events, self.mode)
+            return Y
         return self.integrator.integrate(self.model, self.y, self.t, t_out, self.held)
 
     def snapshot(self) -> Snapshot:
