@@ -328,3 +328,28 @@ def test_fixed_step_integrator_is_refused_with_events():
     sim = Simulator(make_model("rigid", _latch_scene(0.25)), make_integrator("rk4"))
     with pytest.raises(ValueError, match="integrator: rk4"):
         sim.advance(0.01)
+
+
+@pytest.mark.ros
+@pytest.mark.timeout(120)
+def test_node_records_hinge_events(tmp_path, monkeypatch):
+    rclpy = pytest.importorskip("rclpy")
+    from rclpy.parameter import Parameter
+    from rod_sim.ros.node import RodSimNode
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    monkeypatch.setenv("ROS_DOMAIN_ID", "211")
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, domain_id=211)
+    log = tmp_path / "node.mcap"
+    try:
+        node = RodSimNode(context=ctx, parameter_overrides=[
+            Parameter("scene_file", value=str(DEPLOYMENT)), Parameter("model", value="reduced"),
+            Parameter("record_path", value=str(log)), Parameter("rate_hz", value=50.0)])
+        for _ in range(400):                       # 8 s of simulated time, no commands
+            assert node._step_period(np.zeros((5, 2)))
+        node._log.close()
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)
+    events = read_hinge_events(log)
+    assert sorted(e["hinge"] for e in events if e["event"] == "latch") == [1, 2, 3, 4]
