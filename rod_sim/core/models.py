@@ -270,4 +270,7 @@ def make_model(name: str, scene: Scene) -> ChainModel:
         cls = MODELS[name]
     except KeyError:
         raise ModelError(f"model: unknown model {name!r} (choose from {', '.join(MODELS)})") from None
+    if scene.has_hinge_features:
+        from .hinges import HingeModel   # rest angles, stops, latches, locked hinges, rigid rods
+        return HingeModel(scene, cls)
     return cls(scene)

@@ -61,6 +61,11 @@ class Simulator:
     def reset(self) -> None:
         """Back to the scene's initial state at t = 0 with zero held forces."""
         self.t_ns = 0
+        self.events = []    # hinge events (latch, stop contact), see rod_sim.core.hinges
+        self.mode = None    # hinge models: which latches have fired
+        if hasattr(self.model, "initial_mode"):
+            self.mode = self.model.initial_mode()
+            self.model.latched = self.mode.copy()
         self.y = self.model.initial_state()
         self.held = np.zeros((self.model.n, 2))
         if hasattr(self.integrator, "reset"):
@@ -84,9 +89,17 @@ class Simulator:
         if dt_ns <= 0:
             raise ValueError(f"dt: must be > 0 (got {dt!r})")
         t1_ns = self.t_ns + dt_ns
-        Y = self.integrator.integrate(self.model, self.y, self.t, [t1_ns / NS_PER_S], self.held)
+        Y = self._integrate([t1_ns / NS_PER_S])
         self.y = Y[-1].copy()
         self.t_ns = t1_ns
+
+    def _integrate(self, t_out) -> np.ndarray:
+        """States at t_out from now; models with hinge events integrate themselves."""
+        if hasattr(self.model, "integrate_events"):
+            Y, self.mode = self.model.integrate_events(self.integrator, self.y, self.t, t_out,
+                                                       self.held, self.events, self.mode)
+            return Y
+        return self.integrator.integrate(self.model, self.y, self.t, t_out, self.held)
 
     def snapshot(self) -> Snapshot:
         """The chain now."""
@@ -110,7 +123,7 @@ class Simulator:
         if ticks[-1] != end_ns:
             ticks = np.concatenate([ticks, [end_ns]])
         t = ticks / NS_PER_S
-        Y = self.integrator.integrate(self.model, self.y, self.t, t, self.held)
+        Y = self._integrate(t)
         self.y = Y[-1].copy()
         self.t_ns = end_ns
         return Trajectory(self.model, t, Y)

@@ -118,6 +118,7 @@ def cmd_bench(args) -> int:
 
 
 def cmd_simulate(args) -> int:
+    from ..io.hinge_events import write_events
     from ..io.mcap_log import LogWriter
     from ..io.scene_yaml import scene_to_yaml
 
@@ -134,6 +135,7 @@ def cmd_simulate(args) -> int:
     samples = 0
     status = EXIT_OK
     chunk = 0.5                                  # simulated seconds integrated per call
+    logged_events = 0                            # hinge events (docs/hinges.md) written so far
     with LogWriter(out, metadata=metadata) as log:
         first = True
         while sim.t_ns < round(args.t_end * 1e9):
@@ -150,10 +152,12 @@ def cmd_simulate(args) -> int:
                 log.write_snapshot(traj.snapshot(i), scene, frame_id=args.frame_id)
                 samples += 1
             first = False
+            logged_events += write_events(log, sim.events[logged_events:])
     rtf = sim.t / wall if wall > 0 else math.inf
     print(f"{scene.name}: {model.name} model, {integrator.describe()}, t = 0..{sim.t:g} s, "
           f"{samples} samples -> {out} (integration {wall:.3f} s wall, {rtf:.0f}x real time, "
-          f"{integrator.stats.nfev} rhs evaluations)")
+          f"{integrator.stats.nfev} rhs evaluations"
+          + (f", {logged_events} hinge events" if logged_events else "") + ")")
     return status
 
 
