@@ -159,14 +159,18 @@ def reference_run(scene: Scene, history: ForceHistory, t_out_ns: np.ndarray,
 
 
 def significant_digits(err: np.ndarray, ref: np.ndarray) -> float:
-    """-log10 of the largest relative error |err| / max(|ref|, floor), floor =
-    SCD_FLOOR_FRACTION * max |ref| (capped at SCD_MAX; 0 digits for an infinite error)."""
+    """Significant correct digits: -log10 of the largest relative error |err| / max(|ref|,
+    floor), floor = SCD_FLOOR_FRACTION * max |ref| over all of ``ref`` (any shape). Capped at
+    SCD_MAX; 0 for an infinite error or a nonzero error on an all-zero reference; negative when
+    the error exceeds the value."""
     err = np.abs(np.asarray(err, dtype=float))
     ref = np.abs(np.asarray(ref, dtype=float))
     if err.size == 0:
         return float("nan")
     scale = float(np.max(ref)) if ref.size else 0.0
-    floor = max(SCD_FLOOR_FRACTION * scale, np.finfo(float).tiny)
+    if scale == 0.0:                     # a zero reference: no digit of a nonzero value is right
+        return SCD_MAX if float(np.max(err)) == 0.0 else 0.0
+    floor = SCD_FLOOR_FRACTION * scale
     rel = float(np.max(err / np.maximum(ref, floor)))
     if not math.isfinite(rel):
         return 0.0
