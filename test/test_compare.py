@@ -293,6 +293,7 @@ def test_perturbed_sample(tmp_path, small, capsys, delta, verdict):
     assert code == verdict and rep["pass"] is (verdict == 0)
     assert rep["max_abs_error"]["phi"] == pytest.approx(abs(delta), rel=1e-4)
     assert rep["where"]["phi"] == {"rod": 2, "t": pytest.approx(0.23)}
+    assert rep["tolerance_first_exceeded_at"] == (pytest.approx(0.23) if verdict else None)
 
 
 def test_non_finite_sample_fails(tmp_path, small, capsys):
@@ -385,6 +386,10 @@ def test_scene_with_other_parameters_fails(tmp_path, small, capsys):
     node_like_log(path, small, "full", periods=30, metadata_scene=stiffer)
     code, rep, _ = run_json(capsys, path)
     assert code == 1 and rep["max_abs_error"]["phi"] > DEFAULT_TOLERANCE
+    # --scene overrides the metadata, and the report says that they differ
+    code, rep, _ = run_json(capsys, path, "--scene", SMALL)
+    assert code == 0 and rep["max_abs_error"]["phi"] < 1e-8
+    assert "differs from the scene in the log's metadata" in rep["notes"][0]
 
 
 def test_truncated_log_compares_the_readable_part_flagged(tmp_path, small, capsys):

@@ -232,6 +232,12 @@ class Report:
         e = self.quantities["phi"].max
         return bool(math.isfinite(e) and e <= self.tolerance)
 
+    def first_exceeded(self) -> float | None:
+        """The first sample time [s] at which some rod's |phi error| exceeds the tolerance
+        (None if none does): before it, the log agrees with the full model."""
+        bad = np.flatnonzero(~(np.max(self.quantities["phi"].err, axis=1) <= self.tolerance))
+        return float(self.t[bad[0]]) if bad.size else None
+
     def reasons(self) -> list[str]:
         """Why the verdict is not a pass (empty for a pass)."""
         out = []
@@ -241,7 +247,8 @@ class Report:
         elif e > self.tolerance:
             rod, t = self.quantities["phi"].argmax()
             out.append(f"max |phi error| {e:.3g} rad (rod {rod}, t = {t:.6g} s) exceeds the "
-                       f"tolerance {self.tolerance:g} rad")
+                       f"tolerance {self.tolerance:g} rad (first at t = "
+                       f"{self.first_exceeded():.6g} s)")
         if self.gaps:
             a, b = self.gaps[0]
             out.append(f"/rod_states has {len(self.gaps)} gap(s) (first {a:.6g} s to {b:.6g} s): "
@@ -287,6 +294,7 @@ class Report:
             "pass": self.passed,
             "within_tolerance": self.within_tolerance,
             "reasons": self.reasons(),
+            "tolerance_first_exceeded_at": self.first_exceeded(),
             "max_abs_error": {q: (num(self.quantities[q].max) if q in self.quantities else None)
                               for q in QUANTITIES},
             "where": {q: (where(q) if q in self.quantities else None) for q in QUANTITIES},
