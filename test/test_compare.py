@@ -544,3 +544,35 @@ def test_bag_written_by_rosbags_rosbag2_writer(tmp_path, full_log, small, capsys
     assert code == 0 and rep["samples_compared"] == ref.samples
     assert rep["max_abs_error"]["phi"] == ref.quantities["phi"].max
     assert_clean_error(capsys, bag, match="pass --scene")
+
+
+def test_corrupted_and_cut_files_never_crash(tmp_path, full_log, capsys):
+    """Seeded byte flips and cuts anywhere in a log: exit 0, 1 or 2, never an exception, at
+    most one line on stderr; an exit 2 names the file."""
+    data = full_log.read_bytes()
+    rng = random.Random(11)
+    seen = set()
+    for i in range(30):
+        bad = bytearray(data)
+        if i % 3 == 0:
+            bad = bad[:rng.randrange(8, len(bad))]
+        else:
+            for _ in range(rng.choice([1, 4, 16])):
+                bad[rng.randrange(len(bad))] ^= 1 << rng.randrange(8)
+        path = tmp_path / f"bad_{i}.mcap"
+        path.write_bytes(bytes(bad))
+        code = rod_sim("compare", path)
+        out = capsys.readouterr()
+        seen.add(code)
+        assert code in (0, 1, 2) and "Traceback" not in out.err
+        assert len(out.err.strip().splitlines()) <= (1 if code == 2 else 0), out.err
+        if code == 2:
+            assert "error:" in out.err
+    assert 2 in seen
+
+
+def test_one_sample_is_not_a_comparison(tmp_path, small, capsys):
+    path = tmp_path / "one.mcap"
+    node_like_log(path, small, "full", periods=3,
+                  tamper=lambda top, t, m: None if top == "/rod_states" and t > 0 else m)
+    assert_clean_error(capsys, path, match="only 1 /rod_states sample")

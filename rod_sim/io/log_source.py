@@ -21,15 +21,15 @@ what can be said (a truncated file, duplicate messages) are collected in ``LogDa
 """
 from __future__ import annotations
 
+import contextlib
+import io
 import os
-import struct
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import yaml
-from mcap.exceptions import McapError
 
 from rod_sim.io.mcap_log import METADATA_NAME, LogFormatError, LogReader
 
@@ -38,10 +38,6 @@ BENDING_TOPIC = "/bending"
 POSES_TOPIC = "/node_poses"
 APPLIED_TOPIC = "/applied_forces"
 TOPICS = (STATE_TOPIC, BENDING_TOPIC, POSES_TOPIC, APPLIED_TOPIC)
-
-_DECODE_ERRORS = (McapError, struct.error, ValueError, IndexError, KeyError, TypeError,
-                  AttributeError, UnicodeDecodeError, EOFError, MemoryError)
-
 
 @dataclass
 class Series:
@@ -126,15 +122,9 @@ def _read_file(path: Path, raw: dict[str, list], notes: list[str]) -> tuple[dict
             metadata = reader.metadata(METADATA_NAME)
         except LogFormatError:
             metadata = None
-        try:
-            for topic, log_ns, msg in reader.messages(TOPICS):
-                stamp = None if topic == APPLIED_TOPIC else _stamp_ns(msg)
-                raw[topic].append((int(log_ns), stamp, msg))
-        except LogFormatError:
-            raise
-        except _DECODE_ERRORS as exc:
-            text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            raise LogFormatError(f"{path}: cannot decode a message ({text})") from None
+        for topic, log_ns, msg in reader.messages(TOPICS):
+            stamp = None if topic == APPLIED_TOPIC else _stamp_ns(msg)
+            raw[topic].append((int(log_ns), stamp, msg))
         truncated = reader.truncated or not reader.complete
         if not reader.complete:
             notes.append(f"{path.name} has no summary (writer stopped before closing it); "
@@ -180,7 +170,17 @@ def read_log(path: str | os.PathLike) -> LogData:
     metadata = None
     truncated = False
     for f in files:
-        meta, cut = _read_file(f, raw, notes)
+        try:
+            # mcap_ros2's vendored .msg parser prints to stderr before raising on a corrupt
+            # schema; the error is re-raised below as one line, so the print is dropped
+            with contextlib.redirect_stderr(io.StringIO()):
+                meta, cut = _read_file(f, raw, notes)
+        except LogFormatError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - a corrupt file can fail in any decoder
+            text = str(exc).splitlines()[0] if str(exc) else ""
+            raise LogFormatError(f"{f}: corrupt or unreadable ({type(exc).__name__}: {text})"
+                                 ) from None
         truncated |= cut
         if metadata is None and meta is not None:
             metadata = meta

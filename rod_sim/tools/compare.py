@@ -165,7 +165,10 @@ def run(args) -> int:
         report.notes.insert(0, note)
     report.info = info
     if plot is not None:
-        write_plot(report, plot, f"{info['log']}: {info['model']} model vs full")
+        try:
+            write_plot(report, plot, f"{info['log']}: {info['model']} model vs full")
+        except OSError as exc:
+            raise UsageError(f"--plot: cannot write {plot}: {exc.strerror or exc}") from None
     if args.json:
         out = report.as_json()
         out["plot"] = str(plot) if plot else None
