@@ -684,7 +684,7 @@ class RodSimNode(Node):
     def _open_log(self, path: Path) -> LogWriter:
         s = self.settings
         metadata = {"scene": scene_to_yaml(self.scene), "model": self.model.name,
-                    "integrator": s.integrator, "version": __version__,
+                    "integrator": self.sim.integrator.describe(), "version": __version__,
                     "rtol": repr(s.rtol), "rate_hz": repr(s.rate_hz),
                     "source": "rod_sim node", "mode": self._mode()}
         qos = {"/applied_forces": offered_qos_yaml(depth=1, durability="transient_local"),
