@@ -354,3 +354,24 @@ def test_node_records_hinge_events(tmp_path, monkeypatch):
         rclpy.try_shutdown(context=ctx)
     events = read_hinge_events(log)
     assert sorted(e["hinge"] for e in events if e["event"] == "latch") == [1, 2, 3, 4]
+
+
+def test_a_failed_advance_leaves_latches_and_events_as_they_were(monkeypatch):
+    from rod_sim.core.hinges import HingeEvent
+    from rod_sim.core.integrators import IntegrationError
+
+    sim = Simulator(make_model("rigid", scene(hinges__latch=[None, 0.5, None])))
+    sim.advance(0.01)
+    before = (sim.t_ns, sim.y.copy(), sim.mode.copy(), list(sim.events))
+
+    def latch_then_fail(integrator, y0, t0, t_out, held, events, mode):
+        sim.model.latched = np.array([False, True, False])
+        events.append(HingeEvent(t0, "latch", 1))
+        raise IntegrationError("step size underflow", t0)
+
+    monkeypatch.setattr(sim.model, "integrate_events", latch_then_fail)
+    with pytest.raises(IntegrationError):
+        sim.advance(0.01)
+    assert sim.t_ns == before[0] and np.array_equal(sim.y, before[1])
+    assert np.array_equal(sim.mode, before[2]) and not sim.model.latched.any()
+    assert sim.events == before[3]

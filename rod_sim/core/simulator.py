@@ -94,12 +94,19 @@ class Simulator:
         self.t_ns = t1_ns
 
     def _integrate(self, t_out) -> np.ndarray:
-        """States at t_out from now; models with hinge events integrate themselves."""
-        if hasattr(self.model, "integrate_events"):
+        """States at t_out from now; models with hinge events integrate themselves. When the
+        integration raises, the simulator is left as it was (latches and events included)."""
+        if not hasattr(self.model, "integrate_events"):
+            return self.integrator.integrate(self.model, self.y, self.t, t_out, self.held)
+        mode, latched, n_events = self.mode.copy(), self.model.latched.copy(), len(self.events)
+        try:
             Y, self.mode = self.model.integrate_events(self.integrator, self.y, self.t, t_out,
                                                        self.held, self.events, self.mode)
-            return Y
-        return self.integrator.integrate(self.model, self.y, self.t, t_out, self.held)
+        except BaseException:
+            self.mode, self.model.latched = mode, latched
+            del self.events[n_events:]
+            raise
+        return Y
 
     def snapshot(self) -> Snapshot:
         """The chain now."""
