@@ -66,6 +66,8 @@ class PlayStats:
     last_ns: int | None = None
     wall_s: float = 0.0
     stopped: bool = False
+    max_late_s: float = 0.0
+    """[s] largest delay of a publication after its due wall time (player side)."""
 
 
 class Player(Node):
@@ -142,7 +144,8 @@ class Player(Node):
 
     def _wait_until_due(self, executor, stop: StopRequest, t_ns: int) -> bool:
         """Serve callbacks and publish /clock until log time ``t_ns`` is due (False when a stop
-        is requested first). While paused the timeline is re-anchored at ``t_ns``."""
+        is requested first). While paused the timeline is re-anchored at ``t_ns``. Records
+        how late the due time is met in ``stats.max_late_s``."""
         period = self.clock_period_ns
         while True:
             if stop.requested or not executor.context.ok():
@@ -158,6 +161,7 @@ class Player(Node):
                 continue
             due = self.timeline.wall_at(t_ns)
             if now >= due:
+                self.stats.max_late_s = max(self.stats.max_late_s, (now - due) / NS_PER_S)
                 return True
             wake = due
             if period:
@@ -204,5 +208,8 @@ class Player(Node):
 
 def wait_for_subscribers(player: Player, executor, stop: StopRequest) -> bool:
     """Spin until every replayed topic has a subscriber (False when stopped first)."""
+    waiting = [t for t, pub in player._pubs.items() if pub.get_subscription_count() == 0]
+    if waiting:
+        player.get_logger().info(f"waiting for a subscriber on {', '.join(waiting)}")
     spin_until(executor, stop, player.subscribers_matched)
     return player.subscribers_matched()

@@ -8,6 +8,7 @@ missing or unreadable log, an unknown topic or a bad option.
 from __future__ import annotations
 
 import argparse
+import gc
 import sys
 
 from .common import EXIT_OK, UsageError, positive_float
@@ -112,7 +113,8 @@ def run(args: argparse.Namespace) -> int:
     end = "stopped" if stats.stopped else "end of log"
     print(f"rod-sim replay: {end}: {stats.messages} messages on {len(topics)} topics, "
           f"{stats.passes} pass(es), last pass {span:.3f} s of log time in "
-          f"{stats.wall_s:.3f} s wall at rate {args.rate:g}, {stats.clock_messages} /clock "
+          f"{stats.wall_s:.3f} s wall at rate {args.rate:g} (latest publication "
+          f"{stats.max_late_s * 1e3:.1f} ms after its time), {stats.clock_messages} /clock "
           "messages", file=sys.stderr)
     return EXIT_OK
 
@@ -144,6 +146,8 @@ def _play(source, topics: list[str], args):
             if ready and args.delay > 0:
                 stop.event.wait(args.delay)          # discovery runs in the background
             if ready and not stop.requested:
+                gc.collect()
+                gc.freeze()       # full collections of the startup heap stalled playback ~0.1 s
                 stats = player.play(executor, stop)
             else:
                 stats.stopped = True
