@@ -576,3 +576,10 @@ def test_one_sample_is_not_a_comparison(tmp_path, small, capsys):
     node_like_log(path, small, "full", periods=3,
                   tamper=lambda top, t, m: None if top == "/rod_states" and t > 0 else m)
     assert_clean_error(capsys, path, match="only 1 /rod_states sample")
+
+
+def test_help_states_the_default_tolerance():
+    from rod_sim.tools.cli import build_parser
+    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    help_text = sub.choices["compare"].format_help()
+    assert f"default {DEFAULT_TOLERANCE:g}" in " ".join(help_text.split())

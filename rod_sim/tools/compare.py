@@ -19,17 +19,15 @@ HELP = "check a log against a converged re-run of the full model"
 
 
 def configure(parser) -> None:
-    from .comparison import DEFAULT_TOLERANCE
-
     parser.add_argument("log", help="MCAP log (rod-sim simulate, the node's record_path) or a "
                                     "rosbag2 bag directory with MCAP storage")
     parser.add_argument("--json", action="store_true", help="machine-readable report")
     parser.add_argument("--plot", metavar="PNG", default=None,
                         help="write phi of both models and the error over time to PNG "
                              "(must not exist)")
-    parser.add_argument("--tolerance", type=positive_float, default=DEFAULT_TOLERANCE,
+    parser.add_argument("--tolerance", type=positive_float, default=None,
                         metavar="RAD", help="largest accepted |phi_log - phi_full| [rad] "
-                                            f"(default {DEFAULT_TOLERANCE:g})")
+                                            "(default 0.01, see docs/compare.md)")
     parser.add_argument("--scene", default=None, metavar="SCENE.yaml",
                         help="scene file, for logs without rod_sim metadata (overrides the "
                              "log's scene when given)")
@@ -142,7 +140,7 @@ def run(args) -> int:
     from ..io.log_source import read_log
     from ..io.mcap_log import LogFormatError
     from .common import new_output_path
-    from .comparison import CompareInputError, compare_log
+    from .comparison import DEFAULT_TOLERANCE, CompareInputError, compare_log
 
     plot = new_output_path(args.plot, "--plot") if args.plot else None
     try:
@@ -158,7 +156,8 @@ def run(args) -> int:
             "integrator": meta.get("integrator", "unknown"),
             "source": meta.get("source", "unknown"), "version": meta.get("version", "unknown")}
     try:
-        report = compare_log(log, scene, args.tolerance, rate_hz=_rate(meta))
+        tolerance = DEFAULT_TOLERANCE if args.tolerance is None else args.tolerance
+        report = compare_log(log, scene, tolerance, rate_hz=_rate(meta))
     except CompareInputError as exc:
         raise UsageError(str(exc)) from None
     if note:
