@@ -144,7 +144,7 @@ def run_dask(tasks: list[dict], address: str, on_row=None) -> dict:
     from .sweep_worker import failed_row, run_one
 
     try:
-        client = Client(address, timeout="10s", set_as_default=False)
+        client = Client(address, timeout="10s")
     except (OSError, TimeoutError, ValueError) as err:
         raise UsageError(f"--scheduler: cannot connect to {address}: "
                          f"{' '.join(str(err).split()) or type(err).__name__}") from None
