@@ -369,3 +369,8 @@ def test_sigint_stops_the_process_pool(tmp_path):
     rows = read_table(out)
     assert len(rows) < 400
     assert [r["run"] for r in rows] == sorted(r["run"] for r in rows)
+
+
+@pytest.mark.parametrize("name, runs", [("sweep_example", 32), ("sweep_monte_carlo", 64)])
+def test_shipped_specs_are_valid(name, runs):
+    assert len(expand(load_spec(ROOT / "config" / f"{name}.yaml"))) == runs

@@ -75,8 +75,7 @@ def _progress(total: int, desc: str):
         from tqdm import tqdm
     except ImportError:                                  # the progress bar is optional
         return None
-    return tqdm(total=total, desc=desc, unit="run", file=sys.stderr, disable=None,
-                dynamic_ncols=True)
+    return tqdm(total=total, desc=desc, unit="run", file=sys.stderr, disable=None)
 
 
 def run_serial(tasks: list[dict], on_row=None) -> dict:
@@ -260,7 +259,8 @@ def run(args) -> int:
 
         plot_sweep(rows, [p.path for p in spec.parameters],
                    {p.path for p in spec.parameters if p.random}, plot,
-                   title=f"{spec.name}: {', '.join(spec.models)}, t_end = {spec.t_end:g} s")
+                   title=f"{spec.name}: {', '.join(spec.models)}, t_end = {spec.t_end:g} s",
+                   logx={p.path for p in spec.parameters if p.log})
     print(f"{spec.name}: {_summary(rows, len(tasks))}; {wall:.1f} s wall -> {out}"
           + (f", {plot}" if plot else ""))
     return EXIT_OK

@@ -1,6 +1,7 @@
 """The summary plot of a sweep: a few outputs against each swept parameter.
 
-One column of panels per swept parameter, one row per output. Grid sweeps draw lines through
+One column of panels per swept parameter, one row per output (tip displacement, max |phi|,
+max bending slope, rhs evaluations: all reproducible, unlike wall time). Grid sweeps draw lines through
 the runs that share every other parameter (and the model); Monte-Carlo sweeps are scatter
 plots. Failed runs are marked with a red x on the bottom edge of each panel. matplotlib
 (the ``plot`` extra) is used with the Agg backend.
@@ -13,7 +14,7 @@ from pathlib import Path
 PLOTTED = (("max_tip_displacement", "max tip displacement [m]"),
            ("max_abs_phi", "max |phi| [rad]"),
            ("max_abs_bending", "max |alpha|, |beta| [rad]"),
-           ("rtf", "real-time factor"))
+           ("nfev", "rhs evaluations"))
 
 
 def _value(row: dict, key: str) -> float:
@@ -27,16 +28,17 @@ def _number(v) -> bool:
 
 
 def plot_sweep(rows: list[dict], params: list[str], random: set, path: str | Path,
-               title: str = "") -> None:
+               title: str = "", logx: set = frozenset()) -> None:
     """Write the summary figure of ``rows`` to ``path`` (PNG/SVG/PDF by extension).
 
     ``params``: swept parameter columns (numeric ones are plotted); ``random``: those drawn
-    from a distribution (scatter instead of lines).
+    from a distribution (scatter instead of lines); ``logx``: those plotted on a log axis.
     """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
 
     xs = [p for p in params if all(_number(r[p]) for r in rows)] or ["run"]
     models = sorted({r["model"] for r in rows})
@@ -71,11 +73,13 @@ def plot_sweep(rows: list[dict], params: list[str], random: set, path: str | Pat
                 ax.plot([r[x] for r in failed], [0.0] * len(failed), "x", color="red",
                         transform=ax.get_xaxis_transform(), clip_on=False,
                         label="failed" if i == 0 else None)
-            if key == "rtf":
-                ax.set_yscale("log")
-            values = [r[x] for r in rows if _number(r[x])]
-            if values and min(values) > 0 and max(values) >= 10 * min(values):
+            values = sorted({r[x] for r in rows if _number(r[x])})
+            if x in logx and values and min(values) > 0:
                 ax.set_xscale("log")
+                ax.xaxis.set_minor_formatter(NullFormatter())
+            if x not in random and x != "run" and 1 < len(values) <= 8:
+                ax.set_xticks(values, [f"{v:.4g}" for v in values])
+                ax.minorticks_off()
             if j == 0:
                 ax.set_ylabel(label)
             if i == len(PLOTTED) - 1:

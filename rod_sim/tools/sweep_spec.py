@@ -61,6 +61,7 @@ class Parameter:
     kind: str                  # 'grid' or one of RANDOM_KINDS
     values: tuple = ()
     args: tuple = ()
+    log: bool = False          # geometric grid or lognormal: plotted on a log axis
 
     @property
     def random(self) -> bool:
@@ -269,7 +270,8 @@ def _parameter(path: Any, body: Any) -> Parameter:
             grid = np.geomspace(start, stop, num)
         else:
             grid = np.linspace(start, stop, num)
-        return Parameter(str(path), segments, "grid", values=tuple(float(v) for v in grid))
+        return Parameter(str(path), segments, "grid", values=tuple(float(v) for v in grid),
+                         log=kind == "geomspace")
     if kind in RANDOM_KINDS:
         names = RANDOM_KINDS[kind]
         if not isinstance(arg, Mapping):
@@ -291,7 +293,8 @@ def _parameter(path: Any, body: Any) -> Parameter:
                 raise SweepSpecError(f"{sub}.median", f"must be > 0 (got {values['median']:g})")
             if not values["sigma"] > 0:
                 raise SweepSpecError(f"{sub}.sigma", f"must be > 0 (got {values['sigma']:g})")
-        return Parameter(str(path), segments, kind, args=tuple(values.items()))
+        return Parameter(str(path), segments, kind, args=tuple(values.items()),
+                         log=kind == "lognormal")
     kinds = ", ".join(GRID_KINDS + tuple(RANDOM_KINDS))
     raise SweepSpecError(sub, f"unknown kind (allowed: {kinds})")
 
