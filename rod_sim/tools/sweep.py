@@ -99,16 +99,27 @@ def _ignore_sigint() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)       # the parent handles Ctrl-C
 
 
-def run_local(tasks: list[dict], workers: int, on_row=None) -> dict:
-    """The tasks on a pool of ``workers`` fresh (spawned) processes. Returns {index: row}."""
+def _pool_context():
+    """Fresh worker processes: forked from a clean server process that has imported the
+    worker module once (forkserver, where the platform has it), else spawned."""
     import multiprocessing
+
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        ctx = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(["rod_sim.tools.sweep_worker"])
+        return ctx
+    return multiprocessing.get_context("spawn")
+
+
+def run_local(tasks: list[dict], workers: int, on_row=None) -> dict:
+    """The tasks on a pool of ``workers`` fresh processes. Returns {index: row}."""
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     from .sweep_worker import failed_row, run_one
 
     rows: dict = {}
     executor = ProcessPoolExecutor(max_workers=workers, initializer=_ignore_sigint,
-                                   mp_context=multiprocessing.get_context("spawn"))
+                                   mp_context=_pool_context())
     futures = {}
     try:
         futures = {executor.submit(run_one, task): task for task in tasks}
@@ -170,6 +181,11 @@ def run_dask(tasks: list[dict], address: str, on_row=None) -> dict:
     return rows
 
 
+def local_workers(requested: int | None, runs: int) -> int:
+    """Worker processes to start: ``requested`` (default os.cpu_count()), at most one per run."""
+    return max(1, min(requested or os.cpu_count() or 1, runs))
+
+
 def execute(tasks: list[dict], workers: int | None = None, scheduler: str | None = None,
             on_row=None) -> list[dict]:
     """Run the tasks locally or on Dask; the rows in task-index order."""
@@ -178,7 +194,7 @@ def execute(tasks: list[dict], workers: int | None = None, scheduler: str | None
     elif workers == 0:
         rows = run_serial(tasks, on_row)
     else:
-        rows = run_local(tasks, workers or os.cpu_count() or 1, on_row)
+        rows = run_local(tasks, local_workers(workers, len(tasks)), on_row)
     return [rows[i] for i in sorted(rows)]
 
 
@@ -232,7 +248,7 @@ def run(args) -> int:
     tasks = [r.task(spec) for r in runs]
     where = (f"Dask scheduler {args.scheduler}" if args.scheduler else
              "this process" if args.workers == 0 else
-             f"{args.workers or os.cpu_count() or 1} local worker processes")
+             f"{local_workers(args.workers, len(tasks))} local worker processes")
     grid = " x ".join(str(len(p.values)) for p in spec.parameters if not p.random) or "1"
     print(f"rod-sim sweep: {spec.name}: {len(tasks)} runs (grid {grid}, {spec.draws} draws, "
           f"{len(spec.models)} models) on {where}", file=sys.stderr, flush=True)
