@@ -374,3 +374,16 @@ def test_sigint_stops_the_process_pool(tmp_path):
 @pytest.mark.parametrize("name, runs", [("sweep_example", 32), ("sweep_monte_carlo", 64)])
 def test_shipped_specs_are_valid(name, runs):
     assert len(expand(load_spec(ROOT / "config" / f"{name}.yaml"))) == runs
+
+
+def test_inline_scene_and_text_values():
+    base = load_scene(SMALL).to_dict()
+    spec = {**TINY, "scene": base, "models": "rigid",
+            "parameters": {"loads[0].shape": ["constant", "step"], "loads[0].duration": [0.05]}}
+    from rod_sim.tools.sweep_spec import parse_spec
+
+    runs = expand(parse_spec(spec))
+    assert [r.params for r in runs] == [{"loads[0].shape": "constant", "loads[0].duration": 0.05},
+                                        {"loads[0].shape": "step", "loads[0].duration": 0.05}]
+    assert runs[1].scene["loads"][0]["shape"] == "step" and runs[1].model == "rigid"
+    assert base["loads"][0]["shape"] == "constant"         # the caller's data is not changed
