@@ -29,12 +29,16 @@ $(STAMP): setup.py | $(VPY)
 test: venv
 	$(ROS_ENV) $(VPY) -m pytest $(PYTEST_ARGS)
 
+# The mission end to end: Table 1; the ROS 2 node (reduced model) with the hinge PD controller
+# over topics, in lockstep (one control period per command: the same log on any machine, loaded
+# or not), recorded to out/demo.mcap; then the log re-run through the full model: verdict, table
+# and plot out/demo_compare.png. Drop --sync for the real-time pace.
 demo: venv
 	$(VENV)/bin/rod-sim table1
 	mkdir -p out
-	rm -f out/paper_example_reduced.mcap
-	$(VENV)/bin/rod-sim simulate config/paper_example.yaml --model reduced --t-end 2 \
-		--out out/paper_example_reduced.mcap
+	$(ROS_ENV) $(VPY) -m rod_sim.ros.demo --out out/demo.mcap --duration 3 --sync --force
+	rm -f out/demo_compare.png
+	$(VENV)/bin/rod-sim compare out/demo.mcap --plot out/demo_compare.png
 
 bench: venv
 	$(VENV)/bin/rod-sim bench

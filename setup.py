@@ -40,6 +40,7 @@ setup(
         "console_scripts": [
             "rod-sim = rod_sim.tools.cli:main",
             "sim_node = rod_sim.ros.node:main",
+            "pd_controller = rod_sim.ros.controller:main",
         ],
     },
 )

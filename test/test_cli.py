@@ -127,3 +127,20 @@ def test_every_subcommand_has_help():
     for sub in ("simulate", "table1"):
         proc = rod_sim(sub, "--help")
         assert proc.returncode == 0 and "usage" in proc.stdout
+
+
+def test_light_name_lists_match_the_registries():
+    """The CLI takes its choices from rod_sim.core.names (no numba/scipy import for --help)."""
+    from rod_sim.core import integrators, models, names
+
+    assert sorted(models.MODELS) == sorted(names.MODEL_NAMES)
+    for name in names.INTEGRATOR_NAMES:
+        assert integrators.make_integrator(name).name == name
+
+
+def test_help_does_not_import_the_numerical_core():
+    code = ("import sys; from rod_sim.tools import cli; cli.build_parser(); "
+            "print(sorted(m for m in ('numba', 'scipy', 'rclpy', 'matplotlib') if m in sys.modules))")
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
+                          timeout=60)
+    assert done.returncode == 0 and done.stdout.strip() == "[]", done.stdout + done.stderr

@@ -19,7 +19,8 @@ from . import erk
 
 DEFAULT_RTOL = 1e-8
 DEFAULT_STEP = 1e-3
-SCIPY_METHODS = ("RK45", "DOP853", "Radau", "BDF", "LSODA")
+from .names import INTEGRATOR_NAMES as INTEGRATORS
+from .names import SCIPY_METHODS
 
 _TABLEAUX = {
     "euler": (np.zeros((1, 1)), np.array([1.0]), np.array([0.0]), 1),
@@ -273,7 +274,6 @@ class ScipyIntegrator(Integrator):
         return Y
 
 
-INTEGRATORS = ("dop853-jit", "rk4", "rk2", "euler") + SCIPY_METHODS
 
 
 def make_integrator(name: str = "dop853-jit", *, rtol: float | None = None,

@@ -129,24 +129,31 @@ class ChainModel:
         kernels.mass_blocks(np.ascontiguousarray(phi, dtype=float), self.chain, A, Ma, Mb)
         return A, Ma, Mb
 
-    def hinge_deflection(self, t, y, held=None) -> tuple[np.ndarray, np.ndarray]:
-        """Relative hinge rotations Delta phi_h of eq. (2) and their rates, each (n,)."""
-        phi, dphi = self.phi(y), self.phi_rate(y)
-        alpha, beta = self.bending(t, y, held)
-        dalpha, dbeta = self.bending_rates(t, y, held)
+    def hinge_deflection(self, t, y, held=None, bending=None) -> tuple[np.ndarray, np.ndarray]:
+        """Relative hinge rotations Delta phi_h of eq. (2) and their rates, each (n,).
+        ``bending`` = (alpha, beta) if already known at (t, y, held)."""
+        alpha, beta = self.bending(t, y, held) if bending is None else bending
+        phi = self.phi(y)
         left = np.concatenate([[0.0], phi[:-1] + beta[:-1]])
+        return phi + alpha - left, self.hinge_deflection_rate(t, y, held)
+
+    def hinge_deflection_rate(self, t, y, held=None) -> np.ndarray:
+        """d/dt Delta phi_h (n,) [rad/s] (the reduced and rigid models carry no bending rates)."""
+        dphi = self.phi_rate(y)
+        dalpha, dbeta = self.bending_rates(t, y, held)
         dleft = np.concatenate([[0.0], dphi[:-1] + dbeta[:-1]])
-        return phi + alpha - left, dphi + dalpha - dleft
+        return dphi + dalpha - dleft
 
     def kinetic_energy(self, t, y, held=None) -> float:
         A, _, _ = self.mass_blocks(self.phi(y))
         v = self.phi_rate(y)
         return 0.5 * float(v @ A @ v)
 
-    def energies(self, t: float, y: np.ndarray, held=None) -> Energies:
-        """Kinetic, hinge-spring and bending energy [J] at (t, y)."""
-        delta, _ = self.hinge_deflection(t, y, held)
-        alpha, beta = self.bending(t, y, held)
+    def energies(self, t: float, y: np.ndarray, held=None, bending=None) -> Energies:
+        """Kinetic, hinge-spring and bending energy [J] at (t, y); ``bending`` = (alpha, beta)
+        if already known at (t, y, held)."""
+        alpha, beta = self.bending(t, y, held) if bending is None else bending
+        delta, _ = self.hinge_deflection(t, y, held, bending=(alpha, beta))
         p = self.params
         hinge = 0.5 * float(np.sum(p.kappa * delta**2))
         bend = float(np.sum(2.0 * p.EI / p.l * (alpha**2 + beta**2 + alpha * beta)))
@@ -160,7 +167,7 @@ class ChainModel:
         vx = np.cumsum(-l * np.sin(phi) * dphi)
         vy = np.cumsum(l * np.cos(phi) * dphi)
         load_power = float(np.sum(f[:, 0] * vx + f[:, 1] * vy))
-        _, ddelta = self.hinge_deflection(t, y, held)
+        ddelta = self.hinge_deflection_rate(t, y, held)
         return load_power, float(np.sum(self.params.nu * ddelta**2))
 
     def snapshot(self, t: float, y: np.ndarray, held=None) -> Snapshot:
@@ -168,7 +175,7 @@ class ChainModel:
         phi = np.array(self.phi(y), dtype=float)
         dphi = np.array(self.phi_rate(y), dtype=float)
         alpha, beta = self.bending(t, y, held)
-        delta, ddelta = self.hinge_deflection(t, y, held)
+        delta, ddelta = self.hinge_deflection(t, y, held, bending=(alpha, beta))
         p = self.params
         return Snapshot(
             t=float(t), phi=phi, phi_rate=dphi, alpha=np.asarray(alpha, float),
@@ -263,4 +270,7 @@ def make_model(name: str, scene: Scene) -> ChainModel:
         cls = MODELS[name]
     except KeyError:
         raise ModelError(f"model: unknown model {name!r} (choose from {', '.join(MODELS)})") from None
+    if scene.has_hinge_features:
+        from .hinges import HingeModel   # rest angles, stops, latches, locked hinges, rigid rods
+        return HingeModel(scene, cls)
     return cls(scene)

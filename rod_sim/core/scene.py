@@ -77,6 +77,17 @@ class Load:
         return out
 
 
+_FEATURE_DEFAULTS = {"hinge_rest_angle": 0.0, "stop_lower": -math.inf, "stop_upper": math.inf,
+                     "stop_stiffness": 0.0, "stop_damping": 0.0, "latch_angle": math.nan,
+                     "hinge_locked": False, "rod_rigid": False}
+
+
+def _is_default(arr: np.ndarray, default) -> bool:
+    if isinstance(default, float) and math.isnan(default):
+        return bool(np.all(np.isnan(arr)))
+    return bool(np.all(arr == default))
+
+
 def _readonly(a: np.ndarray) -> np.ndarray:
     a = np.array(a, dtype=float)
     a.setflags(write=False)
@@ -102,6 +113,15 @@ class Scene:
     phi0: np.ndarray
     phi_rate0: np.ndarray
     loads: tuple[Load, ...] = field(default_factory=tuple)
+    # Hinge features (docs/hinges.md); the defaults reproduce the plain chain exactly.
+    hinge_rest_angle: np.ndarray | None = None    # theta_rest_h [rad], default 0
+    stop_lower: np.ndarray | None = None          # stop angles [rad], default -inf / +inf
+    stop_upper: np.ndarray | None = None
+    stop_stiffness: np.ndarray | None = None      # contact stiffness [N m/rad], default 0
+    stop_damping: np.ndarray | None = None        # contact damping [N m s/rad], default 0
+    latch_angle: np.ndarray | None = None         # latch angle [rad], NaN = no latch
+    hinge_locked: np.ndarray | None = None        # bool (n,), default False
+    rod_rigid: np.ndarray | None = None           # bool (n,), default False
 
     def __post_init__(self):
         n = len(self.length)
@@ -112,6 +132,20 @@ class Scene:
                 raise SceneError(name, f"expected {n} values, got shape {arr.shape}")
             object.__setattr__(self, name, arr)
         object.__setattr__(self, "loads", tuple(self.loads))
+        for name, default in _FEATURE_DEFAULTS.items():
+            value = getattr(self, name)
+            value = default if value is None else value
+            arr = np.array(np.broadcast_to(np.asarray(value), (n,)),
+                           dtype=bool if isinstance(default, bool) else float)
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+
+    @property
+    def has_hinge_features(self) -> bool:
+        """True when a hinge or rod uses a feature beyond the plain chain (rest angle, stop,
+        latch, locked hinge, rigid rod)."""
+        return any(not _is_default(getattr(self, name), default)
+                   for name, default in _FEATURE_DEFAULTS.items())
 
     @property
     def n(self) -> int:
@@ -125,7 +159,8 @@ class Scene:
             if key not in data:
                 raise SceneError(key, "unknown scene field")
             if isinstance(data[key], np.ndarray):
-                value = np.broadcast_to(np.asarray(value, dtype=float), (self.n,))
+                dtype = bool if data[key].dtype == bool else float
+                value = np.broadcast_to(np.asarray(value, dtype=dtype), (self.n,))
             data[key] = value
         return Scene(**data)
 
@@ -165,17 +200,39 @@ class Scene:
         }
         if self.loads:
             out["loads"] = [load.to_dict() for load in self.loads]
+        self._features_to_dict(out)
         return out
+
+    def _features_to_dict(self, out: dict[str, Any]) -> None:
+        """Add the hinge-feature keys that differ from their defaults (so a plain scene's
+        dictionary is unchanged)."""
+        hinges = out["hinges"]
+        if not _is_default(self.hinge_rest_angle, 0.0):
+            hinges["rest_angle"] = [float(v) for v in self.hinge_rest_angle]
+        has_stop = (self.stop_lower > -math.inf) | (self.stop_upper < math.inf)
+        if has_stop.any():
+            hinges["stop"] = {
+                "angle": [[float(lo), float(hi)] if on else None
+                          for lo, hi, on in zip(self.stop_lower, self.stop_upper, has_stop)],
+                "stiffness": [float(v) for v in self.stop_stiffness],
+                "damping": [float(v) for v in self.stop_damping]}
+        if not _is_default(self.latch_angle, math.nan):
+            hinges["latch"] = [None if math.isnan(v) else float(v) for v in self.latch_angle]
+        if self.hinge_locked.any():
+            hinges["locked"] = [bool(v) for v in self.hinge_locked]
+        if self.rod_rigid.any():
+            out["rods"]["rigid"] = [bool(v) for v in self.rod_rigid]
 
 
 _TOP_KEYS = {"name", "rods", "nodes", "hinges", "initial", "loads"}
 _SECTION_KEYS = {
-    "rods": {"count", "length", "mass_per_length", "bending_stiffness"},
+    "rods": {"count", "length", "mass_per_length", "bending_stiffness", "rigid"},
     "nodes": {"mass"},
-    "hinges": {"stiffness", "damping"},
+    "hinges": {"stiffness", "damping", "rest_angle", "stop", "latch", "locked"},
     "initial": {"phi", "phi_rate"},
 }
 _LOAD_KEYS = {"node", "axis", "shape", "amplitude", "start", "duration"}
+_STOP_KEYS = {"angle", "stiffness", "damping"}
 
 
 def _is_number(v: Any) -> bool:
@@ -232,7 +289,86 @@ class _SceneParser:
             raise SceneError("nodes.mass",
                              f"the chain has no inertia: rod {n} and node {n} are both massless")
         loads = self._loads(data.get("loads", []), n)
+        scene_fields.update(self._features(sections, n, scene_fields))
         return Scene(name=name, loads=loads, **scene_fields)
+
+    def _features(self, sections, n, fields) -> dict[str, Any]:
+        """Hinge rest angles, stops, latches, locked hinges and rigid rods (docs/hinges.md)."""
+        hinges = sections["hinges"]
+        out: dict[str, Any] = {}
+        if hinges.get("rest_angle") is not None:
+            out["hinge_rest_angle"] = self._array("hinges.rest_angle", hinges["rest_angle"], n)
+        if hinges.get("locked") is not None:
+            out["hinge_locked"] = self._bools("hinges.locked", hinges["locked"], n)
+        if sections["rods"].get("rigid") is not None:
+            out["rod_rigid"] = self._bools("rods.rigid", sections["rods"]["rigid"], n)
+        if hinges.get("latch") is not None:
+            out["latch_angle"] = self._array("hinges.latch", hinges["latch"], n, allow_null=True)
+        stop = hinges.get("stop")
+        if stop is not None:
+            out.update(self._stop(stop, n))
+            theta0 = np.diff(fields["phi0"], prepend=0.0)
+            outside = np.flatnonzero((theta0 < out["stop_lower"]) | (theta0 > out["stop_upper"]))
+            if outside.size:
+                h = int(outside[0])
+                raise SceneError("hinges.stop.angle",
+                                 f"hinge {h}: the initial hinge angle {theta0[h]:g} rad lies "
+                                 f"outside its stops [{out['stop_lower'][h]:g}, "
+                                 f"{out['stop_upper'][h]:g}]")
+        return out
+
+    def _stop(self, stop, n) -> dict[str, np.ndarray]:
+        if not isinstance(stop, Mapping):
+            raise SceneError("hinges.stop", "must be a mapping with keys angle, stiffness, damping")
+        self._unknown(stop, _STOP_KEYS, "hinges.stop.")
+        for req in ("angle", "stiffness"):
+            if stop.get(req) is None:
+                raise SceneError(f"hinges.stop.{req}", "missing")
+        angle = stop["angle"]
+        path = "hinges.stop.angle"
+        if isinstance(angle, (list, tuple)) and len(angle) == 2 and all(
+                v is None or _is_number(v) for v in angle):
+            pairs, per_hinge = [angle] * n, False
+        elif isinstance(angle, (list, tuple)) and len(angle) == n:
+            pairs, per_hinge = list(angle), True
+        else:
+            raise SceneError(path, f"must be one [lower, upper] pair or a list of {n} pairs "
+                                   f"(null for a hinge without stops) (got {angle!r})")
+        lower = np.full(n, -math.inf)
+        upper = np.full(n, math.inf)
+        for i, pair in enumerate(pairs):
+            if pair is None:
+                continue
+            where = f" at index {i}" if per_hinge else ""
+            if not (isinstance(pair, (list, tuple)) and len(pair) == 2):
+                raise SceneError(path, f"must be a [lower, upper] pair{where} (got {pair!r})")
+            lo, hi = pair
+            lo = -math.inf if lo is None else lo
+            hi = math.inf if hi is None else hi
+            for v in (lo, hi):
+                if not _is_number(v) or math.isnan(float(v)):
+                    raise SceneError(path, f"angles must be numbers{where} (got {pair!r})")
+            if not float(lo) < float(hi) or float(lo) == math.inf or float(hi) == -math.inf:
+                raise SceneError(path, f"needs lower < upper{where} (got {pair!r})")
+            lower[i], upper[i] = float(lo), float(hi)
+        stiffness = self._array("hinges.stop.stiffness", stop["stiffness"], n, minimum=0.0,
+                                strict=True)
+        damping = self._array("hinges.stop.damping", stop.get("damping", 0.0), n, minimum=0.0)
+        return {"stop_lower": lower, "stop_upper": upper, "stop_stiffness": stiffness,
+                "stop_damping": damping}
+
+    @staticmethod
+    def _bools(path, value, n) -> np.ndarray:
+        if isinstance(value, (bool, np.bool_)):
+            return np.full(n, bool(value))
+        if not isinstance(value, (list, tuple)):
+            raise SceneError(path, f"must be true/false or a list of {n} booleans (got {value!r})")
+        if len(value) != n:
+            raise SceneError(path, f"expected a boolean or a list of {n} booleans, got {len(value)}")
+        for i, v in enumerate(value):
+            if not isinstance(v, (bool, np.bool_)):
+                raise SceneError(path, f"must be true or false at index {i} (got {v!r})")
+        return np.array(value, dtype=bool)
 
     @staticmethod
     def _unknown(mapping: Mapping, allowed: set, prefix: str) -> None:
@@ -242,7 +378,15 @@ class _SceneParser:
                                  f"unknown key (allowed: {', '.join(sorted(allowed))})")
 
     @staticmethod
-    def _array(path, value, n, *, minimum=None, strict=False) -> np.ndarray:
+    def _array(path, value, n, *, minimum=None, strict=False, allow_null=False) -> np.ndarray:
+        if allow_null and isinstance(value, (list, tuple)):
+            if len(value) != n:
+                raise SceneError(path, f"expected a scalar or a list of {n} values, got {len(value)}")
+            nulls = [v is None for v in value]
+            values = _SceneParser._array(path, [0.0 if v is None else v for v in value], n,
+                                         minimum=minimum, strict=strict)
+            values[nulls] = math.nan
+            return values
         if _is_number(value):
             values = [value] * n
         elif isinstance(value, (list, tuple)):

@@ -61,6 +61,11 @@ class Simulator:
     def reset(self) -> None:
         """Back to the scene's initial state at t = 0 with zero held forces."""
         self.t_ns = 0
+        self.events = []    # hinge events (latch, stop contact), see rod_sim.core.hinges
+        self.mode = None    # hinge models: which latches have fired
+        if hasattr(self.model, "initial_mode"):
+            self.mode = self.model.initial_mode()
+            self.model.latched = self.mode.copy()
         self.y = self.model.initial_state()
         self.held = np.zeros((self.model.n, 2))
         if hasattr(self.integrator, "reset"):
@@ -84,10 +89,25 @@ class Simulator:
         if dt_ns <= 0:
             raise ValueError(f"dt: must be > 0 (got {dt!r})")
         t1_ns = self.t_ns + dt_ns
-        Y = self.integrator.integrate(self.model, self.y, self.t, [t1_ns / NS_PER_S], self.held)
+        Y = self._integrate([t1_ns / NS_PER_S])
         self._check_finite(np.array([t1_ns / NS_PER_S]), Y)
         self.y = Y[-1].copy()
         self.t_ns = t1_ns
+
+    def _integrate(self, t_out) -> np.ndarray:
+        """States at t_out from now; models with hinge events integrate themselves. When the
+        integration raises, the simulator is left as it was (latches and events included)."""
+        if not hasattr(self.model, "integrate_events"):
+            return self.integrator.integrate(self.model, self.y, self.t, t_out, self.held)
+        mode, latched, n_events = self.mode.copy(), self.model.latched.copy(), len(self.events)
+        try:
+            Y, self.mode = self.model.integrate_events(self.integrator, self.y, self.t, t_out,
+                                                       self.held, self.events, self.mode)
+        except BaseException:
+            self.mode, self.model.latched = mode, latched
+            del self.events[n_events:]
+            raise
+        return Y
 
     def _check_finite(self, t: np.ndarray, Y: np.ndarray) -> None:
         """Never hand out a NaN: IntegrationError naming the first non-finite sample."""
@@ -120,7 +140,7 @@ class Simulator:
         if ticks[-1] != end_ns:
             ticks = np.concatenate([ticks, [end_ns]])
         t = ticks / NS_PER_S
-        Y = self.integrator.integrate(self.model, self.y, self.t, t, self.held)
+        Y = self._integrate(t)
         self._check_finite(t, Y)
         self.y = Y[-1].copy()
         self.t_ns = end_ns

@@ -18,6 +18,7 @@ import io
 import os
 import struct
 from collections.abc import Iterable, Iterator, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -393,6 +394,75 @@ class LogReader:
                                          f"({channel.message_encoding})")
                 decoders[channel.id] = decoder
             yield channel.topic, log_time, decoder(record.data)
+
+
+    # ----- raw access, for players -----
+
+    def channels(self) -> dict[str, ChannelInfo]:
+        """Absolute topic name -> :class:`ChannelInfo` (type, encoding, channel metadata such
+        as ``offered_qos_profiles``, message count when the summary has statistics)."""
+        if self._summary is not None:
+            schemas, channels = self._summary.schemas, list(self._summary.channels.values())
+            stats = self._summary.statistics
+            counts = dict(stats.channel_message_counts) if stats is not None else {}
+        else:
+            schemas, channels, counts = {}, [], {}
+            for record in self._scan():
+                if isinstance(record, Schema):
+                    schemas[record.id] = record
+                elif isinstance(record, Channel):
+                    channels.append(record)
+        return {c.topic: ChannelInfo(
+                    topic=c.topic,
+                    type_name=schemas[c.schema_id].name if c.schema_id in schemas else "",
+                    encoding=c.message_encoding, metadata=dict(c.metadata),
+                    message_count=counts.get(c.id))
+                for c in channels}
+
+    def raw_messages(self, topics: Iterable[str] | None = None
+                     ) -> Iterator[tuple[str, int, bytes]]:
+        """``(topic, log_time [ns], serialized payload)`` in log-time order (file order on
+        ties), without decoding: for CDR channels the payload is what a ROS publisher sends.
+        ``topics``: absolute names to keep (default: all). A file without summary is scanned
+        and its payloads are held in memory to be sorted."""
+        wanted = None if topics is None else set(topics)
+        try:
+            if self._summary is not None:
+                for _, channel, message in self._reader.iter_messages(
+                        topics=wanted, log_time_order=True):
+                    yield channel.topic, message.log_time, message.data
+                return
+            channels: dict[int, Channel] = {}
+            found: list[tuple[int, int, str, bytes]] = []
+            for record in self._scan():
+                if isinstance(record, Channel):
+                    channels[record.id] = record
+                elif isinstance(record, Message):
+                    channel = channels.get(record.channel_id)
+                    if channel is None:
+                        raise LogFormatError(f"{self.path}: message on unknown channel "
+                                             f"{record.channel_id}")
+                    if wanted is None or channel.topic in wanted:
+                        found.append((record.log_time, len(found), channel.topic, record.data))
+            found.sort(key=lambda item: (item[0], item[1]))
+            for log_time, _, topic, data in found:
+                yield topic, log_time, data
+        except McapError as exc:
+            raise LogFormatError(f"{self.path}: cannot read messages: {exc}") from exc
+
+
+@dataclass(frozen=True)
+class ChannelInfo:
+    """One channel of a log: ``topic`` (absolute), ``type_name`` (schema name, e.g.
+    ``sensor_msgs/msg/JointState``; '' without schema), ``encoding`` ('cdr' for ROS 2),
+    ``metadata`` (str -> str, e.g. ``offered_qos_profiles``), ``message_count`` (None when the
+    file has no statistics)."""
+
+    topic: str
+    type_name: str
+    encoding: str
+    metadata: dict[str, str]
+    message_count: int | None = None
 
 
 def _joint_series(path, topic: str, prefix: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -41,6 +41,7 @@ def message_class(type_name: str) -> type:
         raise ValueError(f"message type {type_name!r} is not installed") from None
 
 
+@lru_cache(maxsize=None)
 def _element_type(field_type: str) -> str | None:
     """The message type name of the elements of a sequence/array field type string (e.g.
     ``sequence<geometry_msgs/Point>`` -> ``geometry_msgs/Point``); None for primitives."""

@@ -44,6 +44,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help="real-time factor (1 = wall-clock pace, 0 = as fast as possible)")
     parser.add_argument("--sync", action="store_true",
                         help="lockstep: one control period per controller command")
+    parser.add_argument("--kp", type=float, default=None,
+                        help="controller proportional gain [N m/rad] (default: the node's)")
+    parser.add_argument("--kd", type=float, default=None,
+                        help="controller derivative gain [N m s/rad] (default: the node's)")
     parser.add_argument("--force", action="store_true", help="overwrite an existing --out")
     return parser
 
@@ -82,8 +86,10 @@ def run(args: argparse.Namespace) -> int:
                 Parameter("sync_mode", value=bool(args.sync)),
                 Parameter("record_path", value=str(args.out))])
             nodes.append(sim)
+            gains = [Parameter(name, value=float(value)) for name, value in
+                     (("kp", args.kp), ("kd", args.kd)) if value is not None]
             controller = HingePDController(parameter_overrides=[
-                Parameter("scene_file", value=str(args.scene))])
+                Parameter("scene_file", value=str(args.scene)), *gains])
             nodes.append(controller)
             executor = SingleThreadedExecutor()
             for node in nodes:

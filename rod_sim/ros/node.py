@@ -79,6 +79,8 @@ from rod_sim.core.models import MODELS, ModelError, make_model
 from rod_sim.core.scene import SceneError
 from rod_sim.core.simulator import Simulator
 from rod_sim.io import topics
+from rod_sim.io.hinge_events import (HINGE_EVENTS_TOPIC, HINGE_EVENTS_TYPE, event_message,
+                                     event_time_ns)
 from rod_sim.io.mcap_log import LogWriteError, LogWriter, offered_qos_yaml
 from rod_sim.io.scene_yaml import load_scene, scene_to_yaml
 from rod_sim.ros.conversions import (CommandError, command_forces, message_class,
@@ -114,6 +116,10 @@ CLOCK_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
                        durability=DurabilityPolicy.VOLATILE)
 """rclcpp's ClockQoS, which rclpy's TimeSource and rosbag2's player also use."""
 COMMAND_QOS = STATE_QOS
+EVENTS_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
+                        reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
+"""``hinge_events`` are rare and matter: kept for late subscribers (docs/hinges.md)."""
 
 
 class NodeConfigError(ValueError):
@@ -334,6 +340,9 @@ class RodSimNode(Node):
         self._clock_pub = (self.create_publisher(message_class(topics.TOPIC_TYPES["clock"]),
                                                  "/clock", CLOCK_QOS)
                            if self.settings.publish_clock else None)
+        self._events_pub = self.create_publisher(message_class(HINGE_EVENTS_TYPE),
+                                                 HINGE_EVENTS_TOPIC, EVENTS_QOS)
+        self._events_sent = 0
         self.create_subscription(Float64MultiArray, COMMAND_TOPIC, self._on_command, COMMAND_QOS)
         self.create_service(Trigger, "~/reset", self._on_reset)
         self.create_service(Trigger, "~/step", self._on_step)
@@ -513,16 +522,27 @@ class RodSimNode(Node):
             self._fail(exc)
             return False
         self._meter.add_step(self.period_ns, time.perf_counter_ns() - start)
-        self._ledger.add_period(self.period_ns / NS_PER_S, p_start, self._net_power(held),
-                                self._energy(held))
         snap = sim.snapshot()
+        self._ledger.add_period(self.period_ns / NS_PER_S, p_start, self._net_power(held),
+                                self._energy(held, bending=(snap.alpha, snap.beta)))
         self._validity.update(sim.t, sim.y, held, snap.alpha, snap.beta)
         self._validity.update_energy(sim.t, self._ledger.residual, self._ledger.scale)
         self._publish_state(snap)
+        self._publish_events()
         return True
 
-    def _energy(self, held: np.ndarray) -> float:
-        return self.model.energies(self.sim.t, self.sim.y, held).total
+    def _publish_events(self) -> None:
+        """Hinge events (latch, stop contact; docs/hinges.md) since the last period, stamped
+        at their simulated times: recorded and published."""
+        for event in self.sim.events[self._events_sent:]:
+            data = event_message(event.to_dict())
+            self._record("/" + HINGE_EVENTS_TOPIC, HINGE_EVENTS_TYPE,
+                         event_time_ns(event.to_dict()), data)
+            self._events_pub.publish(to_message(HINGE_EVENTS_TYPE, data))
+        self._events_sent = len(self.sim.events)
+
+    def _energy(self, held: np.ndarray, bending=None) -> float:
+        return self.model.energies(self.sim.t, self.sim.y, held, bending=bending).total
 
     def _net_power(self, held: np.ndarray) -> float:
         load, damper = self.model.powers(self.sim.t, self.sim.y, held)
@@ -616,6 +636,7 @@ class RodSimNode(Node):
     def _on_reset(self, request, response):
         """Back to the scene's initial state at t = 0 (commands and errors cleared)."""
         self.sim.reset()
+        self._events_sent = 0
         self._latest = None
         self._sync_queue.clear()
         self._command_active = False
@@ -669,10 +690,12 @@ class RodSimNode(Node):
     def _open_log(self, path: Path) -> LogWriter:
         s = self.settings
         metadata = {"scene": scene_to_yaml(self.scene), "model": self.model.name,
-                    "integrator": s.integrator, "version": __version__,
+                    "integrator": self.sim.integrator.describe(), "version": __version__,
                     "rtol": repr(s.rtol), "rate_hz": repr(s.rate_hz),
                     "source": "rod_sim node", "mode": self._mode()}
-        qos = {"/applied_forces": offered_qos_yaml(depth=1, durability="transient_local")}
+        qos = {"/applied_forces": offered_qos_yaml(depth=1, durability="transient_local"),
+               "/" + HINGE_EVENTS_TOPIC: offered_qos_yaml(depth=100,
+                                                          durability="transient_local")}
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
             return LogWriter(path, metadata=metadata, qos=qos)

@@ -15,16 +15,15 @@ import importlib
 import json
 import math
 import pkgutil
+import re
 import sys
 import time
-
-import numpy as np
+from pathlib import Path
 
 from .. import __version__
-from ..core.integrators import INTEGRATORS, IntegrationError, make_integrator
-from ..core.models import MODELS, ModelError, make_model
+from ..core.names import INTEGRATOR_NAMES as INTEGRATORS
+from ..core.names import MODEL_NAMES
 from ..core.scene import SceneError
-from ..core.simulator import Simulator
 
 from .common import (EXIT_BAD_INPUT, EXIT_CHECK_FAILED, EXIT_OK, PAPER_EXAMPLE, UsageError,
                      load_scene, new_output_path)
@@ -34,13 +33,20 @@ __all__ = ["EXIT_OK", "EXIT_CHECK_FAILED", "EXIT_BAD_INPUT", "PAPER_EXAMPLE", "U
            "build_parser", "run", "main"]
 
 
+_COMMAND_LINE = re.compile(r"^COMMAND\s*=", re.MULTILINE)
+
+
 def plugin_modules() -> dict:
-    """``{COMMAND: module}`` of the ``rod_sim.tools`` modules that define a subcommand."""
+    """``{COMMAND: module}`` of the ``rod_sim.tools`` modules that define a subcommand (only
+    those are imported: a module-level ``COMMAND = ...`` line marks them)."""
     from .. import tools
 
     found = {}
     for info in pkgutil.iter_modules(tools.__path__):
         if info.name in ("cli", "common"):
+            continue
+        path = Path(info.module_finder.path) / f"{info.name}.py"
+        if path.is_file() and not _COMMAND_LINE.search(path.read_text(encoding="utf-8")):
             continue
         module = importlib.import_module(f"{tools.__name__}.{info.name}")
         if hasattr(module, "COMMAND"):
@@ -58,7 +64,7 @@ def build_parser() -> argparse.ArgumentParser:
                          description="Offline run of a scene (no ROS graph); writes the log of "
                                      "SPEC section 5 sampled at --rate in simulated time.")
     sim.add_argument("scene", help="scene YAML file")
-    sim.add_argument("--model", choices=sorted(MODELS), default="reduced")
+    sim.add_argument("--model", choices=sorted(MODEL_NAMES), default="reduced")
     sim.add_argument("--t-end", type=_positive_float, required=True, help="end time [s]")
     sim.add_argument("--out", required=True, help="MCAP log to write (must not exist)")
     sim.add_argument("--rate", type=_positive_float, default=100.0,
@@ -118,6 +124,10 @@ def cmd_bench(args) -> int:
 
 
 def cmd_simulate(args) -> int:
+    from ..core.integrators import IntegrationError, make_integrator
+    from ..core.models import make_model
+    from ..core.simulator import Simulator
+    from ..io.hinge_events import write_events
     from ..io.mcap_log import LogWriter
     from ..io.scene_yaml import scene_to_yaml
 
@@ -137,6 +147,7 @@ def cmd_simulate(args) -> int:
     samples = 0
     status = EXIT_OK
     chunk = 0.5                                  # simulated seconds integrated per call
+    logged_events = 0                            # hinge events (docs/hinges.md) written so far
     with LogWriter(out, metadata=metadata) as log:
         first = True
         while sim.t_ns < round(args.t_end * 1e9):
@@ -153,6 +164,7 @@ def cmd_simulate(args) -> int:
                             log.write_snapshot(part.snapshot(i), scene, frame_id=args.frame_id)
                             samples += 1
                         first = False
+                        logged_events += write_events(log, sim.events[logged_events:])
                 except IntegrationError as again:
                     err = again
                 except ValueError:
@@ -168,10 +180,12 @@ def cmd_simulate(args) -> int:
                 log.write_snapshot(snap, scene, frame_id=args.frame_id)
                 samples += 1
             first = False
+            logged_events += write_events(log, sim.events[logged_events:])
     rtf = sim.t / wall if wall > 0 else math.inf
     print(f"{scene.name}: {model.name} model, {integrator.describe()}, t = 0..{sim.t:g} s, "
           f"{samples} samples -> {out} (integration {wall:.3f} s wall, {rtf:.0f}x real time, "
-          f"{integrator.stats.nfev} rhs evaluations)")
+          f"{integrator.stats.nfev} rhs evaluations"
+          + (f", {logged_events} hinge events" if logged_events else "") + ")")
     if validity.summary():
         print(f"rod-sim simulate: validity warning: {validity.summary()}", file=sys.stderr)
     return status
@@ -215,7 +229,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return run(args)
-    except (SceneError, ModelError, UsageError, FileExistsError, ValueError) as err:
+    except (SceneError, UsageError, FileExistsError, ValueError) as err:   # ModelError too
         message = str(err).splitlines()[0] if str(err) else type(err).__name__
         print(f"rod-sim {args.command}: error: {message}", file=sys.stderr)
         return EXIT_BAD_INPUT

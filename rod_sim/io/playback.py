@@ -1,0 +1,288 @@
+"""Reading a log for replay (no ROS here): sources, topic selection, QoS and timing.
+
+:func:`open_source` opens an MCAP log (ours, or any ROS 2 one) or a rosbag2 bag directory
+(``metadata.yaml`` + MCAP files) as a :class:`PlaybackSource`: its :class:`Track` s (topic, ROS
+type, the QoS to offer) and its raw CDR messages in log-time order, merged across the files of
+a bag. :class:`Timeline` maps log time to wall time at a playback rate. The ROS side is
+:mod:`rod_sim.ros.replay`.
+
+Errors are :class:`PlaybackError` (a ValueError) with a one-line message naming the file or
+topic, so ``rod-sim replay`` reports them with exit status 2.
+"""
+from __future__ import annotations
+
+import heapq
+import os
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import yaml
+
+from rod_sim.io.mcap_log import MAGIC, ChannelInfo, LogFormatError, LogReader
+
+NS_PER_S = 1_000_000_000
+DEFAULT_DEPTH = 10
+"""History depth offered when a channel records none (rclcpp's and rosbag2's default)."""
+BAG_METADATA = "metadata.yaml"
+
+# rmw enum values, as rosbag2 before Jazzy wrote them into offered_qos_profiles
+_RELIABILITY = {0: "system_default", 1: "reliable", 2: "best_effort", 3: "unknown",
+                4: "best_available"}
+_DURABILITY = {0: "system_default", 1: "transient_local", 2: "volatile", 3: "unknown",
+               4: "best_available"}
+_HISTORY = {0: "system_default", 1: "keep_last", 2: "keep_all", 3: "unknown"}
+
+
+class PlaybackError(ValueError):
+    """A log, bag or topic selection that cannot be replayed; ``str(err)`` is one line."""
+
+
+@dataclass(frozen=True)
+class QosSpec:
+    """The QoS a replay publisher offers: ``reliability`` ('reliable' | 'best_effort'),
+    ``durability`` ('volatile' | 'transient_local'), ``history`` ('keep_last' | 'keep_all')
+    and ``depth`` (messages kept for keep_last)."""
+
+    reliability: str = "reliable"
+    durability: str = "volatile"
+    history: str = "keep_last"
+    depth: int = DEFAULT_DEPTH
+
+    def describe(self) -> str:
+        depth = f" depth {self.depth}" if self.history == "keep_last" else ""
+        return f"{self.reliability}, {self.durability}, {self.history}{depth}"
+
+
+def _policy(value, names: Mapping[int, str]) -> str:
+    if isinstance(value, bool):
+        raise ValueError(f"not a QoS policy: {value!r}")
+    if isinstance(value, int):
+        return names.get(value, "unknown")
+    return str(value).strip().lower()
+
+
+def adapt_offers(profiles: Sequence[Mapping]) -> QosSpec:
+    """The QoS to offer for a topic recorded from publishers offering ``profiles`` (dicts as in
+    ``offered_qos_profiles``), following rosbag2's player: reliable only if every recorded
+    publisher was reliable, transient_local only if every one was; keep_last with the largest
+    recorded depth (keep_all if every one was keep_all). No profiles: the default."""
+    if not profiles:
+        return QosSpec()
+    reliability = [_policy(p.get("reliability", 1), _RELIABILITY) for p in profiles]
+    durability = [_policy(p.get("durability", 2), _DURABILITY) for p in profiles]
+    history = [_policy(p.get("history", 1), _HISTORY) for p in profiles]
+    depths = [int(p.get("depth", 0) or 0) for p in profiles]
+    keep_all = all(h == "keep_all" for h in history)
+    depth = max(depths) if max(depths) > 0 else DEFAULT_DEPTH
+    return QosSpec(
+        reliability="reliable" if all(r == "reliable" for r in reliability) else "best_effort",
+        durability=("transient_local" if all(d == "transient_local" for d in durability)
+                    else "volatile"),
+        history="keep_all" if keep_all else "keep_last", depth=depth)
+
+
+def parse_offered_qos(text: str | None) -> QosSpec:
+    """The QoS to offer from a channel's ``offered_qos_profiles`` YAML (rosbag2's format,
+    Jazzy strings or the older enum numbers). Empty or missing: the default. Raises ValueError
+    for text that is not such a list."""
+    if text is None or not text.strip():
+        return QosSpec()
+    try:
+        profiles = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ValueError(f"offered_qos_profiles is not YAML: {' '.join(str(exc).split())}"
+                         ) from None
+    if profiles is None:
+        return QosSpec()
+    if not isinstance(profiles, list) or not all(isinstance(p, Mapping) for p in profiles):
+        raise ValueError("offered_qos_profiles is not a list of QoS mappings")
+    return adapt_offers(profiles)
+
+
+@dataclass(frozen=True)
+class Track:
+    """A topic of a source: ``topic`` (absolute), ``type_name`` (``pkg/msg/Name``),
+    ``encoding`` ('cdr' for ROS 2), ``qos`` to offer, ``message_count`` (None if unknown) and
+    ``note`` (why the QoS is a default, or '')."""
+
+    topic: str
+    type_name: str
+    encoding: str
+    qos: QosSpec
+    message_count: int | None = None
+    note: str = ""
+
+
+def _track(info: ChannelInfo) -> Track:
+    note = ""
+    try:
+        qos = parse_offered_qos(info.metadata.get("offered_qos_profiles"))
+    except ValueError as exc:
+        qos, note = QosSpec(), f"{exc}; offering the default QoS"
+    return Track(topic=info.topic, type_name=info.type_name, encoding=info.encoding, qos=qos,
+                 message_count=info.message_count, note=note)
+
+
+def bag_files(directory: Path) -> list[Path]:
+    """The MCAP files of a rosbag2 bag directory, in the order its ``metadata.yaml`` lists
+    them. Raises PlaybackError for a directory that is not a readable MCAP bag."""
+    meta_path = directory / BAG_METADATA
+    if not meta_path.is_file():
+        raise PlaybackError(f"{directory} is a directory without {BAG_METADATA} (not a "
+                            "rosbag2 bag)")
+    try:
+        meta = yaml.safe_load(meta_path.read_text(encoding="utf-8"))
+        info = meta["rosbag2_bagfile_information"]
+    except (OSError, UnicodeDecodeError, yaml.YAMLError, KeyError, TypeError) as exc:
+        raise PlaybackError(f"{meta_path}: not a rosbag2 metadata file "
+                            f"({' '.join(str(exc).split())})") from None
+    storage = str(info.get("storage_identifier", ""))
+    if storage != "mcap":
+        raise PlaybackError(f"{directory}: storage {storage!r} is not supported (MCAP bags "
+                            "only; convert with `ros2 bag convert`)")
+    if info.get("compression_mode"):
+        raise PlaybackError(f"{directory}: rosbag2 file compression "
+                            f"({info.get('compression_format') or info['compression_mode']}) "
+                            "is not supported")
+    names = info.get("relative_file_paths") or []
+    files = [directory / str(name) for name in names]
+    if not files:
+        raise PlaybackError(f"{meta_path} lists no files")
+    missing = [str(f) for f in files if not f.is_file()]
+    if missing:
+        raise PlaybackError(f"{directory}: bag file {missing[0]} is missing")
+    return files
+
+
+class PlaybackSource:
+    """An MCAP file or a rosbag2 bag directory opened for replay (a context manager).
+
+    ``tracks``: absolute topic -> :class:`Track`. ``complete``: every file has its summary
+    (False for a log whose writer was killed: it is read up to its last complete chunk).
+    """
+
+    def __init__(self, path: str | os.PathLike):
+        self.path = Path(path)
+        if not self.path.exists():
+            raise PlaybackError(f"{self.path} does not exist")
+        self.files = bag_files(self.path) if self.path.is_dir() else [self.path]
+        self._readers: list[LogReader] = []
+        try:
+            for f in self.files:
+                self._readers.append(self._open(f))
+            self.tracks = self._collect_tracks()
+        except BaseException:
+            self.close()
+            raise
+        self.complete = all(r.complete for r in self._readers)
+
+    @staticmethod
+    def _open(path: Path) -> LogReader:
+        try:
+            with open(path, "rb") as f:
+                head = f.read(len(MAGIC))
+        except OSError as exc:
+            raise PlaybackError(f"cannot read {path}: {exc.strerror or exc}") from None
+        if head != MAGIC:
+            raise PlaybackError(f"{path} is not an MCAP file")
+        try:
+            return LogReader(path)
+        except (LogFormatError, OSError) as exc:
+            raise PlaybackError(" ".join(str(exc).split())) from None
+
+    def _collect_tracks(self) -> dict[str, Track]:
+        tracks: dict[str, Track] = {}
+        for reader in self._readers:
+            try:
+                channels = reader.channels()
+            except LogFormatError as exc:
+                raise PlaybackError(" ".join(str(exc).split())) from None
+            for topic, info in channels.items():
+                track = _track(info)
+                known = tracks.get(topic)
+                if known is None:
+                    tracks[topic] = track
+                elif known.type_name != track.type_name:
+                    raise PlaybackError(f"{self.path}: {topic} is {known.type_name} in one "
+                                        f"file and {track.type_name} in another")
+                elif known.message_count is not None and track.message_count is not None:
+                    tracks[topic] = Track(**{**known.__dict__, "message_count":
+                                             known.message_count + track.message_count})
+        return tracks
+
+    def messages(self, topics: Iterable[str] | None = None
+                 ) -> Iterator[tuple[str, int, bytes]]:
+        """``(topic, log_time [ns], CDR bytes)`` of ``topics`` (absolute; default all) in
+        log-time order, merged across the files of a bag. Raises PlaybackError for a corrupt
+        file."""
+        wanted = None if topics is None else list(topics)
+        streams = [((t, k, topic, data) for topic, t, data in r.raw_messages(wanted))
+                   for k, r in enumerate(self._readers)]
+        try:
+            for t_ns, _, topic, data in heapq.merge(*streams, key=lambda m: (m[0], m[1])):
+                yield topic, t_ns, data
+        except LogFormatError as exc:
+            raise PlaybackError(" ".join(str(exc).split())) from None
+
+    def close(self) -> None:
+        for reader in self._readers:
+            reader.close()
+        self._readers = []
+
+    def __enter__(self) -> "PlaybackSource":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def open_source(path: str | os.PathLike) -> PlaybackSource:
+    """Open an MCAP file or a rosbag2 MCAP bag directory for replay (PlaybackError if not)."""
+    return PlaybackSource(path)
+
+
+def absolute(topic: str) -> str:
+    return topic if topic.startswith("/") else "/" + topic
+
+
+def select_topics(tracks: Mapping[str, Track], topics: Iterable[str] | None = None,
+                  exclude: Iterable[str] | None = None) -> list[str]:
+    """The absolute topics to replay, sorted: ``topics`` (relative names allowed; default all)
+    minus ``exclude``. Raises PlaybackError for a name the source does not have, or when
+    nothing is left."""
+    known = sorted(tracks)
+    chosen = known if not topics else [absolute(t) for t in topics]
+    removed = [absolute(t) for t in (exclude or ())]
+    for name in [*chosen, *removed]:
+        if name not in tracks:
+            raise PlaybackError(f"topic {name} is not in the log (it has: "
+                                f"{', '.join(known) or 'no topics'})")
+    selected = sorted(set(chosen) - set(removed))
+    if not selected:
+        raise PlaybackError("no topic left to replay")
+    return selected
+
+
+class Timeline:
+    """Log time [ns] <-> wall time [ns, monotonic] at ``rate`` log seconds per wall second,
+    anchored by :meth:`anchor` (at the start, after a pause and at each loop)."""
+
+    def __init__(self, rate: float):
+        if not rate > 0:
+            raise ValueError(f"rate must be > 0 (got {rate})")
+        self.rate = float(rate)
+        self.log_ns = 0
+        self.wall_ns = 0
+
+    def anchor(self, log_ns: int, wall_ns: int) -> None:
+        """From now on log time ``log_ns`` corresponds to wall time ``wall_ns``."""
+        self.log_ns, self.wall_ns = int(log_ns), int(wall_ns)
+
+    def wall_at(self, log_ns: int) -> int:
+        """Wall time at which log time ``log_ns`` is due."""
+        return self.wall_ns + round((log_ns - self.log_ns) / self.rate)
+
+    def log_at(self, wall_ns: int) -> int:
+        """Log time that wall time ``wall_ns`` corresponds to."""
+        return self.log_ns + round((wall_ns - self.wall_ns) * self.rate)

@@ -1,0 +1,195 @@
+"""Rate, real-time factor and jitter of the node as an outside subscriber sees them.
+
+    python -m rod_sim.ros.rate_bench --rate 1000 --duration 10
+    python -m rod_sim.ros.rate_bench --rods 128 --rate 100 --duration 10 --json
+
+The node runs in its own process (``python -m rod_sim.ros.node``, real-time pace, the reduced
+model by default); this process subscribes to ``rod_states`` and time-stamps every message on
+arrival with a monotonic clock. After a warm-up (JIT load, discovery) the window of
+``--duration`` wall seconds gives:
+
+- ``rate_hz``: messages per wall second;
+- ``rtf``: simulated time advanced (header stamps) per wall second of arrivals;
+- inter-arrival times [ms]: median, p99 and max; ``missing``: control periods whose states never
+  arrived (gaps in the header stamps: periods the node dropped or messages lost);
+- ``node_cpu_fraction``: CPU time of the node process per wall second (Linux /proc), the
+  headroom left on its core.
+
+``ROS_AUTOMATIC_DISCOVERY_RANGE`` is LOCALHOST and ``ROS_DOMAIN_ID`` is ``--domain`` (default
+226) for both processes: nothing leaves the machine.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[2]
+DEFAULT_SCENE = REPO / "config" / "paper_example.yaml"
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m rod_sim.ros.rate_bench", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--scene", default=str(DEFAULT_SCENE), help="scene YAML (default: the seed's)")
+    p.add_argument("--rods", type=int, default=None,
+                   help="override the number of rods (same per-rod properties and loads)")
+    p.add_argument("--model", default="reduced", choices=("reduced", "full", "rigid"))
+    p.add_argument("--rate", type=float, default=1000.0, help="node rate_hz [Hz]")
+    p.add_argument("--duration", type=float, default=10.0, help="measured wall window [s]")
+    p.add_argument("--warmup", type=float, default=3.0, help="wall seconds ignored first")
+    p.add_argument("--record", action="store_true", help="let the node record an MCAP log too")
+    p.add_argument("--domain", type=int, default=226,
+                   help="ROS_DOMAIN_ID of both processes (FastDDS allows 0..232)")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    return p
+
+
+def scene_file(args, tmp: Path) -> Path:
+    """The scene to run: ``--scene`` itself, or a copy with ``--rods`` rods."""
+    if args.rods is None:
+        return Path(args.scene)
+    from rod_sim.io.scene_yaml import load_scene, scene_to_yaml
+    from rod_sim.core.scene import Scene
+
+    data = load_scene(args.scene).to_dict()
+    n_old = data["rods"]["count"]
+    data["rods"]["count"] = args.rods
+    for section in ("rods", "nodes", "hinges"):
+        for key, value in data[section].items():
+            if isinstance(value, list) and len(value) == n_old:
+                data[section][key] = [value[0]] * args.rods
+    data.pop("initial", None)
+    for load in data.get("loads", []):
+        load["node"] = args.rods if load["node"] == n_old else min(load["node"], args.rods)
+    data["name"] = f"{data.get('name', 'scene')}_n{args.rods}"
+    path = tmp / f"{data['name']}.yaml"
+    path.write_text(scene_to_yaml(Scene.from_dict(data)))
+    return path
+
+
+def ros_arg(value) -> str:
+    """A parameter value as written after ``-p name:=`` (YAML)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return value if value else "''"
+    return repr(value)
+
+
+def process_cpu_s(pid: int) -> float | None:
+    """CPU time [s] (user + system) used so far by process ``pid``; None where /proc is absent."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return None
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def summarize(wall_ns: np.ndarray, stamp_ns: np.ndarray, rate_hz: float) -> dict:
+    """Statistics of arrivals: wall arrival times and header stamps [ns], both (N,)."""
+    dt_wall = np.diff(wall_ns) / 1e6
+    period_ns = 1e9 / rate_hz
+    gaps = np.round(np.diff(stamp_ns) / period_ns).astype(int)
+    span_wall = (wall_ns[-1] - wall_ns[0]) / 1e9
+    return {"messages": int(wall_ns.size),
+            "rate_hz": (wall_ns.size - 1) / span_wall,
+            "rtf": (stamp_ns[-1] - stamp_ns[0]) / 1e9 / span_wall,
+            "interarrival_ms": {"median": float(np.median(dt_wall)),
+                                "p99": float(np.percentile(dt_wall, 99)),
+                                "max": float(dt_wall.max())},
+            "missing_periods": int(np.sum(np.maximum(gaps - 1, 0))),
+            "expected_period_ms": period_ns / 1e6}
+
+
+def measure(args) -> dict:
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    os.environ["ROS_DOMAIN_ID"] = str(args.domain)
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from sensor_msgs.msg import JointState
+
+    from rod_sim.ros.node import STATE_QOS
+
+    with tempfile.TemporaryDirectory() as tmpdir:
+        tmp = Path(tmpdir)
+        scene = scene_file(args, tmp)
+        params = {"scene_file": str(scene), "model": args.model, "rate_hz": float(args.rate),
+                  "real_time_factor": 1.0, "sync_mode": False, "publish_clock": True,
+                  "record_path": str(tmp / "bench.mcap") if args.record else ""}
+        cmd = [sys.executable, "-m", "rod_sim.ros.node", "--ros-args"]
+        for key, value in params.items():
+            cmd += ["-p", f"{key}:={ros_arg(value)}"]
+        node_proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.DEVNULL,
+                                     stderr=subprocess.PIPE, text=True)
+        rclpy.init()
+        wall, stamps = [], []
+        try:
+            node = rclpy.create_node("rate_bench_subscriber")
+
+            def on_state(msg):
+                wall.append(time.perf_counter_ns())
+                stamps.append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+
+            node.create_subscription(JointState, "rod_states", on_state, STATE_QOS)
+            executor = SingleThreadedExecutor()
+            executor.add_node(node)
+            deadline = time.monotonic() + 60.0
+            while not wall and time.monotonic() < deadline:
+                if node_proc.poll() is not None:
+                    raise RuntimeError(f"node exited: {node_proc.stderr.read().strip()}")
+                executor.spin_once(timeout_sec=0.1)
+            if not wall:
+                raise RuntimeError("no rod_states within 60 s")
+            start = time.monotonic()
+            first_kept = cpu0 = None
+            while time.monotonic() < start + args.warmup + args.duration:
+                executor.spin_once(timeout_sec=0.05)
+                if first_kept is None and time.monotonic() >= start + args.warmup:
+                    first_kept, cpu0 = len(wall), process_cpu_s(node_proc.pid)
+            cpu1 = process_cpu_s(node_proc.pid)
+            node.destroy_node()
+        finally:
+            rclpy.try_shutdown()
+            node_proc.terminate()
+            try:
+                node_proc.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                node_proc.kill()
+        result = summarize(np.array(wall[first_kept:], dtype=np.int64),
+                           np.array(stamps[first_kept:], dtype=np.int64), args.rate)
+    from rod_sim.io.scene_yaml import load_scene
+    if cpu0 is not None and cpu1 is not None:
+        result["node_cpu_fraction"] = (cpu1 - cpu0) / args.duration
+    result.update({"scene": Path(args.scene).name,
+                   "n": args.rods if args.rods else load_scene(args.scene).n,
+                   "model": args.model, "rate_hz_set": args.rate, "record": args.record,
+                   "window_s": args.duration})
+    return result
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    result = measure(args)
+    if args.json:
+        print(json.dumps(result, indent=1))
+    else:
+        ia = result["interarrival_ms"]
+        print(f"n = {result['n']} {result['model']}, rate_hz {args.rate:g}"
+              f"{' + recording' if args.record else ''}: {result['rate_hz']:.1f} msg/s, "
+              f"RTF {result['rtf']:.3f}, inter-arrival median {ia['median']:.3f} ms, "
+              f"p99 {ia['p99']:.3f} ms, max {ia['max']:.2f} ms, "
+              f"{result['missing_periods']} missing periods of {result['messages']}, "
+              f"node CPU {100 * result.get('node_cpu_fraction', float('nan')):.0f}% of a core")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

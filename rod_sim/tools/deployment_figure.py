@@ -1,0 +1,83 @@
+"""Snapshots of a chain from a log: ``python -m rod_sim.tools.deployment_figure LOG PNG``.
+
+Draws the chords of the rods (node positions from the logged rod angles and the scene's rod
+lengths) at several simulated times, and marks the latch events of ``/hinge_events``
+(docs/hinges.md). Also ``rod-sim deployment-figure LOG PNG``.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+
+import numpy as np
+
+COMMAND = "deployment-figure"
+HELP = "draw snapshots of a logged chain (e.g. the deployment scene) with its latch events"
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("log", help="MCAP log written by rod-sim simulate or the node")
+    parser.add_argument("png", help="picture to write")
+    parser.add_argument("--times", type=float, nargs="+", default=None,
+                        help="snapshot times [s] (default: 8 evenly spaced up to the last "
+                             "latch, and the end)")
+
+
+def run(args) -> int:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ..core.kinematics import node_positions
+    from ..io.hinge_events import read_hinge_events
+    from ..io.mcap_log import LogReader, read_rod_states
+    from ..io.scene_yaml import scene_from_yaml_text
+
+    with LogReader(args.log) as reader:
+        scene = scene_from_yaml_text(reader.metadata()["scene"])
+    t, phi, _ = read_rod_states(args.log)
+    events = read_hinge_events(args.log)
+    latches = [e for e in events if e["event"] == "latch"]
+    if args.times:
+        times = args.times
+    else:
+        t_last = max([e["t"] for e in latches], default=t[-1])
+        times = list(np.linspace(0.0, t_last, 8)) + [float(t[-1])]
+    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(8, 8), gridspec_kw={"height_ratios": [3, 1.4]})
+    cmap = plt.get_cmap("viridis")
+    for j, ts in enumerate(times):
+        i = int(np.argmin(np.abs(t - ts)))
+        xy = node_positions(np.asarray(scene.length), phi[i])
+        ax.plot(xy[:, 0], xy[:, 1], "-o", ms=3, color=cmap(j / max(len(times) - 1, 1)),
+                label=f"t = {t[i]:.2f} s")
+    ax.plot([0], [0], "ks", ms=8)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(f"{scene.name}: chain at several times ({len(latches)} latch events)")
+    ax.legend(fontsize=7, loc="best")
+    theta = np.diff(phi, prepend=0.0, axis=1)
+    for h in range(scene.n):
+        ax2.plot(t, theta[:, h], label=f"hinge {h}")
+    for e in latches:
+        ax2.axvline(e["t"], color="k", lw=0.6, ls=":")
+        ax2.annotate(f"latch {e['hinge']}", (e["t"], 0.0), rotation=90, fontsize=7,
+                     xytext=(2, 5), textcoords="offset points")
+    ax2.set_xlabel("t [s]")
+    ax2.set_ylabel("hinge angle [rad]")
+    ax2.legend(fontsize=7, ncol=scene.n)
+    fig.tight_layout()
+    fig.savefig(args.png, dpi=110)
+    print(f"{args.png}: {len(times)} snapshots, {len(latches)} latch events")
+    return 0
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m rod_sim.tools.deployment_figure",
+                                     description=__doc__.splitlines()[0])
+    configure(parser)
+    return run(parser.parse_args(argv))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

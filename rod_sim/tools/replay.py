@@ -1,0 +1,160 @@
+"""``rod-sim replay LOG``: republish a log's topics on a live ROS graph, with their timing and
+/clock, like ``ros2 bag play`` on machines without rosbag2 (see docs/replay.md).
+
+LOG is an MCAP file (a rod_sim log or any ROS 2 MCAP) or a rosbag2 bag directory with MCAP
+storage. Exit 0 at the end of the log or on SIGINT/SIGTERM; 2 with a one-line message for a
+missing or unreadable log, an unknown topic or a bad option.
+"""
+from __future__ import annotations
+
+import argparse
+import gc
+import sys
+
+from .common import EXIT_OK, UsageError, positive_float
+
+COMMAND = "replay"
+HELP = "republish a log's topics on a live ROS graph with their timing and /clock"
+DEFAULT_CLOCK_HZ = 100.0
+
+
+def non_negative_float(text: str) -> float:
+    """argparse type: a finite number >= 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (value >= 0 and value != float("inf")):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0 (got {text})")
+    return value
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.description = (
+        "Republish the topics of an MCAP log (or a rosbag2 MCAP bag directory) on the ROS "
+        "graph with their recorded timing, QoS and bytes, and publish the log time on /clock "
+        "(use_sim_time nodes follow it). Stops at the end of the log (or, with --loop, on "
+        "SIGINT/SIGTERM).")
+    parser.add_argument("log", metavar="LOG", help="MCAP file or rosbag2 bag directory")
+    parser.add_argument("-r", "--rate", type=positive_float, default=1.0,
+                        help="log seconds per wall second (default 1; 2 = twice as fast)")
+    parser.add_argument("--topics", nargs="+", metavar="TOPIC",
+                        help="replay only these topics (default: all)")
+    parser.add_argument("--exclude-topics", nargs="+", metavar="TOPIC", default=(),
+                        help="do not replay these topics")
+    parser.add_argument("-l", "--loop", action="store_true",
+                        help="start again at the end of the log, until stopped")
+    clock = parser.add_mutually_exclusive_group()
+    clock.add_argument("--clock", type=positive_float, nargs="?", const=DEFAULT_CLOCK_HZ,
+                       default=DEFAULT_CLOCK_HZ, metavar="HZ",
+                       help="publish the log time on /clock at HZ wall-clock Hz and at every "
+                            f"message (default: on, {DEFAULT_CLOCK_HZ:g} Hz)")
+    clock.add_argument("--no-clock", dest="clock", action="store_const", const=0.0,
+                       help="do not publish /clock")
+    parser.add_argument("--start-offset", type=non_negative_float, default=0.0, metavar="S",
+                        help="start S seconds (log time) after the first message")
+    parser.add_argument("-d", "--delay", type=non_negative_float, default=0.0, metavar="S",
+                        help="wait S wall seconds after creating the publishers")
+    parser.add_argument("--wait-for-subscribers", action="store_true",
+                        help="before playing, wait until every replayed topic has a "
+                             "subscriber")
+    parser.add_argument("--start-paused", action="store_true",
+                        help="start paused; resume with the ~/pause service (std_srvs/SetBool "
+                             "data: false) or ~/toggle_paused (std_srvs/Trigger)")
+
+
+def _select(source, args) -> list[str]:
+    from ..io.playback import select_topics
+    from ..ros.conversions import message_class
+
+    selected = select_topics(source.tracks, args.topics, args.exclude_topics)
+    explicit = bool(args.topics)
+    kept = []
+    for topic in selected:
+        track = source.tracks[topic]
+        problem = None
+        if track.encoding != "cdr":
+            problem = f"its encoding is {track.encoding!r}, not cdr"
+        else:
+            try:
+                message_class(track.type_name)
+            except ValueError as exc:
+                problem = str(exc)
+        if problem is None:
+            kept.append(topic)
+        elif explicit:
+            raise UsageError(f"cannot replay {topic}: {problem}")
+        else:
+            print(f"rod-sim replay: skipping {topic}: {problem}", file=sys.stderr)
+    if args.clock and "/clock" in kept:
+        kept.remove("/clock")
+        print("rod-sim replay: the log's own /clock is not replayed (the player publishes the "
+              "log time; pass --no-clock to replay the recorded one)", file=sys.stderr)
+    if not kept:
+        raise UsageError("no topic left to replay")
+    return kept
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..io.playback import NS_PER_S, open_source
+
+    with open_source(args.log) as source:
+        topics = _select(source, args)
+        for topic in topics:
+            note = source.tracks[topic].note
+            if note:
+                print(f"rod-sim replay: {topic}: {note}", file=sys.stderr)
+        if not source.complete:
+            print(f"rod-sim replay: {args.log} has no summary (its writer was stopped): "
+                  "replaying its complete chunks", file=sys.stderr)
+        stats = _play(source, topics, args)
+    span = ((stats.last_ns - stats.first_ns) / NS_PER_S
+            if stats.last_ns is not None and stats.first_ns is not None else 0.0)
+    end = "stopped" if stats.stopped else "end of log"
+    print(f"rod-sim replay: {end}: {stats.messages} messages on {len(topics)} topics, "
+          f"{stats.passes} pass(es), last pass {span:.3f} s of log time in "
+          f"{stats.wall_s:.3f} s wall at rate {args.rate:g} (latest publication "
+          f"{stats.max_late_s * 1e3:.1f} ms after its time), {stats.clock_messages} /clock "
+          "messages", file=sys.stderr)
+    return EXIT_OK
+
+
+def _play(source, topics: list[str], args):
+    import rclpy
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
+
+    from ..ros.node import StopRequest
+    from ..ros.replay import PlayStats, Player, wait_for_subscribers
+
+    rclpy.init(args=["rod-sim replay"], signal_handler_options=SignalHandlerOptions.NO)
+    player = None
+    stats = PlayStats(stopped=True)
+    with StopRequest() as stop:
+        try:
+            player = Player(source, topics, rate=args.rate, clock_hz=args.clock,
+                            loop=args.loop, start_paused=args.start_paused,
+                            start_offset_s=args.start_offset)
+            stats = player.stats
+            executor = SingleThreadedExecutor()
+            executor.add_node(player)
+            player.get_logger().info(
+                f"replaying {len(topics)} topic(s) of {args.log} at rate {args.rate:g}"
+                + (f", /clock at {args.clock:g} Hz" if args.clock else ", no /clock")
+                + (", looping" if args.loop else "") + (", paused" if args.start_paused else ""))
+            ready = not args.wait_for_subscribers or wait_for_subscribers(player, executor, stop)
+            if ready and args.delay > 0:
+                stop.event.wait(args.delay)          # discovery runs in the background
+            if ready and not stop.requested:
+                gc.collect()
+                gc.freeze()       # full collections of the startup heap stalled playback ~0.1 s
+                stats = player.play(executor, stop)
+            else:
+                stats.stopped = True
+        except (KeyboardInterrupt, ExternalShutdownException):
+            stats.stopped = True
+        finally:
+            if player is not None:
+                player.destroy_node()
+            rclpy.try_shutdown()
+    return stats

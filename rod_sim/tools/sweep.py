@@ -1,0 +1,292 @@
+"""``rod-sim sweep SPEC.yaml``: batch runs over parameter grids or Monte-Carlo draws.
+
+The spec (``docs/sweep.md``, parsed by :mod:`.sweep_spec`) is expanded into runs, every run's
+scene is validated before any run starts, then the runs go to a local process pool
+(``--workers``, default ``os.cpu_count()``; ``--workers 0`` runs them in this process) or to an
+existing Dask cluster (``--scheduler ADDRESS``). Each run is one call of
+:func:`.sweep_worker.run_one` and one row of the result table (``--out``, CSV or Parquet),
+in run order whatever order the runs finish in; failed runs are rows with their reason.
+Ctrl-C cancels the outstanding runs, writes the rows finished so far and exits with 130.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+from .common import EXIT_OK, UsageError, new_output_path
+
+COMMAND = "sweep"
+HELP = "batch runs over parameter grids or Monte-Carlo draws (local pool or Dask cluster)"
+EXIT_INTERRUPTED = 130
+
+
+class SweepInterrupted(Exception):
+    """Ctrl-C during the runs; ``rows`` holds those finished ({index: row})."""
+
+    def __init__(self, rows: dict):
+        super().__init__("interrupted")
+        self.rows = rows
+
+
+def _workers(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0 (got {value})")
+    return value
+
+
+def _seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0 (got {value})")
+    return value
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("spec", help="sweep spec YAML file (see docs/sweep.md)")
+    parser.add_argument("--out", default=None,
+                        help="result table, .csv or .parquet (must not exist; default "
+                             "<spec name>.csv in the current directory)")
+    parser.add_argument("--plot", default=None, metavar="PNG",
+                        help="summary plot of outputs against each swept parameter")
+    parser.add_argument("--workers", type=_workers, default=None,
+                        help="local worker processes (default: os.cpu_count(); 0 = run in "
+                             "this process)")
+    parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                        help="run on an existing Dask cluster (e.g. tcp://10.0.0.5:8786) "
+                             "instead of local processes")
+    parser.add_argument("--seed", type=_seed, default=None,
+                        help="seed of the Monte-Carlo draws (overrides the spec's seed)")
+
+
+# ----- execution -----
+
+def _progress(total: int, desc: str):
+    try:
+        from tqdm import tqdm
+    except ImportError:                                  # the progress bar is optional
+        return None
+    return tqdm(total=total, desc=desc, unit="run", file=sys.stderr, disable=None)
+
+
+def run_serial(tasks: list[dict], on_row=None) -> dict:
+    """Every task in this process, in order. Returns {index: row}."""
+    from .sweep_worker import run_one
+
+    rows: dict = {}
+    try:
+        for task in tasks:
+            rows[task["index"]] = row = run_one(task)
+            if on_row:
+                on_row(row)
+    except KeyboardInterrupt:
+        raise SweepInterrupted(rows) from None
+    return rows
+
+
+def _ignore_sigint() -> None:
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)       # the parent handles Ctrl-C
+
+
+def _pool_context():
+    """Fresh worker processes: forked from a clean server process that has imported the
+    worker module once (forkserver, where the platform has it), else spawned."""
+    import multiprocessing
+
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        ctx = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(["rod_sim.tools.sweep_worker"])
+        return ctx
+    return multiprocessing.get_context("spawn")
+
+
+def run_local(tasks: list[dict], workers: int, on_row=None) -> dict:
+    """The tasks on a pool of ``workers`` fresh processes. Returns {index: row}."""
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    from .sweep_worker import failed_row, run_one
+
+    rows: dict = {}
+    executor = ProcessPoolExecutor(max_workers=workers, initializer=_ignore_sigint,
+                                   mp_context=_pool_context())
+    futures = {}
+    try:
+        futures = {executor.submit(run_one, task): task for task in tasks}
+        for future in as_completed(futures):
+            task = futures[future]
+            try:
+                row = future.result()
+            except Exception as err:                     # noqa: BLE001 - e.g. a worker died
+                row = failed_row(task, f"worker: {type(err).__name__}: {err}")
+            rows[task["index"]] = row
+            if on_row:
+                on_row(row)
+    except KeyboardInterrupt:
+        for future in futures:
+            future.cancel()
+        # Runs in progress would finish first; stop their processes (no public API before
+        # Python 3.14's terminate_workers()).
+        for process in list(getattr(executor, "_processes", {}).values()):
+            process.terminate()
+        executor.shutdown(wait=True, cancel_futures=True)
+        raise SweepInterrupted(rows) from None
+    executor.shutdown(wait=True)
+    return rows
+
+
+def run_dask(tasks: list[dict], address: str, on_row=None) -> dict:
+    """The tasks on the Dask cluster whose scheduler is at ``address``. Returns {index: row}."""
+    try:
+        from dask.distributed import Client, as_completed
+    except ImportError:
+        raise UsageError("--scheduler needs dask.distributed: pip install 'rod_sim[sweep]'") from None
+    from .sweep_worker import failed_row, run_one
+
+    try:
+        client = Client(address, timeout="10s")
+    except (OSError, TimeoutError, ValueError) as err:
+        raise UsageError(f"--scheduler: cannot connect to {address}: "
+                         f"{' '.join(str(err).split()) or type(err).__name__}") from None
+    rows: dict = {}
+    futures = {}
+    try:
+        stamp = f"{os.getpid()}-{time.time_ns()}"
+        futures = {client.submit(run_one, task, key=f"rod-sim-sweep-{stamp}-{task['index']}",
+                                 pure=False): task for task in tasks}
+        for future in as_completed(list(futures)):
+            task = futures[future]
+            try:
+                row = future.result()
+            except Exception as err:                     # noqa: BLE001 - e.g. a worker died
+                row = failed_row(task, f"worker: {type(err).__name__}: {err}")
+            rows[task["index"]] = row
+            if on_row:
+                on_row(row)
+    except KeyboardInterrupt:
+        client.cancel(list(futures))
+        raise SweepInterrupted(rows) from None
+    finally:
+        client.close()
+    return rows
+
+
+def local_workers(requested: int | None, runs: int) -> int:
+    """Worker processes to start: ``requested`` (default os.cpu_count()), at most one per run."""
+    return max(1, min(requested or os.cpu_count() or 1, runs))
+
+
+def execute(tasks: list[dict], workers: int | None = None, scheduler: str | None = None,
+            on_row=None) -> list[dict]:
+    """Run the tasks locally or on Dask; the rows in task-index order."""
+    if scheduler:
+        rows = run_dask(tasks, scheduler, on_row)
+    elif workers == 0:
+        rows = run_serial(tasks, on_row)
+    else:
+        rows = run_local(tasks, local_workers(workers, len(tasks)), on_row)
+    return [rows[i] for i in sorted(rows)]
+
+
+# ----- the command -----
+
+def result_columns(spec) -> list[str]:
+    from .sweep_worker import OUTPUTS
+
+    return ["run", *(p.path for p in spec.parameters), *OUTPUTS]
+
+
+def metadata(spec) -> dict:
+    from .. import __version__
+
+    return {"name": spec.name, "models": list(spec.models), "seed": spec.seed,
+            "draws": spec.draws, "version": __version__, **spec.settings(),
+            "parameters": {p.path: (list(p.values) if not p.random else
+                                    {p.kind: dict(p.args)}) for p in spec.parameters}}
+
+
+def _summary(rows: list[dict], total: int) -> str:
+    ok = sum(r["status"] == "ok" for r in rows)
+    failed = [r for r in rows if r["status"] != "ok"]
+    text = f"{len(rows)} of {total} runs: {ok} ok, {len(failed)} failed"
+    if failed:
+        text += f" (first: run {failed[0]['run']}: {failed[0]['status']})"
+    return text
+
+
+def run(args) -> int:
+    from .sweep_spec import expand, load_spec
+    from .sweep_table import table_format, write_table
+
+    spec = load_spec(args.spec, seed=args.seed)
+    out = new_output_path(args.out or f"{spec.name}.csv")
+    if table_format(out) == ".parquet":
+        try:
+            import pyarrow  # noqa: F401
+        except ImportError:
+            raise UsageError("--out: Parquet needs pyarrow: pip install 'rod_sim[sweep]'") from None
+    plot = None
+    if args.plot:
+        plot = new_output_path(args.plot, "--plot")
+        if plot.suffix.lower() not in (".png", ".svg", ".pdf"):
+            raise UsageError(f"--plot: {plot} must end in .png, .svg or .pdf")
+        try:
+            import matplotlib  # noqa: F401
+        except ImportError:
+            raise UsageError("--plot needs matplotlib: pip install 'rod_sim[plot]'") from None
+    runs = expand(spec)                       # validates every scene before any run starts
+    tasks = [r.task(spec) for r in runs]
+    where = (f"Dask scheduler {args.scheduler}" if args.scheduler else
+             "this process" if args.workers == 0 else
+             f"{local_workers(args.workers, len(tasks))} local worker processes")
+    grid = " x ".join(str(len(p.values)) for p in spec.parameters if not p.random) or "1"
+    print(f"rod-sim sweep: {spec.name}: {len(tasks)} runs (grid {grid}, {spec.draws} draws, "
+          f"{len(spec.models)} models) on {where}", file=sys.stderr, flush=True)
+
+    bar = _progress(len(tasks), spec.name)
+    started = time.perf_counter()
+    try:
+        rows = execute(tasks, args.workers, args.scheduler,
+                       on_row=(lambda row: bar.update(1)) if bar is not None else None)
+    except SweepInterrupted as stop:
+        if bar is not None:
+            bar.close()
+        rows = [stop.rows[i] for i in sorted(stop.rows)]
+        write_table(rows, out, result_columns(spec), metadata(spec))
+        print(f"rod-sim sweep: interrupted: {_summary(rows, len(tasks))}; finished rows "
+              f"written to {out}", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    if bar is not None:
+        bar.close()
+    wall = time.perf_counter() - started
+    write_table(rows, out, result_columns(spec), metadata(spec))
+    if plot is not None:
+        from .sweep_plot import plot_sweep
+
+        plot_sweep(rows, [p.path for p in spec.parameters],
+                   {p.path for p in spec.parameters if p.random}, plot,
+                   title=f"{spec.name}: {', '.join(spec.models)}, t_end = {spec.t_end:g} s",
+                   logx={p.path for p in spec.parameters if p.log})
+    print(f"{spec.name}: {_summary(rows, len(tasks))}; {wall:.1f} s wall -> {out}"
+          + (f", {plot}" if plot else ""))
+    return EXIT_OK
+
+
+def main(argv=None) -> int:                            # python -m rod_sim.tools.sweep
+    from .cli import main as cli_main
+
+    return cli_main(["sweep", *(sys.argv[1:] if argv is None else argv)])
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,124 @@
+"""One sweep run as a plain function: scene data and settings in, one result row out.
+
+:func:`run_one` is what ``rod-sim sweep`` sends to local worker processes and to Dask
+workers: a top-level function (pickled by reference) taking and returning plain dicts. It
+never raises for a failing run: the failure is the row's ``status``. The numba kernels are
+compiled (or loaded from numba's disk cache) once per process, outside the timed integration.
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from ..core.integrators import IntegrationError, make_integrator
+from ..core.models import make_model
+from ..core.scene import Scene
+from ..core.simulator import Simulator
+
+# Result columns after the run index and the swept parameters, with units.
+OUTPUTS = {
+    "model": "model name",
+    "status": "'ok' or 'failed: <reason>'",
+    "wall_s": "wall time of the integration alone [s]",
+    "rtf": "real-time factor: t_end / wall_s",
+    "nfev": "right-hand side evaluations",
+    "max_abs_phi": "max over samples and rods of |phi_k| [rad]",
+    "tip_phi_final": "phi_n of the tip rod at t_end [rad]",
+    "max_tip_displacement": "max over samples of |r_n(t) - r_n(0)|, r_n the tip node [m]",
+    "max_abs_alpha": "max over samples and rods of |alpha_k| [rad]",
+    "max_abs_beta": "max over samples and rods of |beta_k| [rad]",
+    "energy_final": "kinetic + hinge + bending energy at t_end [J]",
+    "energy_residual": "E(t_end) - E(0) - int (P_load - P_damping) dt, trapezoid rule on the "
+                       "samples [J]",
+}
+FLOAT_OUTPUTS = [k for k in OUTPUTS if k not in ("model", "status", "nfev")]
+METRICS = FLOAT_OUTPUTS[2:]              # the trajectory outputs (NaN for a failed run)
+
+_WARM: set = set()
+
+
+def _warm_up(model, integrator: str, step) -> None:
+    """Compile (or load from cache) the kernels of this model and integrator once per process."""
+    key = (model.name, integrator)
+    if key in _WARM:
+        return
+    try:
+        Simulator(model, make_integrator(integrator, step=step)).advance(1e-3)
+    except IntegrationError:
+        pass                                   # compiled all the same; the real run reports it
+    _WARM.add(key)
+
+
+def metrics(model, t: np.ndarray, y: np.ndarray) -> dict:
+    """Summary outputs of a trajectory: ``t`` (N,) [s], ``y`` (N, state_size)."""
+    phi = model.phi(y)                                   # (N, n)
+    l = model.params.l
+    tip = np.stack([np.cos(phi) @ l, np.sin(phi) @ l], axis=1)        # (N, 2)
+    alpha = np.empty_like(phi)
+    beta = np.empty_like(phi)
+    energy = np.empty(t.size)
+    power = np.empty(t.size)
+    for i in range(t.size):
+        alpha[i], beta[i] = slopes = model.bending(t[i], y[i])
+        energy[i] = model.energies(t[i], y[i], bending=slopes).total   # one solve per sample
+        p_load, p_damp = model.powers(t[i], y[i])                      # needs only rates
+        power[i] = p_load - p_damp
+    work = float(np.sum(0.5 * (power[1:] + power[:-1]) * np.diff(t)))
+    return {
+        "max_abs_phi": float(np.max(np.abs(phi))),
+        "tip_phi_final": float(phi[-1, -1]),
+        "max_tip_displacement": float(np.max(np.linalg.norm(tip - tip[0], axis=1))),
+        "max_abs_alpha": float(np.max(np.abs(alpha))),
+        "max_abs_beta": float(np.max(np.abs(beta))),
+        "energy_final": float(energy[-1]),
+        "energy_residual": float(energy[-1] - energy[0] - work),
+    }
+
+
+def _row(task: dict, status: str, wall: float, nfev: int, values: dict | None) -> dict:
+    row = {"run": int(task["index"]), **task["params"], "model": task["model"],
+           "status": status, "wall_s": float(wall),
+           "rtf": float(task["t_end"] / wall) if wall > 0 and status == "ok" else math.nan,
+           "nfev": int(nfev)}
+    for k in METRICS:
+        row[k] = math.nan if values is None else values[k]
+    return row
+
+
+def failed_row(task: dict, reason: str) -> dict:
+    """The row of a run that did not produce a result (e.g. its worker process died)."""
+    return _row(task, f"failed: {' '.join(reason.split())}", math.nan, 0, None)
+
+
+def run_one(task: dict) -> dict:
+    """Run one scene and summarise it.
+
+    ``task``: ``index``, ``model``, ``params`` ({path: value}, copied into the row), ``scene``
+    (SPEC section 2 data), ``integrator``, ``rtol``, ``atol``, ``step``, ``t_end`` [s],
+    ``rate_hz`` [Hz] (samples the outputs are taken over). Returns the row: ``run``, the
+    params, then :data:`OUTPUTS`.
+    """
+    try:
+        model = make_model(task["model"], Scene.from_dict(task["scene"]))
+        _warm_up(model, task["integrator"], task["step"])
+        integrator = make_integrator(task["integrator"], rtol=task["rtol"], atol=task["atol"],
+                                     step=task["step"])
+    except Exception as err:                 # noqa: BLE001 - a failing run is a row
+        return failed_row(task, f"{type(err).__name__}: {err}")
+    sim = Simulator(model, integrator)
+    started = time.perf_counter()
+    try:
+        traj = sim.run(task["t_end"], task["rate_hz"])
+    except Exception as err:                 # noqa: BLE001
+        wall = time.perf_counter() - started
+        return _row(task, f"failed: {type(err).__name__}: {' '.join(str(err).split())}", wall,
+                    integrator.stats.nfev, None)
+    wall = time.perf_counter() - started
+    try:
+        values = metrics(model, traj.t, traj.y)
+    except Exception as err:                 # noqa: BLE001
+        return _row(task, f"failed: outputs: {type(err).__name__}: {err}", wall,
+                    integrator.stats.nfev, None)
+    return _row(task, "ok", wall, integrator.stats.nfev, values)

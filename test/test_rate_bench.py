@@ -1,0 +1,23 @@
+"""The statistics of rod_sim.ros.rate_bench on arrivals whose answers are known by hand."""
+import numpy as np
+import pytest
+
+from rod_sim.ros.rate_bench import ros_arg, summarize
+
+
+def test_summary_of_a_steady_stream_with_one_late_and_one_missing_message():
+    # 1 kHz stamps, period 2 (stamp 2 ms) never arrives; arrivals 1 ms apart except one 5 ms gap
+    stamps = np.array([0, 1, 3, 4, 5, 6, 7, 8, 9, 10], dtype=np.int64) * 1_000_000
+    wall = np.array([0, 1, 2, 3, 8, 9, 10, 11, 12, 13], dtype=np.int64) * 1_000_000
+    s = summarize(wall, stamps, rate_hz=1000.0)
+    assert s["messages"] == 10 and s["missing_periods"] == 1
+    assert s["rate_hz"] == pytest.approx(9 / 0.013)
+    assert s["rtf"] == pytest.approx(10 / 13)          # 10 ms simulated in 13 ms of arrivals
+    assert s["interarrival_ms"]["median"] == pytest.approx(1.0)
+    assert s["interarrival_ms"]["max"] == pytest.approx(5.0)
+    assert 1.0 < s["interarrival_ms"]["p99"] <= 5.0
+
+
+def test_parameter_values_are_written_as_ros_yaml():
+    assert [ros_arg(v) for v in (True, False, "", "a.yaml", 1000.0)] == [
+        "true", "false", "''", "a.yaml", "1000.0"]
