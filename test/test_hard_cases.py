@@ -300,6 +300,16 @@ def test_force_jump_reported_only_when_it_bends_the_rods():
     assert [x.kind for x in mon.findings()] == ["force_jump"]
 
 
+def test_energy_warning_reflects_the_latest_balance_not_an_early_tiny_scale():
+    mon = validity.ValidityMonitor(make_model("reduced", chain(loads=[])))
+    mon.update_energy(0.01, residual=3e-6, scale=5e-6)       # the first period: meaningless
+    assert [f.kind for f in mon.findings()] == ["energy"]
+    mon.update_energy(1.0, residual=3e-6, scale=10.0)        # later: 3e-7 of the scale
+    assert mon.findings() == []
+    mon.update_energy(2.0, residual=0.5, scale=10.0)         # a real 5 % imbalance
+    assert [(f.kind, f.t) for f in mon.findings()] == [("energy", 2.0)]
+
+
 # ----- advise -----
 
 def advised_error(scene, rec, t_end) -> float:

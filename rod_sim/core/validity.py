@@ -194,7 +194,7 @@ class ValidityMonitor:
         self.max_abs_alpha = 0.0
         self.max_abs_beta = 0.0
         self._held = None
-        self._energy0 = None
+        self._energy: Finding | None = None
 
     def _add(self, f: Finding) -> None:
         self._found.setdefault((f.kind, f.rod), f)
@@ -229,16 +229,20 @@ class ValidityMonitor:
         self._held = held.copy()
 
     def update_energy(self, t: float, residual: float, scale: float) -> None:
-        """Judge an energy balance residual [J] against the energy scale [J] at time t [s]."""
+        """Judge the energy balance residual [J] against the energy scale [J] at time t [s].
+        Unlike the other checks this one reflects the latest judgement (not the first
+        occurrence): at the start of a run the scale is tiny and the ratio meaningless."""
+        self._energy = None
         if scale > 0 and math.isfinite(residual) and abs(residual) > ENERGY_RESIDUAL_WARN * scale:
-            self._add(Finding("energy", float(t), 0, abs(residual) / scale, ENERGY_RESIDUAL_WARN,
-                              f"energy balance residual {residual:.3g} J is {abs(residual) / scale:.2g}"
-                              f" of the energy scale {scale:.3g} J at t = {t:.4g} s (> "
-                              f"{ENERGY_RESIDUAL_WARN:g}): bending not small or integration "
-                              f"inaccurate"))
+            self._energy = Finding(
+                "energy", float(t), 0, abs(residual) / scale, ENERGY_RESIDUAL_WARN,
+                f"energy balance residual {residual:.3g} J is {abs(residual) / scale:.2g}"
+                f" of the energy scale {scale:.3g} J at t = {t:.4g} s (> "
+                f"{ENERGY_RESIDUAL_WARN:g}): bending not small or integration inaccurate")
 
     def findings(self) -> list[Finding]:
-        return sorted(self._found.values(), key=lambda f: (f.t, f.kind, f.rod))
+        found = list(self._found.values()) + ([self._energy] if self._energy else [])
+        return sorted(found, key=lambda f: (f.t, f.kind, f.rod))
 
     def summary(self) -> str:
         """One line: the findings' messages (first per kind), or '' when all is well."""
