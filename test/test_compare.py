@@ -583,3 +583,22 @@ def test_help_states_the_default_tolerance():
     sub = next(a for a in build_parser()._actions if a.dest == "command")
     help_text = sub.choices["compare"].format_help()
     assert f"default {DEFAULT_TOLERANCE:g}" in " ".join(help_text.split())
+
+
+def test_validity_warnings_name_slopes_beyond_small_bending_and_fast_loads():
+    from types import SimpleNamespace
+
+    from rod_sim.core.validity import SMALL_BENDING_RAD
+    from rod_sim.tools.compare import validity_messages
+
+    paper = load_scene(PAPER)
+    small = SimpleNamespace(quantities={"alpha": SimpleNamespace(ref=np.full((3, 8), 0.01)),
+                                        "beta": SimpleNamespace(ref=np.zeros((3, 8)))})
+    assert validity_messages(paper, "reduced", small) == []
+    large = SimpleNamespace(quantities={"alpha": SimpleNamespace(ref=np.zeros((3, 8))),
+                                        "beta": SimpleNamespace(ref=np.full((3, 8), -0.3))})
+    (msg,) = validity_messages(paper, "reduced", large)
+    assert "0.3 rad" in msg and str(SMALL_BENDING_RAD) in msg
+    soft = paper.with_changes(bending_stiffness=np.full(8, 10.0))   # first mode ~0.8 Hz
+    assert any("bending mode" in m for m in validity_messages(soft, "reduced", small))
+    assert validity_messages(soft, "full", small) == []

@@ -136,6 +136,21 @@ def write_plot(report, path: Path, title: str) -> None:
     plt.close(fig)
 
 
+def validity_messages(scene, model_name: str, report) -> list[str]:
+    """Warnings of the validity monitor (rod_sim.core.validity) that apply to a compared log:
+    loads near the first bending mode (reduced logs) and end slopes of the full-model
+    reference beyond the small-bending range (where neither model is right)."""
+    from ..core.validity import SMALL_BENDING_RAD, frequency_findings
+
+    out = [f.message for f in frequency_findings(scene, model_name)]
+    slopes = [report.quantities[k].ref for k in ("alpha", "beta") if k in report.quantities]
+    worst = max((float(abs(r).max()) for r in slopes if r.size), default=0.0)
+    if worst > SMALL_BENDING_RAD:
+        out.append(f"the full model's end slopes reach {worst:.3g} rad (> {SMALL_BENDING_RAD} "
+                   "rad): outside the small-bending range of both models")
+    return out
+
+
 def run(args) -> int:
     from ..io.log_source import read_log
     from ..io.mcap_log import LogFormatError
@@ -162,6 +177,8 @@ def run(args) -> int:
         raise UsageError(str(exc)) from None
     if note:
         report.notes.insert(0, note)
+    validity = validity_messages(scene, info["model"], report)
+    report.notes.extend(f"validity: {m}" for m in validity)
     report.info = info
     if plot is not None:
         try:
@@ -171,6 +188,7 @@ def run(args) -> int:
     if args.json:
         out = report.as_json()
         out["plot"] = str(plot) if plot else None
+        out["validity"] = validity
         print(json.dumps(out, indent=1))
     else:
         print(format_report(report, info))
