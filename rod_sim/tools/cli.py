@@ -77,13 +77,13 @@ def build_parser() -> argparse.ArgumentParser:
                                     "reduced models and print it beside the published values.")
     t1.add_argument("--json", action="store_true", help="machine-readable output")
     t1.add_argument("--scene", default=str(PAPER_EXAMPLE), help=argparse.SUPPRESS)
-    bench = sub.add_parser("bench", help="speed against error on the seed's example",
-                           description="Wall time, real-time factor and max phi error of each "
-                                       "model and integrator setting (SPEC section 6).")
-    bench.add_argument("--json", action="store_true", help="machine-readable output")
-    bench.add_argument("--quick", action="store_true", help="compiled integrators only")
-    bench.add_argument("--repeats", type=int, default=5, help="timing repeats (median)")
-    bench.add_argument("--scene", default=str(PAPER_EXAMPLE), help="scene YAML file")
+    from . import bench as bench_module
+
+    bench = sub.add_parser("bench", help="speed against error (work-precision, SPEC section 6)",
+                           description="Wall time, real-time factor, work counters and max phi "
+                                       "error of each scene, model and integrator setting "
+                                       "against verified references (SPEC section 6).")
+    bench_module.configure(bench)
 
     node = sub.add_parser("node", help="the ROS 2 simulator node (SPEC section 4)",
                           description="Run the rod_sim ROS 2 node until SIGINT/SIGTERM. ROS "
@@ -107,14 +107,7 @@ def cmd_node(args) -> int:
 def cmd_bench(args) -> int:
     from . import bench
 
-    scene = load_scene(args.scene)
-    rows = bench.run_bench(scene, quick=args.quick, repeats=max(1, args.repeats))
-    if args.json:
-        print(json.dumps(bench.as_json(rows), indent=1))
-    else:
-        print(bench.format_rows(rows))
-        print(json.dumps(bench.targets(rows), indent=1))
-    return EXIT_OK
+    return bench.run(args)
 
 
 def cmd_simulate(args) -> int:
