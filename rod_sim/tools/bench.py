@@ -98,7 +98,7 @@ class Reference:
 class BenchConfig:
     quick: bool = False
     repeats: int = 3
-    cap_s: float = 60.0          # per-run wall-time cap
+    cap_s: float = 30.0          # per-run wall-time cap
     scenes: tuple = ()
     models: tuple = MODELS
     mujoco: bool = True
@@ -375,7 +375,8 @@ def environment(cfg: BenchConfig | None = None) -> dict:
     except ImportError:
         env["mujoco"] = "not installed"
     if cfg is not None:
-        env.update({"quick": cfg.quick, "repeats": cfg.repeats, "cap_s": cfg.cap_s})
+        env.update({"quick": cfg.quick, "repeats": cfg.repeats, "cap_s": cfg.cap_s,
+                    "scenes": list(cfg.scenes), **cfg.extra})
     return env
 
 
@@ -604,7 +605,7 @@ def configure(parser) -> None:
                         help="the seed's example (n = 8) only, fewer settings (< 2 min)")
     parser.add_argument("--repeats", type=int, default=3, help="timing repeats (median)")
     parser.add_argument("--cap", type=float, default=None,
-                        help="per-run wall-time cap [s] (default 10 quick, 60 otherwise)")
+                        help="per-run wall-time cap [s] (default 10 quick, 30 otherwise)")
     parser.add_argument("--scene", action="append", choices=sorted(SCENES), default=None,
                         help="bench only this scene (repeatable)")
     parser.add_argument("--no-mujoco", action="store_true", help="skip the MuJoCo peer")
@@ -623,11 +624,12 @@ def run(args) -> int:
     if out_dir is not None and out_dir.exists() and not out_dir.is_dir():
         raise UsageError(f"--out: {out_dir} is not a directory")
     scenes = tuple(args.scene) if args.scene else (QUICK_SCENES if args.quick else tuple(SCENES))
-    cap = args.cap if args.cap is not None else (10.0 if args.quick else 60.0)
+    cap = args.cap if args.cap is not None else (10.0 if args.quick else 30.0)
     cfg = BenchConfig(quick=args.quick, repeats=args.repeats, cap_s=cap, scenes=scenes,
                       mujoco=not args.no_mujoco,
                       log=lambda s: print(s, file=sys.stderr, flush=True))
     rows, refs = [], {}
+    cfg.extra["load_average_at_start"] = list(os.getloadavg()) if hasattr(os, "getloadavg") else None
     for key in scenes:
         r, summary = bench_scene(key, cfg)
         rows += r
