@@ -589,6 +589,8 @@ def plots(out_dir: Path, rows, scaling_data) -> list[Path]:
 
     written = []
     markers = {"reduced": "o", "full": "s", "rigid": "^"}
+    colors = plt.get_cmap("tab20").colors[::2] + plt.get_cmap("tab20").colors[1::2]
+    integrators = list(dict.fromkeys(r.integrator for r in rows))
     for scene in dict.fromkeys(r.scene for r in rows):
         fig, ax = plt.subplots(figsize=(8, 6))
         sub = [r for r in rows if r.scene == scene and r.status == "ok"
@@ -596,7 +598,8 @@ def plots(out_dir: Path, rows, scaling_data) -> list[Path]:
         for key in dict.fromkeys((r.model, r.integrator) for r in sub):
             pts = sorted((r.cpu_s, r.max_phi_error) for r in sub if (r.model, r.integrator) == key)
             ax.loglog(*zip(*pts), marker=markers.get(key[0], "x"),
-                      ls="--" if key[1].startswith("mujoco") else "-",
+                      ls={"reduced": "-", "full": "--", "rigid": ":"}.get(key[0], "-"),
+                      color=colors[integrators.index(key[1]) % len(colors)],
                       label=f"{key[0]} {key[1]}", ms=4, lw=1)
         ax.axhline(TARGET_ERROR, color="k", lw=0.6, ls=":")
         ax.axvline(T_END, color="r", lw=0.6, ls=":")
@@ -605,7 +608,8 @@ def plots(out_dir: Path, rows, scaling_data) -> list[Path]:
         ax.set_ylabel("max |phi - phi_ref| [rad] (same model)")
         ax.set_title(f"work-precision: {scene} (n = {rows[[r.scene for r in rows].index(scene)].n})")
         ax.grid(True, which="both", lw=0.3)
-        ax.legend(fontsize=6, ncol=2)
+        ax.legend(fontsize=6, ncol=2, title="color: integrator; line: - reduced, -- full, "
+                                                  ": rigid", title_fontsize=6)
         path = out_dir / f"wp_{scene}.png"
         fig.savefig(path, dpi=110, bbox_inches="tight")
         plt.close(fig)
