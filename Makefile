@@ -14,7 +14,7 @@ ROS_ENV = ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST ROS_DOMAIN_ID=$(ROS_DOMAIN_ID)
 
 PYTEST_ARGS ?=
 
-.PHONY: venv test demo bench clean
+.PHONY: venv test demo bench bench-report clean
 
 venv: $(STAMP)
 
@@ -42,6 +42,10 @@ demo: venv
 
 bench: venv
 	$(VENV)/bin/rod-sim bench
+
+# Regenerates docs/bench/ (results.md, bench.json, work-precision and scaling plots); ~30 min.
+bench-report: venv
+	$(VENV)/bin/rod-sim bench --out docs/bench
 
 clean:
 	rm -rf build install log out .pytest_cache *.egg-info

@@ -4,7 +4,7 @@
 status (0 success, 1 a check failed or the run stopped, 2 bad input), ``main()`` wraps both
 and turns library errors into one-line messages on stderr.
 
-``simulate``, ``table1``, ``bench`` and ``node`` are defined here; every other module of
+``simulate``, ``table1`` and ``node`` are defined here; every other module of
 ``rod_sim.tools`` that defines ``COMMAND`` adds its own subcommand (see
 :mod:`rod_sim.tools.common`).
 """
@@ -83,14 +83,6 @@ def build_parser() -> argparse.ArgumentParser:
                                     "reduced models and print it beside the published values.")
     t1.add_argument("--json", action="store_true", help="machine-readable output")
     t1.add_argument("--scene", default=str(PAPER_EXAMPLE), help=argparse.SUPPRESS)
-    bench = sub.add_parser("bench", help="speed against error on the seed's example",
-                           description="Wall time, real-time factor and max phi error of each "
-                                       "model and integrator setting (SPEC section 6).")
-    bench.add_argument("--json", action="store_true", help="machine-readable output")
-    bench.add_argument("--quick", action="store_true", help="compiled integrators only")
-    bench.add_argument("--repeats", type=int, default=5, help="timing repeats (median)")
-    bench.add_argument("--scene", default=str(PAPER_EXAMPLE), help="scene YAML file")
-
     node = sub.add_parser("node", help="the ROS 2 simulator node (SPEC section 4)",
                           description="Run the rod_sim ROS 2 node until SIGINT/SIGTERM. ROS "
                                       "arguments follow --ros-args, e.g. --ros-args -p "
@@ -108,19 +100,6 @@ def cmd_node(args) -> int:
     from ..ros.node import main as node_main
 
     return node_main(list(args.ros_args))       # reached only through run(); main() forwards
-
-
-def cmd_bench(args) -> int:
-    from . import bench
-
-    scene = load_scene(args.scene)
-    rows = bench.run_bench(scene, quick=args.quick, repeats=max(1, args.repeats))
-    if args.json:
-        print(json.dumps(bench.as_json(rows), indent=1))
-    else:
-        print(bench.format_rows(rows))
-        print(json.dumps(bench.targets(rows), indent=1))
-    return EXIT_OK
 
 
 def cmd_simulate(args) -> int:
@@ -206,8 +185,7 @@ def cmd_table1(args) -> int:
     return EXIT_OK
 
 
-COMMANDS = {"simulate": cmd_simulate, "table1": cmd_table1, "bench": cmd_bench,
-            "node": cmd_node}
+COMMANDS = {"simulate": cmd_simulate, "table1": cmd_table1, "node": cmd_node}
 
 
 def run(args: argparse.Namespace) -> int:

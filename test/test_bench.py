@@ -1,0 +1,134 @@
+"""rod-sim bench: fast correctness checks (no speed targets are asserted here).
+
+- rows carry the keys of SPEC section 6;
+- the reference check rejects an unconverged reference;
+- a row's ``simulate_args`` reproduce its run through ``rod-sim simulate``, and its claimed
+  error survives an independent re-run (scipy's DOP853, not the compiled integrator);
+- the MuJoCo peer is the same physical model as our rigid chain (skipped without mujoco).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from rod_sim.core.integrators import make_integrator
+from rod_sim.core.models import make_model
+from rod_sim.core.simulator import Simulator
+from rod_sim.io.mcap_log import read_rod_states
+from rod_sim.io.scene_yaml import load_scene
+from rod_sim.tools import bench, cli, mujoco_peer
+from rod_sim.tools.common import PAPER_EXAMPLE
+
+SPEC_KEYS = {"scene", "n", "model", "integrator", "setting", "simulate_args", "wall_s", "sim_s",
+             "rtf", "max_phi_error"}
+
+
+@pytest.fixture(scope="module")
+def paper():
+    return load_scene(str(PAPER_EXAMPLE))
+
+
+@pytest.fixture(scope="module")
+def reduced_ref(paper):
+    return bench.reference(paper, "reduced")
+
+
+@pytest.fixture(scope="module")
+def row(paper, reduced_ref):
+    cfg = bench.BenchConfig(repeats=1, cap_s=30.0)
+    return bench.measure_setting("paper_example", paper, "reduced", "dop853-jit",
+                                 {"rtol": 1e-6}, reduced_ref, None, cfg)
+
+
+def test_reference_check_passes_and_can_fail(paper, reduced_ref):
+    assert reduced_ref.ok and reduced_ref.gap <= bench.REFERENCE_GAP
+    loose = bench.reference(paper, "reduced", rtol=1e-5, check_rtol=1e-4)
+    assert not loose.ok
+    assert "not converged" in loose.message and loose.gap > bench.REFERENCE_GAP
+
+
+def test_row_has_spec_keys_and_sane_values(row):
+    data = bench.as_json([row])
+    (out,) = data["rows"]
+    assert SPEC_KEYS <= set(out)
+    assert row.status == "ok"
+    assert row.sim_s == bench.T_END and math.isclose(row.rtf, row.sim_s / row.wall_s)
+    assert row.nfev > 0 and row.steps > 0
+    # rtol 1e-6 on this scene: the error is well above rounding and well below 1 mrad
+    assert 1e-8 < row.max_phi_error < 1e-4
+    assert "targets" in data and "environment" in data
+
+
+def test_unconverged_reference_gives_untimed_row(paper):
+    bad = bench.Reference("reduced", None, 1.0, 0.0, False, "reference not converged: test")
+    r = bench.measure_setting("paper_example", paper, "reduced", "dop853-jit", {"rtol": 1e-6},
+                              bad, None, bench.BenchConfig(repeats=1))
+    assert r.status.startswith("not timed") and math.isnan(r.wall_s)
+
+
+def test_simulate_args_reproduce_the_row(row, paper, reduced_ref, tmp_path):
+    out = tmp_path / "run.mcap"
+    assert cli.main(["simulate", row.scene_file, *row.simulate_args, "--out", str(out)]) == 0
+    t, phi, _ = read_rod_states(out)
+    np.testing.assert_allclose(t, np.arange(201) / 100.0, atol=1e-9)
+    # independent reference: scipy's DOP853 (not the compiled integrator) at rtol 1e-12
+    indep = Simulator(make_model("reduced", paper),
+                      make_integrator("DOP853", rtol=1e-12)).run(2.0, 100.0).phi
+    assert np.max(np.abs(indep - reduced_ref.phi)) < 1e-8
+    err = float(np.max(np.abs(phi - indep)))
+    # the logged run integrates in 0.5 s chunks (the bench in one call): same error level
+    assert 0.5 * row.max_phi_error <= err <= 2.0 * row.max_phi_error
+
+
+def test_timeout_and_failure_are_listed(paper, reduced_ref):
+    cfg = bench.BenchConfig(repeats=1, cap_s=1e-4)
+    slow = bench.measure_setting("paper_example", paper, "reduced", "euler", {"step": 1e-5},
+                                 reduced_ref, None, cfg)
+    assert slow.status.startswith("timed out")
+    full_ref = bench.Reference("full", np.zeros((201, 8)), 0.0, 0.0, True)
+    unstable = bench.measure_setting("paper_example", paper, "full", "rk4", {"step": 4e-3},
+                                     full_ref, None, bench.BenchConfig(repeats=1))
+    assert unstable.status.startswith("failed") or unstable.status.startswith("diverged")
+
+
+def test_report_files(row, tmp_path):
+    data = bench.as_json([row])
+    written = bench.write_report(tmp_path, data)
+    names = {p.name for p in written}
+    assert {"bench.json", "results.md", "wp_paper_example.png"} <= names
+    text = (tmp_path / "results.md").read_text()
+    assert "| reduced | dop853-jit | rtol=1e-06 |" in text
+
+
+def test_bench_cli_rejects_a_file_as_out_dir(tmp_path, capsys):
+    f = tmp_path / "x"
+    f.write_text("")
+    assert cli.main(["bench", "--quick", "--out", str(f)]) == 2
+    assert "--out" in capsys.readouterr().err
+
+
+def test_peer_reports_missing_mujoco(paper, monkeypatch):
+    monkeypatch.setattr(mujoco_peer, "available", lambda: False)
+    rows = bench.mujoco_rows("paper_example", paper, {}, None, bench.BenchConfig())
+    assert len(rows) == 1 and "mujoco not installed" in rows[0].status
+
+
+@pytest.mark.parametrize("scene_file", [str(PAPER_EXAMPLE),
+                                        str(PAPER_EXAMPLE.parent / "small_chain.yaml")])
+def test_mujoco_chain_is_our_rigid_model(scene_file):
+    pytest.importorskip("mujoco")
+    scene = load_scene(scene_file)
+    t_end = 0.5
+    ours = Simulator(make_model("rigid", scene),
+                     make_integrator("dop853-jit", rtol=1e-12)).run(t_end, 100.0).phi
+    peer = mujoco_peer.ChainPeer(scene, 1e-4, "RK4").run(t_end, 100.0)
+    assert peer.phi.shape == ours.shape
+    motion = float(np.max(np.abs(ours - ours[0])))
+    assert motion > 0.01                                  # the check is not vacuous
+    err = float(np.max(np.abs(peer.phi - ours)))
+    assert err < 1e-6, f"MuJoCo vs rigid: {err:.3g} rad"
+    # and the error is the time step's: 4x larger step, clearly larger error (2nd order)
+    coarse = mujoco_peer.ChainPeer(scene, 4e-4, "RK4").run(t_end, 100.0)
+    assert float(np.max(np.abs(coarse.phi - ours))) > 4 * err
