@@ -54,19 +54,10 @@ def inertia_blocks(p: ChainParams, phi: np.ndarray) -> dict[str, np.ndarray]:
     """The nine (n, n) inertia blocks m^{ab}, a, b in {phi, alpha, beta} [kg m^2]."""
     n, l, m = p.n, p.l, p.m
     M = p.tail_mass()
-    blocks = {k: np.zeros((n, n)) for k in
-              ("pp", "pa", "pb", "ap", "aa", "ab", "bp", "ba", "bb")}
+    blocks = _pair_blocks(p, np.cos(phi[:, None] - phi[None, :]))
+    for key in ("aa", "ab", "ba", "bb"):
+        blocks[key] = np.zeros((n, n))
     for k in range(n):
-        for j in range(n):
-            ckj = np.cos(phi[k] - phi[j])
-            if j < k:
-                blocks["pp"][k, j] = l[k] * l[j] * ckj * M[k]
-                blocks["ap"][k, j] = m[k] * l[k] ** 2 / 12 * l[j] * ckj
-                blocks["bp"][k, j] = -m[k] * l[k] ** 2 / 12 * l[j] * ckj
-            elif j > k:
-                blocks["pp"][k, j] = l[k] * l[j] * ckj * M[j]
-                blocks["pa"][k, j] = m[j] * l[j] ** 2 / 12 * l[k] * ckj
-                blocks["pb"][k, j] = -m[j] * l[j] ** 2 / 12 * l[k] * ckj
         blocks["pp"][k, k] = l[k] ** 2 * (M[k] - m[k] * l[k] / 2) + m[k] * l[k] ** 3 / 3
         blocks["pa"][k, k] = blocks["ap"][k, k] = m[k] * l[k] ** 3 / 30
         blocks["pb"][k, k] = blocks["bp"][k, k] = -m[k] * l[k] ** 3 / 20
@@ -77,21 +68,28 @@ def inertia_blocks(p: ChainParams, phi: np.ndarray) -> dict[str, np.ndarray]:
 
 def velocity_blocks(p: ChainParams, phi: np.ndarray) -> dict[str, np.ndarray]:
     """The nonlinear-part blocks g^{pp}, g^{pa}, g^{pb}, g^{ap}, g^{bp} (n, n) [kg m^2]."""
+    return _pair_blocks(p, np.sin(phi[:, None] - phi[None, :]))
+
+
+def _pair_blocks(p: ChainParams, trig: np.ndarray) -> dict[str, np.ndarray]:
+    """Off-diagonal entries of the pp, pa, pb, ap, bp blocks (n, n) [kg m^2] (diagonals
+    zero), with ``trig[k, j]`` = cos(phi_k - phi_j) for the mass matrix, sin for the velocity
+    terms: (k, j) couples rod k with a rod j below it (j < k) or above it (j > k)."""
     n, l, m = p.n, p.l, p.m
     M = p.tail_mass()
-    g = {k: np.zeros((n, n)) for k in ("pp", "pa", "pb", "ap", "bp")}
+    b = {k: np.zeros((n, n)) for k in ("pp", "pa", "pb", "ap", "bp")}
     for k in range(n):
         for j in range(n):
-            skj = np.sin(phi[k] - phi[j])
+            t = trig[k, j]
             if j < k:
-                g["pp"][k, j] = l[k] * l[j] * skj * M[k]
-                g["ap"][k, j] = m[k] * l[k] ** 2 / 12 * l[j] * skj
-                g["bp"][k, j] = -m[k] * l[k] ** 2 / 12 * l[j] * skj
+                b["pp"][k, j] = l[k] * l[j] * t * M[k]
+                b["ap"][k, j] = m[k] * l[k] ** 2 / 12 * l[j] * t
+                b["bp"][k, j] = -m[k] * l[k] ** 2 / 12 * l[j] * t
             elif j > k:
-                g["pp"][k, j] = l[k] * l[j] * skj * M[j]
-                g["pa"][k, j] = m[j] * l[j] ** 2 / 12 * l[k] * skj
-                g["pb"][k, j] = -m[j] * l[j] ** 2 / 12 * l[k] * skj
-    return g
+                b["pp"][k, j] = l[k] * l[j] * t * M[j]
+                b["pa"][k, j] = m[j] * l[j] ** 2 / 12 * l[k] * t
+                b["pb"][k, j] = -m[j] * l[j] ** 2 / 12 * l[k] * t
+    return b
 
 
 def hinge_blocks(c: np.ndarray) -> dict[str, np.ndarray]:

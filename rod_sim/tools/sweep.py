@@ -111,11 +111,27 @@ def _pool_context():
     return multiprocessing.get_context("spawn")
 
 
+def _collect(futures: dict, finished, rows: dict, on_row=None) -> None:
+    """Rows of ``futures`` ({future: task}) into ``rows`` ({index: row}) in the order
+    ``finished(futures)`` yields them; a future that raised becomes a failed row."""
+    from .sweep_worker import failed_row
+
+    for future in finished(futures):
+        task = futures[future]
+        try:
+            row = future.result()
+        except Exception as err:                     # noqa: BLE001 - e.g. a worker died
+            row = failed_row(task, f"worker: {type(err).__name__}: {err}")
+        rows[task["index"]] = row
+        if on_row:
+            on_row(row)
+
+
 def run_local(tasks: list[dict], workers: int, on_row=None) -> dict:
     """The tasks on a pool of ``workers`` fresh processes. Returns {index: row}."""
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    from .sweep_worker import failed_row, run_one
+    from .sweep_worker import run_one
 
     rows: dict = {}
     executor = ProcessPoolExecutor(max_workers=workers, initializer=_ignore_sigint,
@@ -123,15 +139,7 @@ def run_local(tasks: list[dict], workers: int, on_row=None) -> dict:
     futures = {}
     try:
         futures = {executor.submit(run_one, task): task for task in tasks}
-        for future in as_completed(futures):
-            task = futures[future]
-            try:
-                row = future.result()
-            except Exception as err:                     # noqa: BLE001 - e.g. a worker died
-                row = failed_row(task, f"worker: {type(err).__name__}: {err}")
-            rows[task["index"]] = row
-            if on_row:
-                on_row(row)
+        _collect(futures, as_completed, rows, on_row)
     except KeyboardInterrupt:
         for future in futures:
             future.cancel()
@@ -151,7 +159,7 @@ def run_dask(tasks: list[dict], address: str, on_row=None) -> dict:
         from dask.distributed import Client, as_completed
     except ImportError:
         raise UsageError("--scheduler needs dask.distributed: pip install 'rod_sim[sweep]'") from None
-    from .sweep_worker import failed_row, run_one
+    from .sweep_worker import run_one
 
     try:
         client = Client(address, timeout="10s")
@@ -164,15 +172,7 @@ def run_dask(tasks: list[dict], address: str, on_row=None) -> dict:
         stamp = f"{os.getpid()}-{time.time_ns()}"
         futures = {client.submit(run_one, task, key=f"rod-sim-sweep-{stamp}-{task['index']}",
                                  pure=False): task for task in tasks}
-        for future in as_completed(list(futures)):
-            task = futures[future]
-            try:
-                row = future.result()
-            except Exception as err:                     # noqa: BLE001 - e.g. a worker died
-                row = failed_row(task, f"worker: {type(err).__name__}: {err}")
-            rows[task["index"]] = row
-            if on_row:
-                on_row(row)
+        _collect(futures, lambda fs: as_completed(list(fs)), rows, on_row)
     except KeyboardInterrupt:
         client.cancel(list(futures))
         raise SweepInterrupted(rows) from None
