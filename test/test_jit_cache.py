@@ -1,0 +1,33 @@
+"""The on-disk cache of compiled code is keyed by every module of rod_sim.core: an integrator
+that inlined an older kernel must not be loaded after the kernel changed (numba alone looks
+only at the integrator's own file)."""
+from __future__ import annotations
+
+import shutil
+
+import pytest
+
+from rod_sim.core import erk, jit, kernels
+
+
+def test_stamp_changes_when_any_core_module_changes(tmp_path):
+    for path in jit.CORE_DIR.glob("*.py"):
+        shutil.copy(path, tmp_path / path.name)
+    before = jit.sources_stamp(tmp_path)
+    assert jit.sources_stamp(tmp_path) == before
+    kernel_file = tmp_path / "kernels.py"
+    kernel_file.write_text(kernel_file.read_text() + "\n# edited\n")
+    assert jit.sources_stamp(tmp_path) != before
+    (tmp_path / "new_module.py").write_text("")
+    assert jit.sources_stamp(tmp_path) not in (before, jit.sources_stamp(jit.CORE_DIR))
+
+
+@pytest.mark.skipif(not jit.HAVE_NUMBA, reason="numba not installed")
+def test_compiled_integrators_and_kernels_use_the_core_stamp():
+    if not jit.CORE_LOCATORS:
+        pytest.skip("this numba has no cache locator API")
+    stamp = jit.sources_stamp()
+    for dispatcher in (erk._dop853_reduced, erk._fixed_full, kernels.reduced_rhs):
+        locator = dispatcher._cache._impl.locator
+        assert isinstance(locator, jit.CORE_LOCATORS), type(locator)
+        assert locator.get_source_stamp() == stamp
