@@ -2,10 +2,10 @@
 
 Layout: header (profile ``ros2``), a metadata record ``rod_sim`` (written first, so that even a
 truncated log can be replayed), then zstd-compressed chunks of CDR messages (encoded by
-:mod:`rod_sim.io.cdr`), then on :meth:`LogWriter.close` the summary (schemas, channels, statistics, chunk indexes, metadata
-index) and message indexes. Schemas are ``ros2msg`` texts from :mod:`rod_sim.io.msgdefs`;
-channels carry ``offered_qos_profiles`` (YAML, rosbag2 Jazzy format) and ``topic_type_hash``;
-log_time = publish_time = the simulated time [ns].
+:mod:`rod_sim.io.cdr`), then on :meth:`LogWriter.close` the summary (schemas, channels,
+statistics, chunk indexes, metadata index) and message indexes. Schemas are ``ros2msg`` texts
+from :mod:`rod_sim.io.msgdefs`; channels carry ``offered_qos_profiles`` (YAML, rosbag2 Jazzy
+format) and ``topic_type_hash``; log_time = publish_time = the simulated time [ns].
 
 Chunks are written and flushed to the OS as soon as they are full (:data:`CHUNK_SIZE`), so a
 writer killed before ``close`` loses at most the last, unfinished chunk; :class:`LogReader`
