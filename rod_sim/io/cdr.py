@@ -414,11 +414,13 @@ def _fast_string_array(b: bytearray, a: Any, kind: str | None, count: int | None
 class _Codegen:
     """Emits the body of ``encode(m)`` for one type; see :func:`compile_encoder`."""
 
-    def __init__(self, table: Mapping[str, list[Field]]):
+    def __init__(self, table: Mapping[str, list[Field]], reference: "ReferenceEncoder"):
         self.table = table
+        self.reference = reference
         self.lines: list[str] = []
         self.ns: dict[str, Any] = {"_GiveUp": _GiveUp, "_PAD2": _PAD[2], "_PAD4": _PAD[4],
                                    "_PAD8": _PAD[8], "_U32": _U32, "_E": {},
+                                   "_EMPTY": tuple(p + b"\x01\x00\x00\x00\x00" for p in _PAD[4]),
                                    "_parr": _fast_primitive_array, "_sarr": _fast_string_array}
         self.count = 0
         self.run: list[tuple[str, str]] = []  # pending (expression, struct code)
@@ -487,6 +489,55 @@ class _Codegen:
         keys = self.const("_K", frozenset(f.name for f in self.table[tname]))
         self.emit(indent, f"if not {keys}.issuperset({var}): raise _GiveUp")
 
+    def variable(self, tname: str) -> bool:
+        """Whether ``tname`` has a string or an array anywhere inside (its size varies)."""
+        return any(f.array is not None or f.type in STRING_TYPES
+                   or (f.is_struct and self.variable(f.type)) for f in self.table[tname])
+
+    def default_bytes(self, tname: str, residue: int) -> bytes:
+        """The encoding of an all-default ``tname`` starting at offset ``residue`` mod 8."""
+        b = bytearray(residue)
+        self.reference._struct(tname, {}, b, "")
+        return bytes(b[residue:])
+
+    def packed_elements(self, tname: str, arr: str, elem: str, indent: int) -> bool:
+        """For a struct of primitive scalars only (Point, ColorRGBA, ...) whose first field
+        has the largest alignment A and whose size is a multiple of A, every element has the
+        same layout once the first is aligned to A: emit one list comprehension of one Struct
+        (returns True). Otherwise emit nothing and return False."""
+        fields = self.table[tname]
+        if not fields or any(f.array is not None or f.type not in PRIMITIVES for f in fields):
+            return False
+        codes = [PRIMITIVES[f.type][0] for f in fields]
+        sizes = [PRIMITIVES[f.type][1] for f in fields]
+        first = sizes[0]
+        fmt, end = self._layout(codes, 0)
+        if max(sizes) != first or end % first:
+            return False
+        packer = self.const("_S", struct.Struct(fmt).pack)
+        keys = self.const("_K", frozenset(f.name for f in fields))
+        values = ", ".join(
+            f"{elem}.get({f.name!r}, {(_zero(f.type) if f.default is None else f.default)!r})"
+            for f in fields)
+        if any(f.type == "bool" and f.default for f in fields):
+            return False  # None must become True there: leave it to the loop
+        indexed = ", ".join(f"{elem}[{f.name!r}]" for f in fields)
+        data = self.name("p")
+        # Usually every element has every field: index them, and then an element has no
+        # unknown field iff it has exactly len(fields) keys. Else (KeyError) check the keys
+        # and take defaults.
+        self.emit(indent, f"if {arr}:")
+        self.emit(indent + 1, "try:")
+        self.emit(indent + 2, f"{data} = b''.join([{packer}({indexed}) for {elem} in {arr}])")
+        self.emit(indent + 2, f"if max(map(len, {arr})) != {len(fields)}: raise _GiveUp")
+        self.emit(indent + 1, "except KeyError:")
+        self.emit(indent + 2, f"if not all(map({keys}.issuperset, {arr})): raise _GiveUp")
+        self.emit(indent + 2, f"{data} = b''.join([{packer}({values}) for {elem} in {arr}])")
+        if first > 1:
+            self.emit(indent + 1, f"b += _PAD{first}[len(b) & {first - 1}]")
+        self.emit(indent + 1, f"b += {data}")
+        return True
+
     def struct(self, tname: str, var: str, indent: int) -> None:
         """Code appending the struct ``tname`` held by the (checked) dict in ``var``."""
         fields = self.table[tname]
@@ -494,7 +545,25 @@ class _Codegen:
             self.run.append(("0", "B"))
         for f in fields:
             get = f"{var}.get({f.name!r})"
-            if f.is_struct and f.array is None:
+            if f.is_struct and f.array is None and self.variable(f.type):
+                # strings or arrays inside: not part of a run; an absent or empty value is
+                # one precomputed byte string (per offset mod 8), e.g. Marker.texture
+                self.flush(indent)
+                sub = self.name("d")
+                self.emit(indent, f"{sub} = {get}")
+                self.emit(indent, f"if {sub}:")
+                before = self.residue
+                self.check_keys(indent + 1, f.type, sub)
+                self.struct(f.type, sub, indent + 1)
+                self.flush(indent + 1)
+                self.emit(indent, "else:")
+                defaults = tuple(self.default_bytes(f.type, r) for r in range(8))
+                if before is None:
+                    self.emit(indent + 1, f"b += {self.const('_D', defaults)}[len(b) & 7]")
+                else:
+                    self.emit(indent + 1, f"b += {defaults[before]!r}")
+                self.residue = None
+            elif f.is_struct and f.array is None:
                 sub = self.name("d")
                 self.emit(indent, f"{sub} = {get} or _E")
                 self.check_keys(indent, f.type, sub)
@@ -513,11 +582,12 @@ class _Codegen:
                         self.emit(indent, f"if len({arr}) > {f.size}: raise _GiveUp")
                     self.align(indent, 4)
                     self.emit(indent, f"b += _U32(len({arr}))")
-                self.emit(indent, f"for {elem} in {arr}:")
-                self.residue = None
-                self.check_keys(indent + 1, f.type, elem)
-                self.struct(f.type, elem, indent + 1)
-                self.flush(indent + 1)
+                if not self.packed_elements(f.type, arr, elem, indent):
+                    self.emit(indent, f"for {elem} in {arr}:")
+                    self.residue = None
+                    self.check_keys(indent + 1, f.type, elem)
+                    self.struct(f.type, elem, indent + 1)
+                    self.flush(indent + 1)
                 self.residue = None
             elif f.type == "wstring":
                 self.emit(indent, "raise _GiveUp  # wstring: the reference encoder raises")
@@ -536,11 +606,20 @@ class _Codegen:
                 self.flush(indent)
                 data = self.name("s")
                 default = "" if f.default is None else f.default
-                self.emit(indent, f"{data} = {var}.get({f.name!r}, {default!r}).encode()")
-                self.align(indent, 4)
-                self.emit(indent, f"b += _U32(len({data}) + 1)")
-                self.emit(indent, f"b += {data}")
-                self.emit(indent, "b.append(0)")
+                self.emit(indent, f"{data} = {var}.get({f.name!r}, {default!r})")
+                before = self.residue
+                self.emit(indent, f"if {data} == '':")
+                empty = b"\x01\x00\x00\x00\x00"
+                if before is None:
+                    self.emit(indent + 1, f"b += _EMPTY[len(b) & 3]")
+                else:
+                    self.emit(indent + 1, f"b += {bytes(-before % 4) + empty!r}")
+                self.emit(indent, "else:")
+                self.emit(indent + 1, f"{data} = {data}.encode()")
+                self.align(indent + 1, 4)
+                self.emit(indent + 1, f"b += _U32(len({data}) + 1)")
+                self.emit(indent + 1, f"b += {data}")
+                self.emit(indent + 1, "b.append(0)")
                 self.residue = None
             else:
                 code, _ = PRIMITIVES[f.type]
@@ -560,7 +639,7 @@ def compile_encoder(type_name: str, text: str, *, source: bool = False) -> Encod
     table = parse_definition(type_name, text)
     root = next(iter(table))
     reference = ReferenceEncoder(type_name, table, root)
-    gen = _Codegen(table)
+    gen = _Codegen(table, reference)
     gen.emit(1, "try:")
     gen.emit(2, "b = bytearray()")
     gen.check_keys(2, root, "m")

@@ -142,10 +142,12 @@ def node_poses(snapshot: Snapshot, frame_id: str = "world") -> Msg:
     return {"header": header(snapshot.t, frame_id), "poses": poses}
 
 
-def _marker(t: float, frame_id: str, ns: str, marker_id: int, marker_type: int,
-            width: float, color: Msg, points: np.ndarray) -> Msg:
+def _marker(when: dict[str, int], frame_id: str, ns: str, marker_id: int, marker_type: int,
+            width: float, color: Msg, points: list[list[float]]) -> Msg:
+    """One marker stamped ``when`` ({'sec', 'nanosec'}); ``points``: [x, y] pairs [m] of
+    Python floats (``ndarray.tolist()``: converting row by row from numpy is much slower)."""
     return {
-        "header": header(t, frame_id),
+        "header": {"stamp": dict(when), "frame_id": frame_id},
         "ns": ns,
         "id": marker_id,
         "type": marker_type,
@@ -156,7 +158,7 @@ def _marker(t: float, frame_id: str, ns: str, marker_id: int, marker_type: int,
         "color": dict(color),
         "lifetime": {"sec": 0, "nanosec": 0},
         "frame_locked": False,
-        "points": [{"x": float(x), "y": float(y), "z": 0.0} for x, y in points],
+        "points": [{"x": x, "y": y, "z": 0.0} for x, y in points],
     }
 
 
@@ -187,10 +189,11 @@ def markers(snapshot: Snapshot, scene: Scene, frame_id: str = "world",
     pts = rod_points(np.asarray(scene.length, dtype=float), np.asarray(snapshot.phi, dtype=float),
                      np.asarray(snapshot.alpha, dtype=float),
                      np.asarray(snapshot.beta, dtype=float), points_per_rod)
-    items = [_marker(snapshot.t, frame_id, "rods", k + 1, MARKER_LINE_STRIP, width, ROD_COLOR,
-                     pts[k]) for k in range(snapshot.n)]
-    nodes = np.asarray(snapshot.nodes, dtype=float)[1:]
-    items.append(_marker(snapshot.t, frame_id, "nodes", 0, MARKER_SPHERE_LIST, diameter,
+    when = stamp(snapshot.t)
+    items = [_marker(when, frame_id, "rods", k + 1, MARKER_LINE_STRIP, width, ROD_COLOR, rod)
+             for k, rod in enumerate(pts.tolist())]
+    nodes = np.asarray(snapshot.nodes, dtype=float)[1:].tolist()
+    items.append(_marker(when, frame_id, "nodes", 0, MARKER_SPHERE_LIST, diameter,
                          NODE_COLOR, nodes))
     return {"markers": items}
 
