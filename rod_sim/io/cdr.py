@@ -71,16 +71,9 @@ class Field:
 # ----- parsing the concatenated definition -----
 
 def _strip_comment(line: str) -> str:
-    quote = None
-    for i, ch in enumerate(line):
-        if quote:
-            if ch == quote:
-                quote = None
-        elif ch in "\"'":
-            quote = ch
-        elif ch == "#":
-            return line[:i]
-    return line
+    """The line before its first '#' (as rosidl_adapter, whose parser mcap_ros2 vendors, does
+    it: even inside a quoted string default)."""
+    return line.split("#", 1)[0]
 
 
 def _resolve(base: str, package: str) -> str:
