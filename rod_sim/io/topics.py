@@ -11,12 +11,13 @@ Units: angles [rad], rates [rad/s], moments [N m], positions [m], forces [N], ti
 """
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any, Callable, Iterable, Mapping
 
 import numpy as np
 
-from rod_sim.core.kinematics import rod_points
+from rod_sim.core.kinematics import rod_points, shape_table
 from rod_sim.core.scene import Scene
 from rod_sim.core.snapshot import Snapshot
 
@@ -179,16 +180,24 @@ def marker_sizes(scene: Scene) -> tuple[float, float]:
     return width, min(max(diameter, 1.5 * width), 0.25 * float(np.min(length)))
 
 
+@functools.lru_cache(maxsize=8)
+def _marker_geometry(scene: Scene, points_per_rod: int):
+    """What :func:`markers` needs of a scene alone (a Scene is immutable and hashed by
+    identity): the marker sizes and the rod shape table."""
+    return (*marker_sizes(scene),
+            shape_table(np.asarray(scene.length, dtype=float), points_per_rod))
+
+
 def markers(snapshot: Snapshot, scene: Scene, frame_id: str = "world",
             points_per_rod: int = 11) -> Msg:
     """``visualization_msgs/MarkerArray``: one LINE_STRIP per rod (ns ``rods``, id k = 1..n)
     through ``points_per_rod`` points of the bent rod (paper eq. (4)), and one SPHERE_LIST
     (ns ``nodes``, id 0) at nodes 1..n for the node masses (size from :func:`marker_sizes`).
     All ADD, lifetime 0 (forever), not frame-locked, z = 0."""
-    width, diameter = marker_sizes(scene)
+    width, diameter, table = _marker_geometry(scene, points_per_rod)
     pts = rod_points(np.asarray(scene.length, dtype=float), np.asarray(snapshot.phi, dtype=float),
                      np.asarray(snapshot.alpha, dtype=float),
-                     np.asarray(snapshot.beta, dtype=float), points_per_rod)
+                     np.asarray(snapshot.beta, dtype=float), points_per_rod, table)
     when = stamp(snapshot.t)
     items = [_marker(when, frame_id, "rods", k + 1, MARKER_LINE_STRIP, width, ROD_COLOR, rod)
              for k, rod in enumerate(pts.tolist())]
