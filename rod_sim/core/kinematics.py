@@ -22,17 +22,27 @@ def shape_functions(s: np.ndarray, length: float | np.ndarray) -> tuple[np.ndarr
     return sigma, tau
 
 
-def rod_points(length: np.ndarray, phi: np.ndarray, alpha: np.ndarray, beta: np.ndarray,
-               points_per_rod: int = 11) -> np.ndarray:
-    """Points of the bent rods, eq. (4): array (n, points_per_rod, 2) [m].
-
-    Point j of rod k is at s = l_k j / (points_per_rod - 1); the first and last point of
-    each rod are its end nodes. ``alpha``, ``beta`` (n,) are the end slopes [rad].
-    """
-    nodes = node_positions(length, phi)
+def shape_table(length: np.ndarray, points_per_rod: int = 11
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(s, sigma, tau)`` at the points of :func:`rod_points`, each (n, points_per_rod): arc
+    length [m] and the shape functions of eq. (1) there. They depend on the lengths only, so a
+    caller drawing the same chain often can compute them once."""
     u = np.linspace(0.0, 1.0, points_per_rod)
     s = length[:, None] * u[None, :]                       # (n, P)
     sigma, tau = shape_functions(s, length[:, None])
+    return s, sigma, tau
+
+
+def rod_points(length: np.ndarray, phi: np.ndarray, alpha: np.ndarray, beta: np.ndarray,
+               points_per_rod: int = 11, table=None) -> np.ndarray:
+    """Points of the bent rods, eq. (4): array (n, points_per_rod, 2) [m].
+
+    Point j of rod k is at s = l_k j / (points_per_rod - 1); the first and last point of
+    each rod are its end nodes. ``alpha``, ``beta`` (n,) are the end slopes [rad]. ``table``:
+    ``shape_table(length, points_per_rod)`` if already computed (same result).
+    """
+    nodes = node_positions(length, phi)
+    s, sigma, tau = shape_table(length, points_per_rod) if table is None else table
     eta = alpha[:, None] * sigma + beta[:, None] * tau     # transverse deflection (n, P)
     c, sn = np.cos(phi)[:, None], np.sin(phi)[:, None]
     out = np.empty((len(phi), points_per_rod, 2))

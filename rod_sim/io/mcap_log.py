@@ -1,11 +1,11 @@
 """The rod_sim log (SPEC section 5): an MCAP file in the ROS 2 profile, as rosbag2 Jazzy writes it.
 
 Layout: header (profile ``ros2``), a metadata record ``rod_sim`` (written first, so that even a
-truncated log can be replayed), then zstd-compressed chunks of CDR messages, then on
-:meth:`LogWriter.close` the summary (schemas, channels, statistics, chunk indexes, metadata
-index) and message indexes. Schemas are ``ros2msg`` texts from :mod:`rod_sim.io.msgdefs`;
-channels carry ``offered_qos_profiles`` (YAML, rosbag2 Jazzy format) and ``topic_type_hash``;
-log_time = publish_time = the simulated time [ns].
+truncated log can be replayed), then zstd-compressed chunks of CDR messages (encoded by
+:mod:`rod_sim.io.cdr`), then on :meth:`LogWriter.close` the summary (schemas, channels,
+statistics, chunk indexes, metadata index) and message indexes. Schemas are ``ros2msg`` texts
+from :mod:`rod_sim.io.msgdefs`; channels carry ``offered_qos_profiles`` (YAML, rosbag2 Jazzy
+format) and ``topic_type_hash``; log_time = publish_time = the simulated time [ns].
 
 Chunks are written and flushed to the OS as soon as they are full (:data:`CHUNK_SIZE`), so a
 writer killed before ``close`` loses at most the last, unfinished chunk; :class:`LogReader`
@@ -31,13 +31,12 @@ from mcap.records import Channel, Chunk, Header, Message, Metadata, Schema
 from mcap.stream_reader import breakup_chunk
 from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
-from mcap_ros2._dynamic import serialize_dynamic
 from mcap_ros2.decoder import DecoderFactory
 
 from rod_sim import __version__
 from rod_sim.core.scene import Scene
 from rod_sim.core.snapshot import Snapshot
-from rod_sim.io import msgdefs, topics as topic_msgs
+from rod_sim.io import cdr, msgdefs, topics as topic_msgs
 
 METADATA_NAME = "rod_sim"
 REQUIRED_METADATA = ("scene", "model", "integrator")
@@ -153,7 +152,7 @@ class LogWriter:
             text = msgdefs.SCHEMAS[type_name]
             self._schemas[type_name] = self._writer.register_schema(
                 type_name, "ros2msg", text.encode("utf-8"))
-            self._encoders[type_name] = serialize_dynamic(type_name, text)[type_name]
+            self._encoders[type_name] = cdr.encoder(type_name)
         channel_id = self._writer.register_channel(
             topic=topic, message_encoding="cdr", schema_id=self._schemas[type_name],
             metadata={"offered_qos_profiles": self._qos.get(topic, offered_qos_yaml()),
@@ -176,8 +175,7 @@ class LogWriter:
             raise LogWriteError(f"{topic}: time goes backwards ({t_ns} ns after "
                                 f"{self._last_ns[topic]} ns)")
         try:
-            msgdefs.check_fields(type_name, msg)
-            data = self._encoders[type_name](msg)
+            data = self._encoders[type_name](msg)  # also rejects fields the type lacks
         except (ValueError, TypeError, KeyError, AttributeError, struct.error,
                 NotImplementedError) as exc:
             raise LogWriteError(f"{topic}: cannot encode {type_name}: {exc}") from exc

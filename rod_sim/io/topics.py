@@ -11,12 +11,13 @@ Units: angles [rad], rates [rad/s], moments [N m], positions [m], forces [N], ti
 """
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any, Callable, Iterable, Mapping
 
 import numpy as np
 
-from rod_sim.core.kinematics import rod_points
+from rod_sim.core.kinematics import rod_points, shape_table
 from rod_sim.core.scene import Scene
 from rod_sim.core.snapshot import Snapshot
 
@@ -142,10 +143,12 @@ def node_poses(snapshot: Snapshot, frame_id: str = "world") -> Msg:
     return {"header": header(snapshot.t, frame_id), "poses": poses}
 
 
-def _marker(t: float, frame_id: str, ns: str, marker_id: int, marker_type: int,
-            width: float, color: Msg, points: np.ndarray) -> Msg:
+def _marker(when: dict[str, int], frame_id: str, ns: str, marker_id: int, marker_type: int,
+            width: float, color: Msg, points: list[list[float]]) -> Msg:
+    """One marker stamped ``when`` ({'sec', 'nanosec'}); ``points``: [x, y] pairs [m] of
+    Python floats (``ndarray.tolist()``: converting row by row from numpy is much slower)."""
     return {
-        "header": header(t, frame_id),
+        "header": {"stamp": dict(when), "frame_id": frame_id},
         "ns": ns,
         "id": marker_id,
         "type": marker_type,
@@ -156,7 +159,7 @@ def _marker(t: float, frame_id: str, ns: str, marker_id: int, marker_type: int,
         "color": dict(color),
         "lifetime": {"sec": 0, "nanosec": 0},
         "frame_locked": False,
-        "points": [{"x": float(x), "y": float(y), "z": 0.0} for x, y in points],
+        "points": [{"x": x, "y": y, "z": 0.0} for x, y in points],
     }
 
 
@@ -177,20 +180,29 @@ def marker_sizes(scene: Scene) -> tuple[float, float]:
     return width, min(max(diameter, 1.5 * width), 0.25 * float(np.min(length)))
 
 
+@functools.lru_cache(maxsize=8)
+def _marker_geometry(scene: Scene, points_per_rod: int):
+    """What :func:`markers` needs of a scene alone (a Scene is immutable and hashed by
+    identity): the marker sizes and the rod shape table."""
+    return (*marker_sizes(scene),
+            shape_table(np.asarray(scene.length, dtype=float), points_per_rod))
+
+
 def markers(snapshot: Snapshot, scene: Scene, frame_id: str = "world",
             points_per_rod: int = 11) -> Msg:
     """``visualization_msgs/MarkerArray``: one LINE_STRIP per rod (ns ``rods``, id k = 1..n)
     through ``points_per_rod`` points of the bent rod (paper eq. (4)), and one SPHERE_LIST
     (ns ``nodes``, id 0) at nodes 1..n for the node masses (size from :func:`marker_sizes`).
     All ADD, lifetime 0 (forever), not frame-locked, z = 0."""
-    width, diameter = marker_sizes(scene)
+    width, diameter, table = _marker_geometry(scene, points_per_rod)
     pts = rod_points(np.asarray(scene.length, dtype=float), np.asarray(snapshot.phi, dtype=float),
                      np.asarray(snapshot.alpha, dtype=float),
-                     np.asarray(snapshot.beta, dtype=float), points_per_rod)
-    items = [_marker(snapshot.t, frame_id, "rods", k + 1, MARKER_LINE_STRIP, width, ROD_COLOR,
-                     pts[k]) for k in range(snapshot.n)]
-    nodes = np.asarray(snapshot.nodes, dtype=float)[1:]
-    items.append(_marker(snapshot.t, frame_id, "nodes", 0, MARKER_SPHERE_LIST, diameter,
+                     np.asarray(snapshot.beta, dtype=float), points_per_rod, table)
+    when = stamp(snapshot.t)
+    items = [_marker(when, frame_id, "rods", k + 1, MARKER_LINE_STRIP, width, ROD_COLOR, rod)
+             for k, rod in enumerate(pts.tolist())]
+    nodes = np.asarray(snapshot.nodes, dtype=float)[1:].tolist()
+    items.append(_marker(when, frame_id, "nodes", 0, MARKER_SPHERE_LIST, diameter,
                          NODE_COLOR, nodes))
     return {"markers": items}
 

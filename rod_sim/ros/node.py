@@ -244,6 +244,7 @@ class RodSimNode(Node):
     def __init__(self, **node_kwargs):
         super().__init__(NODE_NAME, **node_kwargs)
         self._log: LogWriter | None = None
+        self._throttle_until: dict[str, int] = {}
         try:
             self.settings = self._declare_parameters()
             self._build_simulation()
@@ -443,9 +444,10 @@ class RodSimNode(Node):
         except CommandError as exc:
             self._rejected += 1
             self._last_rejection = str(exc)
-            self.get_logger().warning(
+            self._log_throttled(
+                "rejected", "warning",
                 f"rejected a nodal_forces command: {exc} ({self._rejected} rejected so far); "
-                "keeping the last valid command", throttle_duration_sec=THROTTLE_S)
+                "keeping the last valid command")
             return
         command = Command(forces, time.monotonic_ns(), self.sim.t_ns)
         self._latest = command
@@ -462,11 +464,22 @@ class RodSimNode(Node):
             age = (time.monotonic_ns() - cmd.wall_ns) if wall_age else (self.sim.t_ns - cmd.sim_ns)
             active = age <= self._timeout_ns
         if self._command_active and not active:
-            self.get_logger().info(
+            self._log_throttled(
+                "timeout", "info",
                 f"no valid {COMMAND_TOPIC} command for {self._timeout_ns / NS_PER_S:g} s: "
-                "command force set to zero", throttle_duration_sec=THROTTLE_S)
+                "command force set to zero")
         self._command_active = active
         return cmd.forces if active else self._zero
+
+    def _log_throttled(self, key: str, level: str, text: str) -> None:
+        """Log ``text`` at ``level`` at most once per :data:`THROTTLE_S` per ``key``. rclpy's
+        own ``throttle_duration_sec`` inspects the caller's frame and module on every call,
+        milliseconds each: too slow on a 1 kHz path (it made a lagging node lag more)."""
+        now = time.monotonic_ns()
+        if now < self._throttle_until.get(key, 0):
+            return
+        self._throttle_until[key] = now + int(THROTTLE_S * NS_PER_S)
+        getattr(self.get_logger(), level)(text)
 
     # ----- stepping -----
 
@@ -487,9 +500,10 @@ class RodSimNode(Node):
         decision = self._pacer.decide(time.monotonic_ns(), self.sim.t_ns)
         if decision.dropped:
             self._dropped += decision.dropped
-            self.get_logger().warning(
+            self._log_throttled(
+                "dropped", "warning",
                 f"stepping is slower than real time x{self._rtf:g}: dropped {decision.dropped} "
-                f"period(s) of backlog ({self._dropped} in all)", throttle_duration_sec=THROTTLE_S)
+                f"period(s) of backlog ({self._dropped} in all)")
         for _ in range(decision.periods):
             if not self._step_period(self._held_command(wall_age=True)):
                 break
