@@ -272,6 +272,21 @@ def test_lockstep_is_one_period_per_command_and_deterministic(harness, tmp_path)
             "/node_poses", "/markers"} <= topics_logged
     assert sum(m[0] == "/nodal_forces" for m in messages) == 30
     assert sum(m[0] == "/rod_states" for m in messages) == 31     # t = 0 and 30 periods
+    # markers_rate_hz 50 at rate_hz 100: the states of every second period, from t = 0
+    assert [t for topic, t, _ in messages if topic == "/markers"] == [
+        k * 2 * PERIOD_NS for k in range(16)]
+
+
+@pytest.mark.parametrize("markers_rate_hz, every", [(0.0, 1), (30.0, 3), (1000.0, 1)])
+def test_markers_on_every_kth_period(harness, tmp_path, markers_rate_hz, every):
+    h = harness(scene_file=str(SMALL), sync_mode=True, markers_rate_hz=markers_rate_hz)
+    h.subscribe("markers", MarkerArray)
+    h.wait_matched("markers")
+    drive_lockstep(h, np.zeros((7, 6)))
+    h.spin_for(0.2)
+    stamps = sorted({m.markers[0].header.stamp.nanosec + 10**9 * m.markers[0].header.stamp.sec
+                     for m in h.received["markers"]})
+    assert stamps == [k * PERIOD_NS for k in range(1, 8) if k % every == 0]
 
 
 def test_services_pause_step_reset(harness):
@@ -307,8 +322,8 @@ def test_parameters_from_the_params_file_and_descriptors(harness):
     s = h.node.settings
     assert (s.model, s.rate_hz, s.real_time_factor, s.sync_mode, s.record_path) == (
         "reduced", 100.0, 1.0, False, "")
-    assert (s.command_timeout, s.integrator, s.publish_clock, s.frame_id) == (
-        0.5, "dop853-jit", True, "world")
+    assert (s.command_timeout, s.integrator, s.publish_clock, s.frame_id, s.markers_rate_hz) == (
+        0.5, "dop853-jit", True, "world", 50.0)
     descriptors = h.node.describe_parameters(["scene_file", "model", "rate_hz",
                                               "real_time_factor", "command_timeout"])
     assert [d.read_only for d in descriptors] == [True, True, True, False, False]

@@ -176,6 +176,10 @@ PARAMETERS = (
                   range=(1e-14, 1e-2)),
     ParameterSpec("publish_clock", True, "publish simulated time on /clock"),
     ParameterSpec("frame_id", "world", "frame_id of the published headers", read_only=False),
+    ParameterSpec("markers_rate_hz", 50.0, "rate of the markers topic [Hz of simulated time], "
+                  "for display (RViz, Foxglove): published and recorded with the states of "
+                  "every k-th control period, k = max(1, round(rate_hz / markers_rate_hz)), "
+                  "counted from t = 0; 0 = every control period", range=(0.0, 10000.0)),
 )
 
 
@@ -194,6 +198,7 @@ class NodeSettings:
     rtol: float
     publish_clock: bool
     frame_id: str
+    markers_rate_hz: float
 
     def check(self) -> None:
         """Raise NodeConfigError for values the descriptors' ranges do not cover."""
@@ -332,6 +337,8 @@ class RodSimNode(Node):
         self._frame_id = self.settings.frame_id
         self._rtf = self.settings.real_time_factor
         self._timeout_ns = int(round(self.settings.command_timeout * NS_PER_S))
+        rate = self.settings.markers_rate_hz
+        self._markers_every = max(1, round(self.settings.rate_hz / rate)) if rate > 0 else 1
 
     def _create_interfaces(self) -> None:
         self._pubs = {name: self.create_publisher(
@@ -606,7 +613,8 @@ class RodSimNode(Node):
         t_ns = self.sim.t_ns
         self._max_alpha = max(self._max_alpha, float(np.max(np.abs(snap.alpha), initial=0.0)))
         self._max_beta = max(self._max_beta, float(np.max(np.abs(snap.beta), initial=0.0)))
-        wanted = [name for name in STATE_TOPICS if self._wants(name)]
+        wanted = [name for name in STATE_TOPICS if self._wants(name)
+                  and (name != "markers" or self._markers_due(t_ns))]
         if wanted:
             for name, data in topics.snapshot_messages(snap, self.scene, self._frame_id,
                                                        wanted).items():
@@ -614,6 +622,10 @@ class RodSimNode(Node):
         if self._clock_pub is not None and self._clock_pub.get_subscription_count() > 0:
             self._clock_pub.publish(to_message(topics.TOPIC_TYPES["clock"],
                                                {"clock": topics.stamp_from_ns(t_ns)}))
+
+    def _markers_due(self, t_ns: int) -> bool:
+        """Whether the state at ``t_ns`` (on the control-period grid) gets markers."""
+        return (t_ns // self.period_ns) % self._markers_every == 0
 
     def diagnostic_report(self) -> DiagnosticReport:
         """The health of the simulation over the window since the last diagnostics."""

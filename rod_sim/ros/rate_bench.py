@@ -155,6 +155,7 @@ def measure(args) -> dict:
                 if first_kept is None and time.monotonic() >= start + args.warmup:
                     first_kept, cpu0 = len(wall), process_cpu_s(node_proc.pid)
             cpu1 = process_cpu_s(node_proc.pid)
+            executor.shutdown()
             node.destroy_node()
         finally:
             rclpy.try_shutdown()
