@@ -338,6 +338,20 @@ def _array_struct(code: str, n: int):
     return s
 
 
+def _fast_length(b: bytearray, n: int, kind: str | None, count: int | None) -> int:
+    """Check an array's length ``n`` against its kind and append the uint32 count prefix of a
+    sequence ('seq', 'bounded'); a fixed array has none. Returns ``n``."""
+    if kind == "fixed":
+        if n != count:
+            raise _GiveUp
+    else:
+        if kind == "bounded" and n > count:
+            raise _GiveUp
+        b += _PAD[4][len(b) & 3]
+        b += _U32(n)
+    return n
+
+
 def _fast_primitive_array(b: bytearray, a: Any, code: str, size: int, kind: str | None,
                           count: int | None) -> None:
     """Append a primitive array (``kind`` 'seq'/'bounded': with count; 'fixed': ``count``
@@ -363,15 +377,7 @@ def _fast_primitive_array(b: bytearray, a: Any, code: str, size: int, kind: str 
         raw = a
     else:
         raise _GiveUp
-    n = len(a)
-    if kind == "fixed":
-        if n != count:
-            raise _GiveUp
-    else:
-        if kind == "bounded" and n > count:
-            raise _GiveUp
-        b += _PAD[4][len(b) & 3]
-        b += _U32(n)
+    n = _fast_length(b, len(a), kind, count)
     if not n:
         return
     if size > 1:
@@ -386,15 +392,7 @@ def _fast_string_array(b: bytearray, a: Any, kind: str | None, count: int | None
         a = ()
     elif a.__class__ is not list and a.__class__ is not tuple:
         raise _GiveUp
-    n = len(a)
-    if kind == "fixed":
-        if n != count:
-            raise _GiveUp
-    else:
-        if kind == "bounded" and n > count:
-            raise _GiveUp
-        b += _PAD[4][len(b) & 3]
-        b += _U32(n)
+    _fast_length(b, len(a), kind, count)
     pad4 = _PAD[4]
     for s in a:
         data = s.encode()
