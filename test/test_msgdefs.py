@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-from rod_sim.io import msgdefs
+from rod_sim.io import cdr, msgdefs
 from rod_sim.io.msgdefs import SCHEMAS, SEPARATOR, TYPE_HASHES, TYPE_NAMES
 
 JAZZY = get_typestore(Stores.ROS2_JAZZY)
@@ -109,20 +109,21 @@ def test_type_hash_matches_the_typestore_and_our_text(type_name):
 
 @pytest.mark.parametrize("type_name", TYPE_NAMES)
 def test_field_table_matches_the_typestore(type_name):
-    table = msgdefs.field_table(type_name)
+    table = cdr.parse_definition(type_name, SCHEMAS[type_name])
     for name, fields in table.items():
-        assert list(fields) == [f for f, _ in JAZZY.fielddefs[name][1]], name
+        assert [f.name for f in fields] == [f for f, _ in JAZZY.fielddefs[name][1]], name
 
 
-def test_check_fields_rejects_misspelled_nested_fields():
+def test_encoders_reject_misspelled_nested_fields():
+    encode = cdr.encoder("visualization_msgs/msg/MarkerArray")
     ok = {"markers": [{"header": {"stamp": {"sec": 1, "nanosec": 2}, "frame_id": "w"},
                        "points": [{"x": 1.0, "y": 2.0}], "color": {"r": 1.0}}]}
-    msgdefs.check_fields("visualization_msgs/msg/MarkerArray", ok)
+    encode(ok)
     bad = {"markers": [{"points": [{"x": 1.0}, {"x": 1.0, "yy": 2.0}]}]}
     with pytest.raises(msgdefs.MessageFieldError, match=r"markers\[0\]\.points\[1\]\.yy"):
-        msgdefs.check_fields("visualization_msgs/msg/MarkerArray", bad)
+        encode(bad)
     with pytest.raises(msgdefs.MessageFieldError, match="stamp.secs"):
-        msgdefs.check_fields("sensor_msgs/msg/JointState", {"header": {"stamp": {"secs": 1}}})
+        cdr.encoder("sensor_msgs/msg/JointState")({"header": {"stamp": {"secs": 1}}})
 
 
 def test_full_definition_follows_rosbag2s_order_and_dedup():

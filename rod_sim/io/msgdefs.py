@@ -503,92 +503,9 @@ SCHEMAS: dict[str, str] = {
     for name in TYPE_NAMES}
 """Type name -> the full concatenated definition rosbag2 writes as the MCAP schema."""
 
-# ----- field tables: catch misspelled fields (the CDR encoder silently writes defaults) -----
-
 class MessageFieldError(ValueError):
-    """A message dict has a field its ROS type does not define; ``str(err)`` names its path."""
-
-
-_PRIMITIVE_FIELD_TYPES = _PRIMITIVES | {"wstring"}
-
-
-def _sections(text: str) -> list[tuple[str | None, str]]:
-    """``(pkg/Type or None for the root, text)`` of each part of a concatenated definition."""
-    out: list[tuple[str | None, str]] = []
-    for i, part in enumerate(text.split("\n" + SEPARATOR)):
-        if i == 0:
-            out.append((None, part))
-            continue
-        header, _, body = part.partition("\n")
-        out.append((header.removeprefix("MSG: ").strip(), body))
-    return out
-
-
-def _normalize(name: str, package: str) -> str:
-    base = name.split("<=")[0]
-    if base in _PRIMITIVE_FIELD_TYPES:
-        return base
-    parts = base.split("/")
-    if len(parts) == 1:
-        return f"{package}/msg/{parts[0]}"
-    if len(parts) == 2:
-        return f"{parts[0]}/msg/{parts[1]}"
-    return base
-
-
-_FIELD_CACHE: dict[str, dict[str, dict[str, tuple[str, bool]]]] = {}
-
-
-def field_table(type_name: str) -> dict[str, dict[str, tuple[str, bool]]]:
-    """Fields of ``type_name`` and of every type it uses, from its text in :data:`SCHEMAS`.
-
-    ``{type: {field: (field type, is_array)}}``; types are ``pkg/msg/Type`` or primitives.
-    """
-    if type_name in _FIELD_CACHE:
-        return _FIELD_CACHE[type_name]
-    if type_name not in SCHEMAS:
-        raise KeyError(f"no schema for {type_name!r} (known: {', '.join(SCHEMAS)})")
-    table: dict[str, dict[str, tuple[str, bool]]] = {}
-    for header, body in _sections(SCHEMAS[type_name]):
-        name = type_name if header is None else _normalize(header, "")
-        package = name.split("/")[0]
-        fields: dict[str, tuple[str, bool]] = {}
-        for line in body.splitlines():
-            code = line.split("#", 1)[0].strip()
-            tokens = code.split()
-            if len(tokens) < 2 or "=" in code:
-                continue  # blank, comment or constant
-            ftype = tokens[0]
-            fields[tokens[1]] = (_normalize(ftype.split("[")[0], package), "[" in ftype)
-        table[name] = fields
-    _FIELD_CACHE[type_name] = table
-    return table
-
-
-def check_fields(type_name: str, msg) -> None:
-    """Raise :class:`MessageFieldError` if the dict ``msg`` (nested dicts/lists) names a field
-    that ``type_name`` does not have. Missing fields are allowed (they encode as defaults)."""
-    table = field_table(type_name)
-
-    def walk(tname: str, value, path: str) -> None:
-        if not isinstance(value, dict):
-            return
-        fields = table[tname]
-        for key, item in value.items():
-            if key not in fields:
-                raise MessageFieldError(
-                    f"{type_name}: no field {path + key!r} in {tname} "
-                    f"(fields: {', '.join(fields)})")
-            ftype, is_array = fields[key]
-            if ftype not in table:
-                continue
-            if is_array and isinstance(item, (list, tuple)):
-                for i, element in enumerate(item):
-                    walk(ftype, element, f"{path}{key}[{i}].")
-            else:
-                walk(ftype, item, f"{path}{key}.")
-
-    walk(type_name, msg, "")
+    """A message dict has a field its ROS type does not define; ``str(err)`` names its path
+    (raised by the encoders of :mod:`rod_sim.io.cdr`)."""
 
 
 if __name__ == "__main__":
