@@ -129,6 +129,19 @@ def cmd_simulate(args) -> int:
     logged_events = 0                            # hinge events (docs/hinges.md) written so far
     with LogWriter(out, metadata=metadata) as log:
         first = True
+
+        def write(traj) -> None:
+            """Log the samples of ``traj`` (its first one is the previous call's last) and the
+            hinge events since the last call; the validity monitor sees every sample."""
+            nonlocal first, samples, logged_events
+            for i in range(0 if first else 1, traj.t.size):
+                snap = traj.snapshot(i)
+                validity.update(snap.t, traj.y[i], None, snap.alpha, snap.beta)
+                log.write_snapshot(snap, scene, frame_id=args.frame_id)
+                samples += 1
+            first = False
+            logged_events += write_events(log, sim.events[logged_events:])
+
         while sim.t_ns < round(args.t_end * 1e9):
             t_next = min(args.t_end, (math.floor(sim.t / chunk + 1e-9) + 1) * chunk)
             started = time.perf_counter()
@@ -138,12 +151,7 @@ def cmd_simulate(args) -> int:
                 # redo the chunk one sample at a time so the log keeps every finite sample
                 try:
                     while True:
-                        part = sim.run(min(t_next, sim.t + 1.0 / args.rate), args.rate)
-                        for i in range(0 if first else 1, part.t.size):
-                            log.write_snapshot(part.snapshot(i), scene, frame_id=args.frame_id)
-                            samples += 1
-                        first = False
-                        logged_events += write_events(log, sim.events[logged_events:])
+                        write(sim.run(min(t_next, sim.t + 1.0 / args.rate), args.rate))
                 except IntegrationError as again:
                     err = again
                 except ValueError:
@@ -153,13 +161,7 @@ def cmd_simulate(args) -> int:
                 status = EXIT_CHECK_FAILED
                 break
             wall += time.perf_counter() - started
-            for i in range(0 if first else 1, traj.t.size):
-                snap = traj.snapshot(i)
-                validity.update(snap.t, traj.y[i], None, snap.alpha, snap.beta)
-                log.write_snapshot(snap, scene, frame_id=args.frame_id)
-                samples += 1
-            first = False
-            logged_events += write_events(log, sim.events[logged_events:])
+            write(traj)
     rtf = sim.t / wall if wall > 0 else math.inf
     print(f"{scene.name}: {model.name} model, {integrator.describe()}, t = 0..{sim.t:g} s, "
           f"{samples} samples -> {out} (integration {wall:.3f} s wall, {rtf:.0f}x real time, "
