@@ -206,6 +206,19 @@ class Player(Node):
             executor.spin_once(timeout_sec=0)
 
 
+    def flush(self, timeout_s: float = 2.0) -> bool:
+        """Wait (at most ``timeout_s`` in all) until the matched subscribers acknowledged
+        every reliable message, so that exiting right after the last one loses none."""
+        from rclpy.duration import Duration
+
+        deadline = time.monotonic() + timeout_s
+        acked = True
+        for pub in self._pubs.values():
+            left = max(0.0, deadline - time.monotonic())
+            acked = pub.wait_for_all_acked(Duration(nanoseconds=int(left * NS_PER_S))) and acked
+        return acked
+
+
 def wait_for_subscribers(player: Player, executor, stop: StopRequest) -> bool:
     """Spin until every replayed topic has a subscriber (False when stopped first)."""
     waiting = [t for t, pub in player._pubs.items() if pub.get_subscription_count() == 0]

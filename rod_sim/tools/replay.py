@@ -149,6 +149,7 @@ def _play(source, topics: list[str], args):
                 gc.collect()
                 gc.freeze()       # full collections of the startup heap stalled playback ~0.1 s
                 stats = player.play(executor, stop)
+                player.flush()
             else:
                 stats.stopped = True
         except (KeyboardInterrupt, ExternalShutdownException):
