@@ -99,7 +99,8 @@ def build_parser() -> argparse.ArgumentParser:
 def cmd_node(args) -> int:
     from ..ros.node import main as node_main
 
-    return node_main(list(args.ros_args))       # reached only through run(); main() forwards
+    # reached only through run(); main() forwards
+    return node_main(list(args.ros_args), prog="rod-sim node")
 
 
 def cmd_simulate(args) -> int:
@@ -204,7 +205,7 @@ def main(argv: list[str] | None = None) -> int:
         # its own parser (for --help and typos) and reports bad parameters with status 2.
         from ..ros.node import main as node_main
 
-        return node_main(argv[1:])
+        return node_main(argv[1:], prog="rod-sim node")
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
