@@ -479,6 +479,7 @@ class RodSimNode(Node):
         """Warn about overrides (-p, params files) that name no parameter of this node."""
         known = {spec.name for spec in PARAMETERS} | {"use_sim_time"}
         unknown = sorted(set(getattr(self, "_parameter_overrides", {})) - known)
+        self.unknown_parameters = unknown
         if unknown:
             self.get_logger().warning(
                 f"unknown parameter(s) ignored: {', '.join(unknown)} (parameters of this node: "
