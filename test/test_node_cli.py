@@ -83,3 +83,15 @@ def test_pd_controller_says_what_it_does_at_start(monkeypatch):
     assert "kp 1500 N m/rad" in summary and "kd 200 N m s/rad" in summary
     assert str(SMALL) in summary
     assert "/arm1/joint_states" in summary and "/arm1/nodal_forces" in summary
+
+
+def test_simulate_help_states_defaults_and_documents_integrator_and_frame_id(capsys):
+    from rod_sim.tools import cli
+
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["simulate", "--help"])
+    assert exc.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "(default reduced)" in text and "(default world)" in text
+    assert "compiled adaptive Dormand- Prince" in text or "compiled adaptive Dormand-Prince" in text
+    assert "scipy's RK45" in text and "(default 100)" in text
