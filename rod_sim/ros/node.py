@@ -34,14 +34,27 @@ run), the simulator advances, and the states are published stamped at the end of
 Every header stamp and log time is simulated time.
 
 Outputs nobody subscribes to are only built when a log is being recorded (``markers`` is the
-costly one). ``/clock`` (best effort, depth 1, like rclcpp's ClockQoS) is not recorded: log
-times already are simulated times and players publish their own clock.
+costly one); in lockstep the state topics are transient local (depth 1) and always published,
+the t = 0 state included, so a client can start from the state callback. ``/clock`` (depth 1,
+volatile, ``clock_reliability``: reliable by default, which both default-QoS and ClockQoS
+subscribers receive) follows every period and, while nothing advances (paused, waiting,
+failed), repeats the frozen time every 0.1 s; it is not recorded: log times already are
+simulated times and players publish their own clock. ``/diagnostics`` is absolute (status
+``rod_sim: simulation``). ``start_paused`` holds the node at t = 0 until ``~/pause`` false or
+the first valid command; ``~/step`` advances ``step_count`` periods.
+
+Work per period is bounded (:mod:`rod_sim.ros.budget`): the integrator's steps per
+``Simulator.advance`` are capped from ``max_period_cost`` and the measured cost of a step, so
+a period that would take seconds (a 1e12 N command) fails fast with a named cause. Commands
+are taken as serialized bytes and refused by their length before they are decoded.
 
 Recording (``record_path``): the SPEC section 5 log with the commands as received (``/nodal_forces``
 at the simulated time of reception, rejected ones included), ``/applied_forces``, every output
 topic and ``/diagnostics`` (which carries wall-clock measurements and so differs between
-otherwise identical runs). ``~/reset`` sends simulated time back to 0, so the recording goes on
-in a new file ``<stem>_<k><suffix>`` next to the first. The log is closed with its summary on
+otherwise identical runs), under their resolved names (namespace and remappings applied, as
+rosbag2 records). ``~/reset`` sends simulated time back to 0, so the recording goes on in the
+next free file ``<stem>_<k><suffix>`` next to the first; a log that cannot be opened or written
+is an ERROR on diagnostics. The log is closed with its summary on
 SIGINT, SIGTERM and shutdown; after SIGKILL it stays readable up to its last complete chunk.
 
 Integration failures pause the simulation, are logged and reported with level ERROR on
