@@ -449,7 +449,7 @@ def test_small_chain_loads_quickly():
 
 def test_node_params_file_names_a_loadable_scene():
     params = yaml.safe_load((CONFIG / "sim_node.params.yaml").read_text())
-    p = params["rod_sim"]["ros__parameters"]
+    p = params["/**"]["ros__parameters"]       # any namespace (issue 13)
     assert p["model"] in ("reduced", "full", "rigid")
     assert p["rate_hz"] > 0 and p["frame_id"] == "world"
     assert load_scene(REPO / p["scene_file"]).n == 8

@@ -212,7 +212,10 @@ class _NonFinite(Exception):
 
 @dataclass
 class ScipyIntegrator(Integrator):
-    """scipy.integrate.solve_ivp with one of its methods, restarted at load breakpoints."""
+    """scipy.integrate.solve_ivp with one of its methods, restarted at load breakpoints.
+    ``max_nfev`` (0 = no limit) bounds the right-hand side evaluations of one call."""
+
+    max_nfev: int = 0
 
     def __post_init__(self):
         self.order = {"RK45": 5, "DOP853": 8, "Radau": 5, "BDF": 5, "LSODA": 12}[self.name]
@@ -224,6 +227,7 @@ class ScipyIntegrator(Integrator):
         kernel, chain, extra, loads = model.kernel, model.chain, model.extra, model.loads
         y = y0
         done = 0
+        calls = [0]                              # right-hand side evaluations of this call
         while done < t_out.size and t_out[done] <= t0:
             Y[done] = y0
             done += 1
@@ -235,6 +239,10 @@ class ScipyIntegrator(Integrator):
             progress = [a, 0]                    # latest time seen, calls since it grew
 
             def fun(t, yy, side=side, progress=progress):
+                calls[0] += 1
+                if self.max_nfev and calls[0] > self.max_nfev:
+                    raise _NonFinite(t, np.array(yy), erk.STATUS_TEXT[erk.STATUS_MAX_STEPS]
+                                     + f" (more than {self.max_nfev} derivative evaluations)")
                 out = np.empty(yy.shape[0])
                 kernel(t, yy, chain, extra, loads, held, side, out)
                 if not (np.all(np.isfinite(yy)) and np.all(np.isfinite(out))):

@@ -232,15 +232,16 @@ DIAGNOSTIC_OK, DIAGNOSTIC_WARN, DIAGNOSTIC_ERROR, DIAGNOSTIC_STALE = 0, 1, 2, 3
 
 
 def diagnostics(t: float, values: Mapping[str, Any], hardware_id: str, *,
-                level: int = DIAGNOSTIC_OK, message: str = "", frame_id: str = "") -> Msg:
-    """``diagnostic_msgs/DiagnosticArray`` with one status named ``rod_sim``.
+                level: int = DIAGNOSTIC_OK, message: str = "", frame_id: str = "",
+                name: str = "rod_sim") -> Msg:
+    """``diagnostic_msgs/DiagnosticArray`` with one status called ``name``.
 
     ``values``: key -> value (non-strings are converted with ``str``); ``hardware_id``: the
     scene name; ``level``: 0 OK, 1 WARN, 2 ERROR, 3 STALE.
     """
     if level not in (DIAGNOSTIC_OK, DIAGNOSTIC_WARN, DIAGNOSTIC_ERROR, DIAGNOSTIC_STALE):
         raise ValueError(f"diagnostic level must be 0..3 (got {level!r})")
-    status = {"level": int(level), "name": "rod_sim", "message": str(message),
+    status = {"level": int(level), "name": str(name), "message": str(message),
               "hardware_id": str(hardware_id),
               "values": [{"key": str(k), "value": v if isinstance(v, str) else str(v)}
                          for k, v in values.items()]}

@@ -26,6 +26,7 @@ first ``node_poses`` message (chords are inextensible, so they never change).
 """
 from __future__ import annotations
 
+import argparse
 import sys
 
 import numpy as np
@@ -39,7 +40,7 @@ from rod_sim.core.scene import SceneError
 from rod_sim.io import topics
 from rod_sim.io.scene_yaml import load_scene
 from rod_sim.ros.conversions import to_message
-from rod_sim.ros.node import run_node
+from rod_sim.ros.node import parse_cli, run_node
 
 CONTROLLER_NAME = "rod_sim_controller"
 
@@ -109,6 +110,14 @@ class HingePDController(Node):
         self.create_subscription(JointState, "joint_states", self._on_joint_states, 10)
         self.create_subscription(PoseArray, "node_poses", self._on_node_poses, 10)
         self.create_timer(kickoff, self._kickoff)
+        self.summary = (
+            f"PD on the hinge angles: kp {self.kp:g} N m/rad, kd {self.kd:g} N m s/rad, target "
+            f"{', '.join(f'{v:g}' for v in self.target)} rad, max moment {self.max_moment:g} "
+            f"N m; rod lengths from {scene_file or 'the first node_poses message'}; reads "
+            f"{self.resolve_topic_name('joint_states')}, writes "
+            f"{self.resolve_topic_name('nodal_forces')}")
+        """The start-up INFO line: gains, scene and topics."""
+        self.get_logger().info(self.summary)
 
     def _on_node_poses(self, msg: PoseArray) -> None:
         if self.lengths is not None or len(msg.poses) < 2:
@@ -141,10 +150,23 @@ class HingePDController(Node):
         self.commands_sent += 1
 
 
+def build_parser() -> argparse.ArgumentParser:
+    return argparse.ArgumentParser(
+        prog="pd_controller", description="rod_sim's demo PD controller (node "
+        f"{CONTROLLER_NAME}): PD control of the hinge angles (joint_states) through nodal "
+        "force couples (nodal_forces), one command per state, so it also drives a lockstep "
+        "simulator. Configure it with ROS arguments, e.g. --ros-args -p "
+        "scene_file:=config/paper_example.yaml -p kp:=2000.0 -p kd:=200.0",
+        epilog="parameters: kp [N m/rad] (default 2000.0), kd [N m s/rad] (200.0), target "
+        "[rad] (one value or one per hinge, [0.0]), max_moment [N m] (1e5), scene_file "
+        "('' = rod lengths from node_poses), kickoff_period [s] (0.5)")
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run the controller until SIGINT/SIGTERM; 2 for a bad scene_file."""
+    """Run the controller until SIGINT/SIGTERM; 2 for bad arguments or a bad scene_file."""
     args = list(sys.argv[1:] if argv is None else argv)
-    return run_node("rod_sim_controller", HingePDController, args, SceneError)
+    parse_cli(build_parser(), args)
+    return run_node("pd_controller", HingePDController, args, SceneError)
 
 if __name__ == "__main__":
     sys.exit(main())

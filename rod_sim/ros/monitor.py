@@ -90,6 +90,8 @@ class DiagnosticReport:
     model: str
     integrator: str
     error: str | None = None
+    recording_error: str | None = None
+    """Why the recording stopped (the log could not be written or opened), None if fine."""
     extra: dict[str, str] = field(default_factory=dict)
     validity: list[str] = field(default_factory=list)
     """Messages of the validity monitor (:mod:`rod_sim.core.validity`) since the last reset."""
@@ -112,6 +114,8 @@ class DiagnosticReport:
         """(level 0 OK / 1 WARN / 2 ERROR, one-line message, key -> value strings)."""
         if self.error:
             level, message = DIAGNOSTIC_ERROR, f"paused after an integration error: {self.error}"
+        elif self.recording_error:
+            level, message = DIAGNOSTIC_ERROR, f"recording stopped: {self.recording_error}"
         else:
             warnings = self._warnings()
             level = DIAGNOSTIC_WARN if warnings else DIAGNOSTIC_OK
@@ -148,6 +152,7 @@ class DiagnosticReport:
             "model": self.model,
             "integrator": self.integrator,
             "error": self.error or "none",
+            "recording_error": self.recording_error or "none",
             "validity": "; ".join(self.validity) or "ok",
         }
         values.update(self.extra)

@@ -34,14 +34,27 @@ run), the simulator advances, and the states are published stamped at the end of
 Every header stamp and log time is simulated time.
 
 Outputs nobody subscribes to are only built when a log is being recorded (``markers`` is the
-costly one). ``/clock`` (best effort, depth 1, like rclcpp's ClockQoS) is not recorded: log
-times already are simulated times and players publish their own clock.
+costly one); in lockstep the state topics are transient local (depth 1) and always published,
+the t = 0 state included, so a client can start from the state callback. ``/clock`` (depth 1,
+volatile, ``clock_reliability``: reliable by default, which both default-QoS and ClockQoS
+subscribers receive) follows every period and, while nothing advances (paused, waiting,
+failed), repeats the frozen time every 0.1 s; it is not recorded: log times already are
+simulated times and players publish their own clock. ``/diagnostics`` is absolute (status
+``rod_sim: simulation``). ``start_paused`` holds the node at t = 0 until ``~/pause`` false or
+the first valid command; ``~/step`` advances ``step_count`` periods.
+
+Work per period is bounded (:mod:`rod_sim.ros.budget`): the integrator's steps per
+``Simulator.advance`` are capped from ``max_period_cost`` and the measured cost of a step, so
+a period that would take seconds (a 1e12 N command) fails fast with a named cause. Commands
+are taken as serialized bytes and refused by their length before they are decoded.
 
 Recording (``record_path``): the SPEC section 5 log with the commands as received (``/nodal_forces``
 at the simulated time of reception, rejected ones included), ``/applied_forces``, every output
 topic and ``/diagnostics`` (which carries wall-clock measurements and so differs between
-otherwise identical runs). ``~/reset`` sends simulated time back to 0, so the recording goes on
-in a new file ``<stem>_<k><suffix>`` next to the first. The log is closed with its summary on
+otherwise identical runs), under their resolved names (namespace and remappings applied, as
+rosbag2 records). ``~/reset`` sends simulated time back to 0, so the recording goes on in the
+next free file ``<stem>_<k><suffix>`` next to the first; a log that cannot be opened or written
+is an ERROR on diagnostics. The log is closed with its summary on
 SIGINT, SIGTERM and shutdown; after SIGKILL it stays readable up to its last complete chunk.
 
 Integration failures pause the simulation, are logged and reported with level ERROR on
@@ -50,6 +63,7 @@ Integration failures pause the simulation, are logged and reported with level ER
 from __future__ import annotations
 
 import argparse
+import functools
 import signal
 import sys
 import threading
@@ -61,13 +75,14 @@ from typing import Any, Callable
 
 import numpy as np
 import rclpy
-from rcl_interfaces.msg import (FloatingPointRange, ParameterDescriptor, ParameterType,
-                                SetParametersResult)
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
+                                ParameterType, SetParametersResult)
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
 from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 from std_msgs.msg import Float64MultiArray
@@ -86,6 +101,7 @@ from rod_sim.io.scene_yaml import load_scene, scene_to_yaml
 from rod_sim.ros.conversions import (CommandError, command_forces, message_class,
                                      message_to_dict, to_message)
 from rod_sim.core.validity import ValidityMonitor
+from rod_sim.ros import budget
 from rod_sim.ros.monitor import DiagnosticReport, EnergyLedger
 from rod_sim.ros.pacing import (NS_PER_S, RateMeter, RealTimePacer, period_ns,
                                 tick_period_s)
@@ -96,10 +112,23 @@ COMMAND_TYPE = "std_msgs/msg/Float64MultiArray"
 STATE_TOPICS = ("joint_states", "rod_states", "bending", "node_poses", "markers")
 """Published at the end of every control period (if subscribed or recorded)."""
 
+DIAGNOSTICS_TOPIC = "/diagnostics"
+"""Absolute, where diagnostic_aggregator listens (as diagnostic_updater publishes)."""
+DIAGNOSTICS_STATUS_NAME = "rod_sim: simulation"
 DIAGNOSTICS_PERIOD_S = 1.0
 """[s] wall period of the ``diagnostics`` messages."""
+IDLE_CLOCK_PERIOD_S = 0.1
+"""[s] wall period of ``/clock`` while no period advances (paused, waiting, failed)."""
+WAITING_LOG_PERIOD_S = 3.0
+"""[s] wall period of the "waiting for ..." log line at t = 0."""
+NAME_CHECK_DELAY_S = 2.0
+"""[s] after start at which the graph is checked for another node of the same name."""
+COMMAND_SLACK_BYTES = 4096
+"""Bytes a serialized command may carry beyond its 2 n doubles (header, layout, labels)."""
 FAST_TICK_BUDGET_NS = 20_000_000
 """[ns] wall time one tick may spend stepping when running as fast as possible."""
+MAX_LOG_ROLLS = 10_000
+"""Names ``<stem>_<k>`` tried after a reset before giving up (existing files are skipped)."""
 SYNC_BATCH = 16
 """Lockstep commands processed per executor callback before yielding to other callbacks."""
 THROTTLE_S = 2.0
@@ -115,6 +144,15 @@ CLOCK_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
                        reliability=ReliabilityPolicy.BEST_EFFORT,
                        durability=DurabilityPolicy.VOLATILE)
 """rclcpp's ClockQoS, which rclpy's TimeSource and rosbag2's player also use."""
+CLOCK_RELIABILITY = {"reliable": ReliabilityPolicy.RELIABLE,
+                     "best_effort": ReliabilityPolicy.BEST_EFFORT}
+"""Values of the ``clock_reliability`` parameter. A reliable publisher reaches both reliable
+(default QoS) and best-effort (ClockQoS) subscribers; a best-effort one only the latter."""
+LOCKSTEP_STATE_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
+                                reliability=ReliabilityPolicy.RELIABLE,
+                                durability=DurabilityPolicy.TRANSIENT_LOCAL)
+"""Lockstep state topics: a client that subscribes transient local gets the latest state
+(the t = 0 state before the first command) and can answer it."""
 COMMAND_QOS = STATE_QOS
 EVENTS_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
                         reliability=ReliabilityPolicy.RELIABLE,
@@ -142,11 +180,14 @@ class ParameterSpec:
 
     def descriptor(self) -> ParameterDescriptor:
         kinds = {bool: ParameterType.PARAMETER_BOOL, float: ParameterType.PARAMETER_DOUBLE,
-                 str: ParameterType.PARAMETER_STRING}
+                 str: ParameterType.PARAMETER_STRING, int: ParameterType.PARAMETER_INTEGER}
         d = ParameterDescriptor(name=self.name, type=kinds[type(self.default)],
                                 description=self.description, read_only=self.read_only,
                                 additional_constraints=self.constraints)
-        if self.range is not None:
+        if self.range is not None and isinstance(self.default, int):
+            d.integer_range = [IntegerRange(
+                from_value=int(self.range[0]), to_value=int(self.range[1]), step=1)]
+        elif self.range is not None:
             d.floating_point_range = [FloatingPointRange(
                 from_value=float(self.range[0]), to_value=float(self.range[1]), step=0.0)]
         return d
@@ -174,7 +215,20 @@ PARAMETERS = (
                   constraints="one of: " + ", ".join(INTEGRATORS)),
     ParameterSpec("rtol", 1e-8, "relative and absolute tolerance of adaptive integrators [1]",
                   range=(1e-14, 1e-2)),
-    ParameterSpec("publish_clock", True, "publish simulated time on /clock"),
+    ParameterSpec("publish_clock", True, "publish simulated time on /clock (also while "
+                  "paused or waiting: the frozen time, every 0.1 s of wall time)"),
+    ParameterSpec("clock_reliability", "reliable", "QoS reliability of /clock (depth 1, "
+                  "volatile): reliable reaches both default-QoS and ClockQoS (best effort) "
+                  "subscribers", constraints="one of: " + ", ".join(CLOCK_RELIABILITY)),
+    ParameterSpec("start_paused", False, "start paused at t = 0 until ~/pause false or the "
+                  "first valid nodal_forces command"),
+    ParameterSpec("step_count", 1, "control periods one ~/step call advances",
+                  read_only=False, range=(1, 10000)),
+    ParameterSpec("max_period_cost", 0.5, "[s] wall time one control period may cost: the "
+                  "integrator's work per period is capped accordingly (steps or derivative "
+                  "evaluations, cost measured at start); a period that needs more pauses the "
+                  "simulation with 'work budget exceeded' (ERROR on diagnostics)",
+                  range=(0.01, 3600.0)),
     ParameterSpec("frame_id", "world", "frame_id of the published headers", read_only=False),
     ParameterSpec("markers_rate_hz", 50.0, "rate of the markers topic [Hz of simulated time], "
                   "for display (RViz, Foxglove): published and recorded with the states of "
@@ -199,12 +253,23 @@ class NodeSettings:
     publish_clock: bool
     frame_id: str
     markers_rate_hz: float
+    clock_reliability: str
+    start_paused: bool
+    step_count: int
+    max_period_cost: float
 
-    def check(self) -> None:
-        """Raise NodeConfigError for values the descriptors' ranges do not cover."""
+    def check(self, full_name: str = NODE_NAME, params_files: tuple[str, ...] = ()) -> None:
+        """Raise NodeConfigError for values the descriptors' ranges do not cover. The node's
+        ``full_name`` and the ``params_files`` given explain a missing scene_file."""
         if not self.scene_file:
+            hint = (f"; {', '.join(params_files)} has no entry for this node: a params file "
+                    f"applies under its full name {full_name}: or under /**:"
+                    if params_files else "")
             raise NodeConfigError("scene_file: parameter is required (e.g. -p scene_file:="
-                                  "config/paper_example.yaml)")
+                                  "config/paper_example.yaml)" + hint)
+        if self.clock_reliability not in CLOCK_RELIABILITY:
+            raise NodeConfigError(f"clock_reliability: unknown value {self.clock_reliability!r}"
+                                  f" (choose from {', '.join(CLOCK_RELIABILITY)})")
         if self.model not in MODELS:
             raise NodeConfigError(f"model: unknown model {self.model!r} "
                                   f"(choose from {', '.join(MODELS)})")
@@ -213,6 +278,14 @@ class NodeSettings:
                                   f"(choose from {', '.join(INTEGRATORS)})")
         if not self.frame_id:
             raise NodeConfigError("frame_id: must not be empty")
+
+
+def has_hinge_events(scene) -> bool:
+    """Whether the scene has latches or stops, the only sources of ``hinge_events``."""
+    def given(values, default_test) -> bool:
+        return values is not None and bool(np.any(default_test(np.asarray(values, float))))
+    return (given(scene.latch_angle, lambda v: ~np.isnan(v))
+            or given(scene.stop_lower, np.isfinite) or given(scene.stop_upper, np.isfinite))
 
 
 def _one_line(text: Any) -> str:
@@ -246,15 +319,19 @@ class RodSimNode(Node):
     ``parameter_overrides``, ``namespace``, ...). Raises NodeConfigError for bad parameters, a
     missing or invalid scene, or a log that cannot be created."""
 
-    def __init__(self, **node_kwargs):
+    def __init__(self, params_files: tuple[str, ...] = (), **node_kwargs):
         super().__init__(NODE_NAME, **node_kwargs)
         self._log: LogWriter | None = None
+        self._recording_error: str | None = None
         self._throttle_until: dict[str, int] = {}
+        self._params_files = tuple(params_files)
+        self.name_conflict = False
+        """True once another node with this node's full name was seen on the graph."""
         try:
             self.settings = self._declare_parameters()
             self._build_simulation()
-            self._warm_up()
-            self._init_state()
+            self._start_checked()
+            self._topic_names = self._resolve_topic_names()
             self._log_path = Path(self.settings.record_path) if self.settings.record_path else None
             self._log_count = 0
             if self._log_path is not None:
@@ -263,11 +340,16 @@ class RodSimNode(Node):
         except BaseException:
             self.destroy_node()
             raise
-        self._publish_state(self.sim.snapshot())
+        self._publish_state(self.sim.snapshot(), force=self.settings.sync_mode)
+        self._warn_unknown_parameters()
         self.get_logger().info(
-            f"scene {self.scene.name!r} (n = {self.scene.n}), model {self.model.name}, "
-            f"{self.sim.integrator.describe()}, {self.settings.rate_hz:g} Hz, {self._mode()}"
-            + (f", recording to {self._log_path}" if self._log_path else ""))
+            f"{self.get_fully_qualified_name()}: scene {self.scene.name!r} (n = {self.scene.n}), "
+            f"model {self.model.name}, {self.sim.integrator.describe()}, "
+            f"{self.settings.rate_hz:g} Hz, {self._mode()}, work budget "
+            f"{self._budget.describe()}; commands on {self._topic_names[COMMAND_TOPIC]}"
+            + (f", recording to {self._log_path}" if self._log_path else "")
+            + (", paused until ~/pause false or the first command"
+               if self.settings.start_paused else ""))
 
     # ----- construction -----
 
@@ -280,7 +362,7 @@ class RodSimNode(Node):
             except ParameterException as exc:
                 raise NodeConfigError(_parameter_error(spec, exc)) from None
         settings = NodeSettings(**values)
-        settings.check()
+        settings.check(self.get_fully_qualified_name(), self._params_files)
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         return settings
@@ -298,15 +380,33 @@ class RodSimNode(Node):
             raise NodeConfigError(_one_line(exc)) from None
         self.sim = Simulator(self.model, integrator)
 
+    def _start_checked(self) -> None:
+        """Warm up and set up the run state; a scene that cannot even start (e.g. phi =
+        1e308: non-finite linearization) is a NodeConfigError naming the cause."""
+        try:
+            self._warm_up()
+            self.sim.reset()          # the scratch run shares the model (hinge latches)
+            self._init_state()
+        except NodeConfigError:
+            raise
+        except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
+            raise NodeConfigError(
+                f"scene_file {self.settings.scene_file}: the scene cannot be simulated from its "
+                f"initial state ({type(exc).__name__}: {_one_line(exc)[:200]})") from None
+
     def _warm_up(self) -> None:
         """Load the compiled kernels and message types once, before the clock starts, so that
-        the first real period does not pay for them."""
+        the first real period does not pay for them, and measure the work budget."""
         scratch = Simulator(self.model, make_integrator(self.settings.integrator,
                                                         rtol=self.settings.rtol))
+        period_s = self.period_ns / NS_PER_S
         try:
-            scratch.advance(self.period_ns / NS_PER_S)
+            self._budget = budget.measure(scratch, period_s, self.settings.max_period_cost)
         except (IntegrationError, ArithmeticError):
-            return  # the real run reports it
+            self._budget = budget.fallback(self.sim.integrator, self.settings.max_period_cost)
+        self._budget.apply(self.sim.integrator)
+        if scratch.t_ns == 0:
+            return  # the first period failed: the real run reports it
         snap = scratch.snapshot()
         self.model.energies(snap.t, scratch.y, scratch.held)
         self.model.powers(snap.t, scratch.y, scratch.held)
@@ -317,7 +417,12 @@ class RodSimNode(Node):
     def _init_state(self) -> None:
         n = self.scene.n
         self._zero = np.zeros((n, 2))
-        self._paused = False
+        self._paused = self.settings.start_paused
+        self._start_hold = self.settings.start_paused
+        """Paused by start_paused only: the first valid command resumes."""
+        self._step_count = self.settings.step_count
+        self._clock_wall_ns = 0
+        self._max_command_bytes = 16 * 2 * n + COMMAND_SLACK_BYTES
         self._error: str | None = None
         self._latest: Command | None = None
         self._sync_queue: deque[Command] = deque()
@@ -340,18 +445,35 @@ class RodSimNode(Node):
         rate = self.settings.markers_rate_hz
         self._markers_every = max(1, round(self.settings.rate_hz / rate)) if rate > 0 else 1
 
+    def _resolve_topic_names(self) -> dict[str, str]:
+        """Relative topic name -> the resolved name it is published and recorded under
+        (namespace and remappings applied, as rosbag2 records)."""
+        names = {name: self.resolve_topic_name(name)
+                 for name in STATE_TOPICS + ("applied_forces", COMMAND_TOPIC, HINGE_EVENTS_TOPIC)}
+        names["diagnostics"] = self.resolve_topic_name(DIAGNOSTICS_TOPIC)
+        return names
+
     def _create_interfaces(self) -> None:
+        state_qos = LOCKSTEP_STATE_QOS if self.settings.sync_mode else STATE_QOS
         self._pubs = {name: self.create_publisher(
-            message_class(topics.TOPIC_TYPES[name]), name,
-            APPLIED_QOS if name == "applied_forces" else STATE_QOS)
+            message_class(topics.TOPIC_TYPES[name]), self._topic_names[name],
+            APPLIED_QOS if name == "applied_forces" else
+            STATE_QOS if name == "diagnostics" else state_qos)
             for name in STATE_TOPICS + ("applied_forces", "diagnostics")}
+        clock_qos = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
+                               reliability=CLOCK_RELIABILITY[self.settings.clock_reliability],
+                               durability=DurabilityPolicy.VOLATILE)
         self._clock_pub = (self.create_publisher(message_class(topics.TOPIC_TYPES["clock"]),
-                                                 "/clock", CLOCK_QOS)
+                                                 "/clock", clock_qos)
                            if self.settings.publish_clock else None)
-        self._events_pub = self.create_publisher(message_class(HINGE_EVENTS_TYPE),
-                                                 HINGE_EVENTS_TOPIC, EVENTS_QOS)
+        self._events_pub = (self.create_publisher(message_class(HINGE_EVENTS_TYPE),
+                                                  self._topic_names[HINGE_EVENTS_TOPIC],
+                                                  EVENTS_QOS)
+                            if has_hinge_events(self.scene) else None)
         self._events_sent = 0
-        self.create_subscription(Float64MultiArray, COMMAND_TOPIC, self._on_command, COMMAND_QOS)
+        # raw: the length of a command is checked before it is deserialized
+        self.create_subscription(Float64MultiArray, self._topic_names[COMMAND_TOPIC],
+                                 self._on_command_bytes, COMMAND_QOS, raw=True)
         self.create_service(Trigger, "~/reset", self._on_reset)
         self.create_service(Trigger, "~/step", self._on_step)
         self.create_service(SetBool, "~/pause", self._on_pause)
@@ -359,7 +481,54 @@ class RodSimNode(Node):
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._diag_timer = self.create_timer(DIAGNOSTICS_PERIOD_S, self.publish_diagnostics,
                                              clock=self._steady)
+        if self._clock_pub is not None:
+            self.create_timer(IDLE_CLOCK_PERIOD_S, self._on_idle_clock, clock=self._steady)
+        self.create_timer(WAITING_LOG_PERIOD_S, self._log_waiting, clock=self._steady)
+        self._name_timer = self.create_timer(NAME_CHECK_DELAY_S, self._check_name_unique,
+                                             clock=self._steady)
         self._configure_pacing()
+
+    def _warn_unknown_parameters(self) -> None:
+        """Warn about overrides (-p, params files) that name no parameter of this node."""
+        known = {spec.name for spec in PARAMETERS} | {"use_sim_time"}
+        unknown = sorted(set(getattr(self, "_parameter_overrides", {})) - known)
+        self.unknown_parameters = unknown
+        if unknown:
+            self.get_logger().warning(
+                f"unknown parameter(s) ignored: {', '.join(unknown)} (parameters of this node: "
+                f"{', '.join(spec.name for spec in PARAMETERS)})")
+
+    def _check_name_unique(self) -> None:
+        """Once, a little after start (discovery needs time): warn when another node with
+        this node's full name is on the graph (services would reach only one of them)."""
+        self._name_timer.cancel()
+        full = self.get_fully_qualified_name()
+        same = sum(1 for name, ns in self.get_node_names_and_namespaces()
+                   if f"{ns.rstrip('/')}/{name}" == full)
+        if same > 1:
+            self.name_conflict = True
+            self.get_logger().warning(
+                f"{same} nodes named {full} are on the graph (ROS_DOMAIN_ID "
+                f"{self.context.get_domain_id()}): services and parameters reach only one of "
+                "them; give this one another name (-r __node:=NAME) or namespace "
+                "(-r __ns:=/NS)")
+
+    def _log_waiting(self) -> None:
+        """Every few seconds while the simulation waits at its start: say what it waits for."""
+        if self._start_hold:
+            self.get_logger().info(
+                f"paused at t = {self.sim.t:g} s (start_paused): waiting for ~/pause false or "
+                f"the first {self._topic_names[COMMAND_TOPIC]} command")
+        elif self.settings.sync_mode and self._latest is None and self._running():
+            self.get_logger().info(
+                f"lockstep: waiting for the first nodal_forces command on "
+                f"{self._topic_names[COMMAND_TOPIC]} (the t = {self.sim.t:g} s state is "
+                "published transient local)")
+
+    def _on_idle_clock(self) -> None:
+        """/clock keeps the (frozen) simulated time while no period advances."""
+        if time.monotonic_ns() - self._clock_wall_ns >= IDLE_CLOCK_PERIOD_S * NS_PER_S:
+            self._publish_clock()
 
     def _configure_pacing(self) -> None:
         """(Re)create the pacing timer for the current mode and real-time factor."""
@@ -394,6 +563,8 @@ class RodSimNode(Node):
                 self._timeout_ns = int(round(float(p.value) * NS_PER_S))
             elif p.name == "frame_id":
                 self._frame_id = str(p.value)
+            elif p.name == "step_count":
+                self._step_count = int(p.value)
 
     # ----- state queries -----
 
@@ -433,6 +604,8 @@ class RodSimNode(Node):
     def _state(self) -> str:
         if self._error:
             return "error"
+        if self._start_hold:
+            return "paused at start (start_paused): waiting for ~/pause false or a command"
         if self._paused:
             return "paused"
         if self.settings.sync_mode and self._latest is None:
@@ -441,23 +614,48 @@ class RodSimNode(Node):
 
     # ----- commands -----
 
+    def _on_command_bytes(self, data: bytes) -> None:
+        """A serialized command: refuse it by its length before any decoding (an 80 MB
+        message must not stall the node), else decode and handle it."""
+        if len(data) > self._max_command_bytes:
+            self._received += 1
+            self._reject(f"{len(data)} bytes, more than the {self._max_command_bytes} a command "
+                         f"of {2 * self.scene.n} values may take (not recorded)")
+            return
+        try:
+            msg = deserialize_message(data, Float64MultiArray)
+        except Exception as exc:  # noqa: BLE001 -- any undecodable payload is one rejection
+            self._received += 1
+            self._reject(f"cannot be decoded ({type(exc).__name__}; not recorded)")
+            return
+        self._on_command(msg)
+
+    def _reject(self, reason: str) -> None:
+        self._rejected += 1
+        self._last_rejection = reason
+        self._log_throttled(
+            "rejected", "warning",
+            f"rejected a nodal_forces command: {reason} ({self._rejected} rejected so far); "
+            "keeping the last valid command")
+
     def _on_command(self, msg: Float64MultiArray) -> None:
         """Validate and store a command (never integrates)."""
         self._received += 1
         if self._log is not None:
-            self._record("/" + COMMAND_TOPIC, COMMAND_TYPE, self.sim.t_ns, message_to_dict(msg))
+            self._record(self._topic_names[COMMAND_TOPIC], COMMAND_TYPE, self.sim.t_ns,
+                         message_to_dict(msg))
         try:
             forces = command_forces(msg, self.scene.n)
         except CommandError as exc:
-            self._rejected += 1
-            self._last_rejection = str(exc)
-            self._log_throttled(
-                "rejected", "warning",
-                f"rejected a nodal_forces command: {exc} ({self._rejected} rejected so far); "
-                "keeping the last valid command")
+            self._reject(str(exc))
             return
         command = Command(forces, time.monotonic_ns(), self.sim.t_ns)
         self._latest = command
+        if self._start_hold:
+            self._start_hold = self._paused = False
+            if self._pacer is not None:
+                self._pacer.unanchor()
+            self.get_logger().info(f"first command received: running from t = {self.sim.t:g} s")
         if self.settings.sync_mode and not self._paused and self._error is None:
             self._sync_queue.append(command)
             self._sync_trigger.trigger()
@@ -479,14 +677,25 @@ class RodSimNode(Node):
         return cmd.forces if active else self._zero
 
     def _log_throttled(self, key: str, level: str, text: str) -> None:
-        """Log ``text`` at ``level`` at most once per :data:`THROTTLE_S` per ``key``. rclpy's
-        own ``throttle_duration_sec`` inspects the caller's frame and module on every call,
-        milliseconds each: too slow on a 1 kHz path (it made a lagging node lag more)."""
+        """Log ``text`` at ``level`` ('info', 'warning' or 'error') at most once per
+        :data:`THROTTLE_S` per ``key``. rclpy's own ``throttle_duration_sec`` inspects the
+        caller's frame and module on every call, milliseconds each: too slow on a 1 kHz path.
+        rclpy refuses a call site that changes severity (ValueError), so each level has its
+        own call below; and a log line never stops the node."""
         now = time.monotonic_ns()
         if now < self._throttle_until.get(key, 0):
             return
         self._throttle_until[key] = now + int(THROTTLE_S * NS_PER_S)
-        getattr(self.get_logger(), level)(text)
+        logger = self.get_logger()
+        try:
+            if level == "error":
+                logger.error(text)
+            elif level == "warning":
+                logger.warning(text)
+            else:
+                logger.info(text)
+        except Exception:  # noqa: BLE001 -- logging must never take the simulation down
+            pass
 
     # ----- stepping -----
 
@@ -511,14 +720,17 @@ class RodSimNode(Node):
                 "dropped", "warning",
                 f"stepping is slower than real time x{self._rtf:g}: dropped {decision.dropped} "
                 f"period(s) of backlog ({self._dropped} in all)")
-        for _ in range(decision.periods):
-            if not self._step_period(self._held_command(wall_age=True)):
+        deadline = time.monotonic_ns() + self._budget.seconds * NS_PER_S
+        for _ in range(decision.periods):       # the rest of a slow tick waits for the next
+            if (not self._step_period(self._held_command(wall_age=True))
+                    or time.monotonic_ns() > deadline):
                 break
 
     def _on_sync_trigger(self) -> None:
         """Lockstep: one period per queued command, a bounded batch per callback."""
+        deadline = time.monotonic_ns() + self._budget.seconds * NS_PER_S
         for _ in range(SYNC_BATCH):
-            if not self._sync_queue or not self._running():
+            if not self._sync_queue or not self._running() or time.monotonic_ns() > deadline:
                 break
             self._command_active = True
             self._step_period(self._sync_queue.popleft().forces)
@@ -532,12 +744,20 @@ class RodSimNode(Node):
         sim.set_forces(held)
         self._publish_applied(sim.t_ns)
         p_start = self._net_power(held)
+        work = self._budget.work(sim.integrator)
         start = time.perf_counter_ns()
         try:
             # advance() never hands out a non-finite state and, when it raises, leaves the
             # simulator at the period's start (hinge latches and events included)
             sim.advance(self.period_ns / NS_PER_S)
         except (IntegrationError, ArithmeticError) as exc:
+            if self._budget.exceeded(sim.integrator, work):
+                exc = IntegrationError(
+                    f"work budget exceeded: the period needs more than {self._budget.limit} "
+                    f"{self._budget.unit} (~{self._budget.seconds:g} s of wall time, "
+                    f"max_period_cost; took {(time.perf_counter_ns() - start) / 1e9:.3g} s); "
+                    + (exc.reason if isinstance(exc, IntegrationError) else _one_line(exc)),
+                    exc.t if isinstance(exc, IntegrationError) else sim.t)
             self._fail(exc)
             return False
         self._meter.add_step(self.period_ns, time.perf_counter_ns() - start)
@@ -555,9 +775,10 @@ class RodSimNode(Node):
         at their simulated times: recorded and published."""
         for event in self.sim.events[self._events_sent:]:
             data = event_message(event.to_dict())
-            self._record("/" + HINGE_EVENTS_TOPIC, HINGE_EVENTS_TYPE,
+            self._record(self._topic_names[HINGE_EVENTS_TOPIC], HINGE_EVENTS_TYPE,
                          event_time_ns(event.to_dict()), data)
-            self._events_pub.publish(to_message(HINGE_EVENTS_TYPE, data))
+            if self._events_pub is not None:
+                self._events_pub.publish(to_message(HINGE_EVENTS_TYPE, data))
         self._events_sent = len(self.sim.events)
 
     def _energy(self, held: np.ndarray, bending=None) -> float:
@@ -586,13 +807,20 @@ class RodSimNode(Node):
     # ----- publishing -----
 
     def _wants(self, name: str) -> bool:
-        return self._log is not None or self._pubs[name].get_subscription_count() > 0
+        return self._log is not None or self._listened(name)
 
-    def _emit(self, name: str, t_ns: int, data: dict) -> None:
-        """Record ``data`` on ``/name`` at ``t_ns`` and publish it if anyone listens."""
+    def _listened(self, name: str) -> bool:
+        """Publish ``name``: someone listens, or lockstep (its transient-local state topics
+        keep the latest state for a client that joins later)."""
+        return ((self.settings.sync_mode and name in STATE_TOPICS)
+                or self._pubs[name].get_subscription_count() > 0)
+
+    def _emit(self, name: str, t_ns: int, data: dict, force: bool = False) -> None:
+        """Record ``data`` on the resolved topic ``name`` at ``t_ns`` and publish it if anyone
+        listens (or ``force``)."""
         type_name = topics.TOPIC_TYPES[name]
-        self._record("/" + name, type_name, t_ns, data)
-        if self._pubs[name].get_subscription_count() > 0:
+        self._record(self._topic_names[name], type_name, t_ns, data)
+        if force or self._listened(name):
             self._pubs[name].publish(to_message(type_name, data))
 
     def _publish_applied(self, t_ns: int) -> None:
@@ -600,26 +828,33 @@ class RodSimNode(Node):
         when they change (and the first time)."""
         applied = self.model.forces(t_ns / NS_PER_S, self.sim.held)
         data = topics.force_array(applied)
-        self._record("/applied_forces", topics.TOPIC_TYPES["applied_forces"], t_ns, data)
+        self._record(self._topic_names["applied_forces"], topics.TOPIC_TYPES["applied_forces"],
+                     t_ns, data)
         if self._applied_last is None or not np.array_equal(applied, self._applied_last):
             self._applied_last = applied
             self._pubs["applied_forces"].publish(
                 to_message(topics.TOPIC_TYPES["applied_forces"], data))
 
-    def _publish_state(self, snap) -> None:
-        """Everything a state determines, stamped at its simulated time."""
+    def _publish_state(self, snap, force: bool = False) -> None:
+        """Everything a state determines, stamped at its simulated time (``force``: publish
+        every state topic even without subscribers, e.g. lockstep's t = 0 state)."""
         t_ns = self.sim.t_ns
         self._max_alpha = max(self._max_alpha, float(np.max(np.abs(snap.alpha), initial=0.0)))
         self._max_beta = max(self._max_beta, float(np.max(np.abs(snap.beta), initial=0.0)))
-        wanted = [name for name in STATE_TOPICS if self._wants(name)
+        wanted = [name for name in STATE_TOPICS if (force or self._wants(name))
                   and (name != "markers" or self._markers_due(t_ns))]
         if wanted:
             for name, data in topics.snapshot_messages(snap, self.scene, self._frame_id,
                                                        wanted).items():
-                self._emit(name, t_ns, data)
+                self._emit(name, t_ns, data, force)
+        self._publish_clock()
+
+    def _publish_clock(self) -> None:
+        """Simulated time on /clock (if enabled and someone listens)."""
         if self._clock_pub is not None and self._clock_pub.get_subscription_count() > 0:
             self._clock_pub.publish(to_message(topics.TOPIC_TYPES["clock"],
-                                               {"clock": topics.stamp_from_ns(t_ns)}))
+                                               {"clock": topics.stamp_from_ns(self.sim.t_ns)}))
+            self._clock_wall_ns = time.monotonic_ns()
 
     def _markers_due(self, t_ns: int) -> bool:
         """Whether the state at ``t_ns`` (on the control-period grid) gets markers."""
@@ -642,15 +877,17 @@ class RodSimNode(Node):
             last_rejection=self._last_rejection, command_active=self._command_active,
             max_abs_alpha=self._max_alpha, max_abs_beta=self._max_beta,
             model=self.model.name, integrator=self.sim.integrator.describe(), error=self._error,
+            recording_error=self._recording_error,
             validity=[f.message for f in self._validity.findings() if f.kind != "bending"],
             extra={"scene": self.scene.name, "rate_hz": f"{self.settings.rate_hz:g}",
-                   "recording": str(self.log_path) if self.log_path else "off"})
+                   "recording": str(self.log_path) if self.log_path else "off",
+                   "work_budget": self._budget.describe(), "node": self.get_fully_qualified_name()})
 
     def publish_diagnostics(self) -> None:
         """Publish (and record) one ``diagnostics`` message and start a new window."""
         level, message, values = self.diagnostic_report().status()
         data = topics.diagnostics(self.sim.t, values, self.scene.name, level=level,
-                                  message=message, frame_id="")
+                                  message=message, frame_id="", name=DIAGNOSTICS_STATUS_NAME)
         self._emit("diagnostics", self.sim.t_ns, data)
         self._meter.restart(time.monotonic_ns())
         self._max_alpha = self._max_beta = 0.0
@@ -679,13 +916,17 @@ class RodSimNode(Node):
         return response
 
     def _on_step(self, request, response):
-        """One control period, only while paused."""
+        """``step_count`` control periods, only while paused."""
         if not self._paused:
             response.success = False
             response.message = ("~/step works only while paused: call ~/pause with data: true "
                                 "first")
             return response
-        ok = self._step_period(self._held_command(wall_age=False))
+        ok = True
+        for _ in range(self._step_count):
+            ok = self._step_period(self._held_command(wall_age=False))
+            if not ok:
+                break
         response.success = ok
         response.message = (f"stepped to t = {self.sim.t:.9g} s" if ok else
                             f"step failed: {self._error}")
@@ -693,6 +934,7 @@ class RodSimNode(Node):
 
     def _on_pause(self, request, response):
         """data true: pause; false: resume (re-anchors the real-time clock)."""
+        self._start_hold = False
         if request.data:
             self._paused = True
             response.message = f"paused at t = {self.sim.t:.9g} s"
@@ -716,10 +958,15 @@ class RodSimNode(Node):
         metadata = {"scene": scene_to_yaml(self.scene), "model": self.model.name,
                     "integrator": self.sim.integrator.describe(), "version": __version__,
                     "rtol": repr(s.rtol), "rate_hz": repr(s.rate_hz),
-                    "source": "rod_sim node", "mode": self._mode()}
-        qos = {"/applied_forces": offered_qos_yaml(depth=1, durability="transient_local"),
-               "/" + HINGE_EVENTS_TOPIC: offered_qos_yaml(depth=100,
-                                                          durability="transient_local")}
+                    "source": "rod_sim node", "mode": self._mode(),
+                    "node": self.get_fully_qualified_name()}
+        names = self._topic_names
+        qos = {names["applied_forces"]: offered_qos_yaml(depth=1, durability="transient_local"),
+               names[HINGE_EVENTS_TOPIC]: offered_qos_yaml(depth=100,
+                                                           durability="transient_local")}
+        if s.sync_mode:
+            qos.update({names[t]: offered_qos_yaml(depth=1, durability="transient_local")
+                        for t in STATE_TOPICS})
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
             return LogWriter(path, metadata=metadata, qos=qos)
@@ -730,19 +977,28 @@ class RodSimNode(Node):
             raise NodeConfigError(f"record_path: {_one_line(exc)}") from None
 
     def _roll_log(self) -> str:
-        """After a reset: close the log and continue in ``<stem>_<k><suffix>``."""
+        """After a reset: close the log and continue in the next free ``<stem>_<k><suffix>``
+        (existing files are skipped, never overwritten). A log that cannot be opened is an
+        ERROR on diagnostics, never a silent stop."""
         if self._log is None:
             return ""
         self._close_log()
-        self._log_count += 1
         base = self._log_path
-        path = base.with_name(f"{base.stem}_{self._log_count}{base.suffix}")
+        for _ in range(MAX_LOG_ROLLS):
+            self._log_count += 1
+            path = base.with_name(f"{base.stem}_{self._log_count}{base.suffix}")
+            if not path.exists():
+                break
         try:
             self._log = self._open_log(path)
         except NodeConfigError as exc:
-            self.get_logger().error(f"recording stopped: {exc}")
-            return "; recording stopped"
+            self._recording_stopped(str(exc))
+            return f"; recording stopped: {exc}"
         return f"; recording continues in {path}"
+
+    def _recording_stopped(self, reason: str) -> None:
+        self._recording_error = reason
+        self.get_logger().error(f"recording stopped: {reason}")
 
     def _record(self, topic: str, type_name: str, t_ns: int, data: dict) -> None:
         if self._log is None:
@@ -750,7 +1006,7 @@ class RodSimNode(Node):
         try:
             self._log.write(topic, type_name, t_ns, data)
         except (LogWriteError, OSError) as exc:
-            self.get_logger().error(f"recording stopped: {_one_line(exc)}")
+            self._recording_stopped(_one_line(exc))
             self._close_log()
 
     def _close_log(self) -> None:
@@ -771,14 +1027,40 @@ class RodSimNode(Node):
 
 # ----- entry point -----
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(prog: str = "sim_node") -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="sim_node", description="rod_sim ROS 2 node: a chain of elastic rods driven by "
+        prog=prog, description="rod_sim ROS 2 node: a chain of elastic rods driven by "
         "nodal forces (SPEC section 4). Configure it with ROS arguments, e.g. "
         "--ros-args --params-file config/sim_node.params.yaml -p scene_file:=SCENE.yaml",
         epilog="parameters: " + "; ".join(f"{p.name} (default {p.default!r}): {p.description}"
                                           for p in PARAMETERS))
     return parser
+
+
+ROS_ARGS_HINT = "ROS arguments go after --ros-args, e.g. --ros-args -p scene_file:=SCENE.yaml"
+
+
+def parse_cli(parser: argparse.ArgumentParser, args: list[str]) -> argparse.Namespace:
+    """Parse the non-ROS arguments of ``args`` with ``parser`` (--help, typos). Malformed ROS
+    arguments (e.g. a dangling ``--ros-args -p``) and ROS arguments given without
+    ``--ros-args`` are usage errors (exit 2, one line)."""
+    try:
+        rest = remove_ros_args([parser.prog, *args])[1:]
+    except RuntimeError as exc:    # rclpy's RCLInvalidROSArgsError
+        text = _one_line(exc).split(", at ")[0]
+        parser.exit(2, f"{parser.prog}: error: invalid ROS arguments: {text}\n")
+    namespace, unknown = parser.parse_known_args(rest)
+    if unknown:
+        ros_like = any(a in ("-p", "-r", "--param", "--remap", "--params-file") or ":=" in a
+                       for a in unknown)
+        parser.exit(2, f"{parser.prog}: error: unrecognized arguments: {' '.join(unknown)}"
+                    + (f" ({ROS_ARGS_HINT})" if ros_like else "") + "\n")
+    return namespace
+
+
+def params_files(args: list[str]) -> tuple[str, ...]:
+    """The files given with ``--params-file`` among ROS arguments ``args``."""
+    return tuple(b for a, b in zip(args, args[1:]) if a == "--params-file")
 
 
 class StopRequest:
@@ -818,12 +1100,13 @@ def spin_until(executor, stop: StopRequest, done: Callable[[], bool] = lambda: F
         executor.spin_once(timeout_sec=timeout_sec)
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, prog: str = "sim_node") -> int:
     """Run the node until SIGINT/SIGTERM. Returns 0, or 2 (with a one-line reason on stderr)
-    for bad parameters or scenes."""
+    for bad arguments, parameters or scenes. ``prog`` names the command in messages."""
     args = list(sys.argv[1:] if argv is None else argv)
-    build_parser().parse_args(remove_ros_args(["sim_node", *args])[1:])  # --help, typos
-    return run_node("sim_node", RodSimNode, args, NodeConfigError)
+    parse_cli(build_parser(prog), args)
+    return run_node(prog, functools.partial(RodSimNode, params_files=params_files(args)),
+                    args, NodeConfigError)
 
 
 def run_node(prog: str, make_node, args: list[str], config_errors) -> int:

@@ -64,19 +64,25 @@ def build_parser() -> argparse.ArgumentParser:
                          description="Offline run of a scene (no ROS graph); writes the log of "
                                      "SPEC section 5 sampled at --rate in simulated time.")
     sim.add_argument("scene", help="scene YAML file")
-    sim.add_argument("--model", choices=sorted(MODEL_NAMES), default="reduced")
+    sim.add_argument("--model", choices=sorted(MODEL_NAMES), default="reduced",
+                     help="fidelity: full (3n ODEs), reduced (n ODEs, quasi-static bending) or "
+                          "rigid (default reduced)")
     sim.add_argument("--t-end", type=_positive_float, required=True, help="end time [s]")
     sim.add_argument("--out", required=True, help="MCAP log to write (must not exist)")
     sim.add_argument("--rate", type=_positive_float, default=100.0,
                      help="sampling rate of the log [Hz of simulated time] (default 100)")
-    sim.add_argument("--integrator", choices=INTEGRATORS, default="dop853-jit")
+    sim.add_argument("--integrator", choices=INTEGRATORS, default="dop853-jit",
+                     help="time stepper: dop853-jit (compiled adaptive Dormand-Prince 8(5,3), "
+                          "--rtol/--atol; the default), rk4, rk2, euler (compiled fixed step, "
+                          "--step) or scipy's RK45, DOP853, Radau, BDF, LSODA")
     sim.add_argument("--rtol", type=_positive_float, default=None,
                      help="relative tolerance of adaptive integrators (default 1e-8)")
     sim.add_argument("--atol", type=_positive_float, default=None,
                      help="absolute tolerance (default = rtol)")
     sim.add_argument("--step", type=_positive_float, default=None,
                      help="largest step of fixed-step integrators [s] (default 1e-3)")
-    sim.add_argument("--frame-id", default="world")
+    sim.add_argument("--frame-id", default="world",
+                     help="frame_id of the logged headers, poses and markers (default world)")
 
     t1 = sub.add_parser("table1", help="recompute the seed paper's Table 1",
                         description="Recompute Table 1 of the seed paper with the full and "
@@ -99,7 +105,8 @@ def build_parser() -> argparse.ArgumentParser:
 def cmd_node(args) -> int:
     from ..ros.node import main as node_main
 
-    return node_main(list(args.ros_args))       # reached only through run(); main() forwards
+    # reached only through run(); main() forwards
+    return node_main(list(args.ros_args), prog="rod-sim node")
 
 
 def cmd_simulate(args) -> int:
@@ -204,7 +211,7 @@ def main(argv: list[str] | None = None) -> int:
         # its own parser (for --help and typos) and reports bad parameters with status 2.
         from ..ros.node import main as node_main
 
-        return node_main(argv[1:])
+        return node_main(argv[1:], prog="rod-sim node")
     parser = build_parser()
     args = parser.parse_args(argv)
     try:

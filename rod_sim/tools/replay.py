@@ -29,6 +29,34 @@ def non_negative_float(text: str) -> float:
     return value
 
 
+def remap_rule(text: str) -> str:
+    """argparse type: a ROS remapping rule FROM:=TO (both sides non-empty)."""
+    source, sep, target = text.partition(":=")
+    if not (sep and source.strip() and target.strip()):
+        raise argparse.ArgumentTypeError(f"not a remapping FROM:=TO: {text!r}")
+    return text
+
+
+def _strict(parser: argparse.ArgumentParser) -> None:
+    """Make ``parser`` (a subparser) report unknown arguments itself, with its own usage,
+    instead of leaving them to ``rod-sim``'s top-level usage."""
+    parse_known = parser.parse_known_args
+
+    def parse_known_args(args=None, namespace=None):
+        namespace, extras = parse_known(args, namespace)
+        if extras:
+            parser.error(f"unrecognized arguments: {' '.join(extras)}")
+        return namespace, []
+
+    parser.parse_known_args = parse_known_args
+
+
+def ros_arguments(args: argparse.Namespace) -> list[str]:
+    """The ROS arguments of the player node: ``--remap`` rules, then ``--ros-args ...``."""
+    rules = [token for rule in args.remap for token in ("-r", rule)]
+    return ["--ros-args", *rules, *args.ros_args] if rules or args.ros_args else []
+
+
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.description = (
         "Republish the topics of an MCAP log (or a rosbag2 MCAP bag directory) on the ROS "
@@ -61,6 +89,15 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--start-paused", action="store_true",
                         help="start paused; resume with the ~/pause service (std_srvs/SetBool "
                              "data: false) or ~/toggle_paused (std_srvs/Trigger)")
+    parser.add_argument("--remap", action="append", type=remap_rule, default=[],
+                        metavar="FROM:=TO",
+                        help="publish topic FROM (as recorded, e.g. /rod_states) under TO "
+                             "(e.g. /arm1/rod_states); repeatable")
+    parser.add_argument("--ros-args", nargs=argparse.REMAINDER, default=[], dest="ros_args",
+                        metavar="ARG", help="ROS arguments of the player node, up to the end "
+                        "(e.g. --ros-args -r __ns:=/arm1 moves its services; recorded "
+                        "topics are absolute: move them with --remap)")
+    _strict(parser)
 
 
 def _select(source, args) -> list[str]:
@@ -127,7 +164,12 @@ def _play(source, topics: list[str], args):
     from ..ros.node import StopRequest
     from ..ros.replay import PlayStats, Player, wait_for_subscribers
 
-    rclpy.init(args=["rod-sim replay"], signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        rclpy.init(args=["rod-sim replay", *ros_arguments(args)],
+                   signal_handler_options=SignalHandlerOptions.NO)
+    except RuntimeError as exc:       # rclpy's RCLInvalidROSArgsError
+        raise UsageError(f"invalid ROS arguments: {' '.join(str(exc).split()).split(', at ')[0]}"
+                         ) from None
     player = None
     stats = PlayStats(stopped=True)
     with StopRequest() as stop:

@@ -1,0 +1,157 @@
+"""Every runnable code block of the README's node section, run as a user would (issue 13):
+the shell commands (real-time node with the shipped params file, the same in a namespace in
+lockstep, the one-process demo) and the lockstep Python client against the namespaced node.
+Only the domain id and the output directory are replaced. ROS_DOMAIN_IDs 129..131 (LOCALHOST)."""
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("rclpy")
+
+from rod_sim.io.mcap_log import LogReader  # noqa: E402
+
+pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]
+
+REPO = Path(__file__).resolve().parents[1]
+SECTION = "## The ROS 2 node"
+DOMAIN_REALTIME, DOMAIN_LOCKSTEP, DOMAIN_DEMO = 129, 130, 131
+STARTUP_S = 60.0
+
+
+def node_section() -> str:
+    text = (REPO / "README.md").read_text(encoding="utf-8")
+    start = text.index(SECTION)
+    end = text.find("\n## ", start + len(SECTION))
+    return text[start:end if end >= 0 else len(text)]
+
+
+def code_blocks(language: str) -> list[str]:
+    return re.findall(rf"^```{language}\n(.*?)^```", node_section(), re.M | re.S)
+
+
+def shell_commands() -> list[str]:
+    """The commands of the section's sh blocks: continuation lines joined, comments dropped."""
+    out = []
+    for block in code_blocks("sh"):
+        for line in block.replace("\\\n", " ").splitlines():
+            line = line.strip()
+            if line and not line.startswith("#"):
+                out.append(" ".join(line.split()))
+    return out
+
+
+def localized(command: str, domain: int, out_dir: Path) -> str:
+    """The README command with this test's domain id and output directory."""
+    assert "out/" in command, command
+    return (command.replace("ROS_DOMAIN_ID=7", f"ROS_DOMAIN_ID={domain}")
+            .replace("out/", f"{out_dir}/"))
+
+
+def env(domain: int) -> dict[str, str]:
+    return dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+                ROS_DOMAIN_ID=str(domain), PYTHONUNBUFFERED="1")
+
+
+class Shell:
+    """One README command under bash (``exec env``: signals reach the program itself)."""
+
+    def __init__(self, command: str, domain: int, tmp_path: Path, name: str):
+        self.err_path = tmp_path / f"{name}.err"
+        with open(self.err_path, "w") as err:
+            self.proc = subprocess.Popen(["bash", "-c", "exec env " + command], cwd=REPO,
+                                         env=env(domain), stdout=subprocess.DEVNULL, stderr=err)
+
+    @property
+    def stderr(self) -> str:
+        return self.err_path.read_text()
+
+    def wait_for(self, text: str, timeout: float = STARTUP_S) -> None:
+        deadline = time.monotonic() + timeout
+        while text not in self.stderr:
+            assert self.proc.poll() is None, self.stderr
+            assert time.monotonic() < deadline, f"no {text!r} in:\n{self.stderr}"
+            time.sleep(0.05)
+
+    def interrupt(self) -> int:
+        self.proc.send_signal(signal.SIGINT)
+        return self.proc.wait(timeout=30)
+
+    def kill(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait(timeout=10)
+
+
+@pytest.fixture
+def shell(tmp_path):
+    started = []
+
+    def start(command, domain, name) -> Shell:
+        started.append(Shell(localized(command, domain, tmp_path), domain, tmp_path, name))
+        return started[-1]
+
+    yield start
+    for s in started:
+        s.kill()
+
+
+def test_the_section_has_the_blocks_this_module_runs():
+    commands = shell_commands()
+    assert len(commands) == 3, commands
+    assert "rod-sim node" in commands[0] and "record_path:=out/run.mcap" in commands[0]
+    assert "__ns:=/arm1" in commands[1] and "sync_mode:=true" in commands[1]
+    assert "rod_sim.ros.demo" in commands[2]
+    assert len(code_blocks("python")) == 1
+
+
+def test_realtime_node_with_the_params_file_records(shell, tmp_path):
+    node = shell(shell_commands()[0], DOMAIN_REALTIME, "realtime")
+    node.wait_for("recording to")
+    time.sleep(1.0)
+    assert node.interrupt() == 0, node.stderr
+    assert "Traceback" not in node.stderr
+    with LogReader(tmp_path / "run.mcap") as reader:
+        assert reader.complete
+        assert sum(topic == "/rod_states" for topic, _, _ in reader.messages()) > 10
+
+
+def test_lockstep_python_client_drives_the_namespaced_node(shell, tmp_path):
+    node = shell(shell_commands()[1], DOMAIN_LOCKSTEP, "lockstep")
+    node.wait_for("lockstep: waiting for the first nodal_forces command on /arm1/nodal_forces")
+    states = 30
+    script = tmp_path / "client.py"
+    script.write_text(
+        "import sys\n"
+        f"calls = 0\n"
+        "def my_control_law(q, q_rate):\n"
+        "    global calls\n"
+        "    calls += 1\n"
+        f"    if calls > {states}:\n"
+        f"        print('answered {states} states'); sys.exit(0)\n"
+        "    return [0.0] * 16\n"
+        + code_blocks("python")[0])
+    client = subprocess.run([sys.executable, str(script), "--ros-args", "-r", "__ns:=/arm1"],
+                            cwd=REPO, env=env(DOMAIN_LOCKSTEP), capture_output=True, text=True,
+                            timeout=120)
+    assert client.returncode == 0, client.stderr
+    assert f"answered {states} states" in client.stdout
+    assert node.interrupt() == 0, node.stderr
+    with LogReader(tmp_path / "arm1.mcap") as reader:
+        topics = [topic for topic, _, _ in reader.messages()]
+    assert topics.count("/arm1/nodal_forces") == states
+    assert topics.count("/arm1/rod_states") == states + 1        # t = 0 and one per command
+
+
+def test_demo_command_runs(shell, tmp_path):
+    demo = shell(shell_commands()[2], DOMAIN_DEMO, "demo")
+    assert demo.proc.wait(timeout=150) == 0, demo.stderr
+    with LogReader(tmp_path / "demo.mcap") as reader:
+        assert reader.complete
