@@ -114,15 +114,22 @@ def _stamp_ns(msg: Any) -> int:
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
-def _read_file(path: Path, raw: dict[str, list], notes: list[str]) -> tuple[dict | None, bool]:
-    """Append (log_time, stamp or None, file index, msg) of :data:`TOPICS` to ``raw``;
-    return (rod_sim metadata or None, truncated)."""
+def _read_file(path: Path, raw: dict[str, list], notes: list[str],
+               namespace: str | None) -> tuple[dict | None, bool]:
+    """Append (log_time, stamp or None, msg) of :data:`TOPICS` (found under any namespace, or
+    under ``namespace``) to ``raw``; return (rod_sim metadata or None, truncated)."""
     with LogReader(path) as reader:
         try:
             metadata = reader.metadata(METADATA_NAME)
         except LogFormatError:
             metadata = None
-        for topic, log_ns, msg in reader.messages(TOPICS):
+        logged = reader.resolve(TOPICS, namespace)
+        ours = {name: "/" + base for base, name in logged.items()}
+        renamed = sorted(name for name, topic in ours.items() if name != topic)
+        if renamed:
+            notes.append(f"{path.name}: read {', '.join(renamed)}")
+        for name, log_ns, msg in reader.messages(list(ours)):
+            topic = ours[name]
             stamp = None if topic == APPLIED_TOPIC else _stamp_ns(msg)
             raw[topic].append((int(log_ns), stamp, msg))
         truncated = reader.truncated or not reader.complete
@@ -161,8 +168,10 @@ def _joint(msg: Any) -> tuple[list[str], np.ndarray, np.ndarray]:
             np.asarray(msg.velocity, dtype=float))
 
 
-def read_log(path: str | os.PathLike) -> LogData:
-    """Read a log file or bag directory (see the module docstring). Raises LogFormatError."""
+def read_log(path: str | os.PathLike, namespace: str | None = None) -> LogData:
+    """Read a log file or bag directory (see the module docstring). The topics are found under
+    any namespace (``/arm1/rod_states`` as well as ``/rod_states``); a log holding them under
+    two namespaces needs ``namespace``. Raises LogFormatError."""
     path = Path(path)
     files = log_files(path)
     raw: dict[str, list] = {t: [] for t in TOPICS}
@@ -174,7 +183,7 @@ def read_log(path: str | os.PathLike) -> LogData:
             # mcap_ros2's vendored .msg parser prints to stderr before raising on a corrupt
             # schema; the error is re-raised below as one line, so the print is dropped
             with contextlib.redirect_stderr(io.StringIO()):
-                meta, cut = _read_file(f, raw, notes)
+                meta, cut = _read_file(f, raw, notes, namespace)
         except LogFormatError:
             raise
         except Exception as exc:  # noqa: BLE001 - a corrupt file can fail in any decoder

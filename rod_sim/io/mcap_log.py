@@ -598,6 +598,7 @@ def _joint_series(path, topic: str, prefix: str) -> tuple[np.ndarray, np.ndarray
     times, position, velocity = [], [], []
     names = None
     with LogReader(path) as reader:
+        topic = reader.resolve([topic]).get(base_name(topic), topic)
         for _, t_ns, msg in reader.messages([topic]):
             if names is None:
                 names = list(msg.name)
@@ -616,8 +617,9 @@ def _joint_series(path, topic: str, prefix: str) -> tuple[np.ndarray, np.ndarray
 
 
 def read_rod_states(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(t (N,) [s], phi (N, n) [rad], phi_rate (N, n) [rad/s])`` from the ``/rod_states`` of a
-    log (complete or truncated). Raises LogFormatError if it has none."""
+    """``(t (N,) [s], phi (N, n) [rad], phi_rate (N, n) [rad/s])`` from the ``rod_states`` topic
+    of a log (complete or truncated; under any one namespace). Raises LogFormatError if it has
+    none."""
     return _joint_series(path, "/rod_states", "rod_")
 
 
@@ -626,7 +628,8 @@ def read_applied_forces(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray
     Raises LogFormatError if the log has none or a message is not of even length."""
     times, forces = [], []
     with LogReader(path) as reader:
-        for _, t_ns, msg in reader.messages(["/applied_forces"]):
+        topic = reader.resolve(["applied_forces"]).get("applied_forces", "/applied_forces")
+        for _, t_ns, msg in reader.messages([topic]):
             data = np.asarray(msg.data, dtype=float)
             if data.size % 2:
                 raise LogFormatError(f"{path}: /applied_forces at {t_ns} ns has odd length {data.size}")

@@ -28,6 +28,10 @@ def configure(parser) -> None:
     parser.add_argument("--tolerance", type=positive_float, default=None,
                         metavar="RAD", help="largest accepted |phi_log - phi_full| [rad] "
                                             "(default 0.01, see docs/compare.md)")
+    parser.add_argument("--namespace", default=None, metavar="NS",
+                        help="read the topics recorded under namespace NS (e.g. /arm1); "
+                             "needed only when the log holds two nodes' topics (by default "
+                             "rod_states, applied_forces, ... are found under any namespace)")
     parser.add_argument("--scene", default=None, metavar="SCENE.yaml",
                         help="scene file, for logs without rod_sim metadata (overrides the "
                              "log's scene when given)")
@@ -159,7 +163,7 @@ def run(args) -> int:
 
     plot = new_output_path(args.plot, "--plot") if args.plot else None
     try:
-        log = read_log(args.log)
+        log = read_log(args.log, args.namespace)
     except LogFormatError as exc:
         raise UsageError(str(exc)) from None
     except OSError as exc:
