@@ -371,12 +371,14 @@ class LogReader:
             if end > size:
                 break
             if opcode == Opcode.DATA_END:
+                self._readable_end = self._size
                 stored = struct.unpack("<I", f.read(4))[0] if length >= 4 else 0
                 if stored and stored != crc:
                     raise self._corrupt(pos, f"data section CRC mismatch (stored {stored:#010x}, "
                                              f"computed {crc:#010x})")
                 return
             if opcode == Opcode.FOOTER:
+                self._readable_end = pos
                 break
             body = f.read(length)
             crc = zlib.crc32(body, zlib.crc32(head, crc))
@@ -385,6 +387,7 @@ class LogReader:
         if complete_file:
             raise self._corrupt(pos, "no DataEnd record where the data section ends (a record "
                                      "length damaged?)")
+        self._readable_end = pos
         self.truncated = pos < size
 
     def _parse(self, pos: int, opcode: int, body: bytes, *, messages: bool = True) -> list:
@@ -522,7 +525,28 @@ class LogReader:
             raise LogFormatError(f"{self.path}: cannot read messages: "
                                  f"{' '.join(str(exc).split())[:200]}") from None
 
-    # ----- raw access, for players -----
+    # ----- raw access, for players and repair -----
+
+    def header(self) -> Header:
+        """The file's Header record (profile, library)."""
+        try:
+            return self._reader.get_header()
+        except (McapError, ValueError, struct.error) as exc:
+            raise self._corrupt(len(MAGIC), f"unreadable header ({exc})") from None
+
+    def definitions(self) -> tuple[dict[int, Schema], dict[int, Channel], list[Metadata]]:
+        """Schemas and channels by id, and the metadata records, as found in the file."""
+        schemas, channels = self._schemas_channels()
+        return dict(schemas), {c.id: c for c in channels}, list(self._metadata)
+
+    @property
+    def data_end(self) -> int:
+        """[bytes] where the readable data section ends (the size of a complete file)."""
+        return self._readable_end
+
+    def records(self) -> Iterator[tuple[Channel, Message]]:
+        """Every (channel, message record) in log-time order (file order on ties)."""
+        return self._ordered(None)
 
     def channels(self) -> dict[str, ChannelInfo]:
         """Absolute topic name -> :class:`ChannelInfo` (type, encoding, channel metadata such
