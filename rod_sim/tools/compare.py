@@ -109,10 +109,10 @@ def chaos_lines(report) -> list[str]:
     """The predictability summary: gain, Lyapunov exponent, horizon and beyond-horizon checks."""
     c = report.chaos
     lam = c["lyapunov_exponent"]
-    lines = [f"chaos: a {c['twin_perturbation']:g} rad perturbation of the full model grows "
-             f"{c['gain']:.3g}-fold by t = {report.t_end:g} s (largest finite-time Lyapunov "
-             f"exponent {lam:.3g} 1/s" + (f", Lyapunov time {1 / lam:.3g} s" if lam and lam > 0
-                                          else "") + ")"]
+    lines = [f"chaos: a {c['twin_perturbation']:g} rad perturbation of the full model is "
+             f"amplified at most {c['gain']:.3g}x over t = {report.t_start:g}..{report.t_end:g} s"
+             f" (largest finite-time Lyapunov exponent {lam:.3g} 1/s"
+             + (f", Lyapunov time {1 / lam:.3g} s" if lam and lam > 0 else "") + ")"]
     if report.horizon is None:
         lines.append("predictability horizon: none within the log (judged sample by sample "
                      "to the end)" if c["onset"] is None else
@@ -189,9 +189,9 @@ def write_plot(report, path: Path, title: str) -> None:
     import matplotlib.pyplot as plt
     import numpy as np
 
-    s = report.series
-    t, err = s.column(0), s.column(1)
-    phi_log, phi_ref = np.array([r[2] for r in s.rows]), np.array([r[3] for r in s.rows])
+    rows, n = report.series.rows, report.n
+    t, err, gain = rows[:, 0], rows[:, 1], rows[:, -1]
+    phi_log, phi_ref = rows[:, 2:2 + n], rows[:, 2 + n:2 + 2 * n]
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
     for k in range(report.n):
         line, = ax1.plot(t, phi_log[:, k], lw=1.2, label=f"rod {k + 1}")
@@ -203,7 +203,7 @@ def write_plot(report, path: Path, title: str) -> None:
     ax2.axhline(report.tolerance, color="r", ls=":", label=f"tolerance {report.tolerance:g} rad")
     eps = report.chaos["log_precision_before_onset"]
     if eps:
-        ax2.semilogy(t, eps * s.column(4), color="0.5", lw=0.8,
+        ax2.semilogy(t, eps * gain, color="0.5", lw=0.8,
                      label="log error before onset x gain (chaos envelope)")
     for ax in (ax1, ax2):
         if report.horizon is not None:

@@ -217,30 +217,43 @@ class QuantityStats:
 
 
 class Decimated:
-    """At most ``2 * points`` samples of a long series, evenly spaced (the stride doubles when
-    full); ``peak`` columns keep the maximum of the samples each kept one stands for."""
+    """At most ``2 * points`` (default :data:`PLOT_POINTS`) samples of a long series, evenly
+    spaced (the stride doubles when full), in one preallocated array: per kept sample its
+    time [s], the maximum of ``peak`` over the samples it stands for, phi of the log and of
+    the reference (n,) [rad] each, and the gain."""
 
-    def __init__(self, points: int = PLOT_POINTS):
-        self.points = points
+    def __init__(self, points: int | None = None):
+        self.points = points or PLOT_POINTS
         self.stride = 1
         self._seen = 0
-        self.rows: list[tuple] = []
-        self._peak: float = -np.inf
+        self._rows = 0
+        self._data: np.ndarray | None = None
+        self._peak = -np.inf
 
-    def add(self, t: float, peak: float, *values) -> None:
+    def add(self, t: float, peak: float, phi_log: np.ndarray, phi_ref: np.ndarray,
+            gain: float) -> None:
         self._peak = max(self._peak, peak)
         if self._seen % self.stride == 0:
-            self.rows.append((t, self._peak, *values))
+            if self._data is None:
+                self._data = np.empty((2 * self.points, 3 + 2 * phi_log.size))
+            n = phi_log.size
+            row = self._data[self._rows]
+            row[0], row[1], row[-1] = t, self._peak, gain
+            row[2:2 + n], row[2 + n:2 + 2 * n] = phi_log, phi_ref
+            self._rows += 1
             self._peak = -np.inf
-            if len(self.rows) >= 2 * self.points:
-                merged = [(a[0], max(a[1], b[1]), *a[2:]) for a, b in
-                          zip(self.rows[::2], self.rows[1::2])]
-                self.rows = merged
+            if self._rows == self._data.shape[0]:
+                kept = self._data[0::2].copy()
+                kept[:, 1] = np.maximum(self._data[0::2, 1], self._data[1::2, 1])
+                self._data[:self.points] = kept
+                self._rows = self.points
                 self.stride *= 2
         self._seen += 1
 
-    def column(self, k: int) -> np.ndarray:
-        return np.array([row[k] for row in self.rows])
+    @property
+    def rows(self) -> np.ndarray:
+        """(kept samples, 3 + 2n): t, peak, phi_log (n), phi_ref (n), gain."""
+        return self._data[:self._rows] if self._data is not None else np.empty((0, 3))
 
 
 class Stats:
@@ -645,8 +658,7 @@ class _Comparison:
             self.beyond_log.add(phi_log[rest])
             self.beyond_ref.add(phi_ref[rest])
         for i in range(ts.size):
-            self.series.add(float(ts[i]), float(e[i]), phi_log[i].copy(), phi_ref[i].copy(),
-                            float(gain[i]))
+            self.series.add(float(ts[i]), float(e[i]), phi_log[i], phi_ref[i], float(gain[i]))
 
     # ----- result -----
 
