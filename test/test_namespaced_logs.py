@@ -4,12 +4,12 @@ any namespace, and refuse to guess between two (issue 13 item 2, the reader side
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
-from mcap.reader import make_reader
-from mcap.writer import Writer as McapWriter
+from test_compare import rewrite
 
 from rod_sim.io.hinge_events import read_hinge_events
 from rod_sim.io.mcap_log import read_rod_states, resolve_topics, LogFormatError
@@ -27,28 +27,10 @@ def rod_sim(*args) -> int:
 def renamed(src: Path, dst: Path, namespaces: list[str]) -> Path:
     """Copy ``src`` with every topic ``/x`` written once under each namespace (``/ns/x``),
     as two recorded nodes would give; the metadata records are kept."""
-    with open(src, "rb") as f:
-        reader = make_reader(f)
-        items = list(reader.iter_messages(log_time_order=True))
-        metas = list(reader.iter_metadata())
-    with open(dst, "wb") as f:
-        w = McapWriter(f, chunk_size=16384)
-        w.start(profile="ros2", library="test")
-        for m in metas:
-            w.add_metadata(m.name, dict(m.metadata))
-        sids, cids = {}, {}
-        for schema, channel, msg in items:
-            if schema.id not in sids:
-                sids[schema.id] = w.register_schema(schema.name, schema.encoding, schema.data)
-            for ns in namespaces:
-                key = (ns, channel.id)
-                if key not in cids:
-                    cids[key] = w.register_channel(ns + channel.topic, channel.message_encoding,
-                                                   sids[schema.id], dict(channel.metadata))
-                w.add_message(channel_id=cids[key], log_time=msg.log_time,
-                              publish_time=msg.publish_time, sequence=msg.sequence,
-                              data=msg.data)
-        w.finish()
+    def under(items):
+        return [(schema, replace(channel, topic=ns + channel.topic, id=channel.id + 1000 * k),
+                 msg) for k, ns in enumerate(namespaces) for schema, channel, msg in items]
+    rewrite(src, dst, under)
     return dst
 
 
