@@ -1,9 +1,12 @@
 """``rod-sim compare LOG``: can this logged run be trusted? Checks every logged sample against a
 converged re-run of the full model with the logged applied forces (SPEC section 3).
 
-Exit 0: max |phi error| <= --tolerance, no gap in the states, reference converged;
-1: any of these fails; 2: the log cannot be compared (one line on stderr, no traceback).
-The numbers are computed by :mod:`rod_sim.tools.comparison`; docs/compare.md explains them.
+Exit 0: PASS (max |phi error| <= --tolerance, no gap in the states, reference converged), or
+PASS up to the predictability horizon and INCONCLUSIVE beyond it (chaotic motion: only
+statistics are meaningful there); 1: FAIL; 2: the log cannot be compared, e.g. a corrupt log
+(one line on stderr naming the byte offset, no traceback, no verdict). The report fits 100
+columns. The numbers are computed by :mod:`rod_sim.tools.comparison`; docs/compare.md explains
+them.
 """
 from __future__ import annotations
 
@@ -18,7 +21,7 @@ from ..io.quote import quote
 from .common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, positive_float
 
 COMMAND = "compare"
-HELP = "check a log against a converged re-run of the full model"
+HELP = "check a log against a converged re-run of the full model (predictability horizon)"
 
 
 def configure(parser) -> None:

@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -44,7 +44,9 @@ from rod_sim.core.integrators import IntegrationError, make_integrator
 from rod_sim.core.kinematics import node_positions
 from rod_sim.core.models import FullModel
 from rod_sim.core.scene import Scene
-from rod_sim.io.log_source import LogStream
+
+if TYPE_CHECKING:
+    from rod_sim.io.log_source import LogStream
 
 NS_PER_S = 1_000_000_000
 
@@ -409,7 +411,7 @@ class Report:
 class _Comparison:
     """Window-by-window state of :func:`compare_log` (see the module docstring)."""
 
-    def __init__(self, log: LogStream, scene: Scene, tolerance: float, rtol: float,
+    def __init__(self, log: "LogStream", scene: Scene, tolerance: float, rtol: float,
                  check_rtol: float | None, rate_hz: float | None, keep: bool):
         self.log, self.scene, self.tol = log, scene, tolerance
         self.n = n = scene.n
@@ -727,7 +729,7 @@ class _Comparison:
             horizon=self.horizon, chaos=chaos, within=within, series=self.series, notes=notes)
 
 
-def compare_log(log: LogStream, scene: Scene, tolerance: float = DEFAULT_TOLERANCE, *,
+def compare_log(log: "LogStream", scene: Scene, tolerance: float = DEFAULT_TOLERANCE, *,
                 rtol: float = REFERENCE_RTOL, check_rtol: float | None = CHECK_RTOL,
                 rate_hz: float | None = None, keep_samples: bool = False) -> Report:
     """Compare a log opened by :func:`rod_sim.io.log_source.read_log` with the full model of
