@@ -239,3 +239,22 @@ def test_yaml_bomb_in_metadata_is_refused_quickly(tmp_path, capsys):
         assert time.monotonic() - started < 10
         assert code == 2 and len(err.strip().splitlines()) == 1 and len(err) < 400, err
         assert "YAML bomb" in err
+
+
+@pytest.mark.parametrize("where", ["decode", "window"])
+def test_out_of_memory_is_never_called_corrupt(tmp_path, capsys, monkeypatch, where):
+    from rod_sim.io import log_source
+
+    log = synthetic_log(tmp_path / "rest.mcap", 0.05)
+
+    def boom(*args, **kwargs):
+        raise MemoryError
+
+    if where == "decode":
+        monkeypatch.setattr(log_source.LogStream, "_decode", boom)
+    else:
+        monkeypatch.setattr(comparison._Comparison, "window", boom)
+    code = rod_sim("compare", log)
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "out of memory" in err and "corrupt or" not in err and "not known to be corrupt" in err
