@@ -88,7 +88,8 @@ def test_flipped_byte_in_a_chunk_is_exit_2_naming_its_offset(tmp_path, capsys, g
     # chunk body: start(8) end(8) uncompressed_size(8) crc(4) compression(4+len) records(8+...)
     at = pos + 9 + length - 20 if where == "chunk_payload" else pos + 9 + 3
     bad = flipped(good_log, tmp_path / "bad.mcap", at)
-    expect = pos if where == "chunk_payload" else [r for r in records(data) if r[1] == DATA_END][0][0]
+    data_end = [r for r in records(data) if r[1] == DATA_END][0][0]
+    expect = pos if where == "chunk_payload" else data_end       # the data-section CRC
     line = assert_exit2_at(capsys, expect, "compare", bad)
     assert bad.name in line
     assert_exit2_at(capsys, expect, "replay", bad)
