@@ -39,9 +39,11 @@ def write_events(log, events) -> int:
 
 
 def read_hinge_events(path) -> list[dict[str, Any]]:
-    """The events recorded in the MCAP log at ``path``, in log order (dicts as written)."""
+    """The events recorded in the MCAP log at ``path`` (``hinge_events`` under any one
+    namespace), in log order (dicts as written)."""
     from .mcap_log import LogReader
 
     with LogReader(path) as reader:
-        return [json.loads(msg.data)
-                for _, _, msg in reader.messages(["/" + HINGE_EVENTS_TOPIC])]
+        topic = reader.resolve([HINGE_EVENTS_TOPIC]).get(HINGE_EVENTS_TOPIC,
+                                                         "/" + HINGE_EVENTS_TOPIC)
+        return [json.loads(msg.data) for _, _, msg in reader.messages([topic])]

@@ -1,29 +1,35 @@
-"""Read what ``rod-sim compare`` needs from a log: one MCAP file or a rosbag2 bag directory.
+"""Read what ``rod-sim compare`` needs from a log, as a stream: one MCAP file or a rosbag2 bag
+directory.
 
 A bag directory holds ``metadata.yaml`` (rosbag2's ``rosbag2_bagfile_information`` with
 ``storage_identifier: mcap`` and ``relative_file_paths``) and the ``.mcap`` files it lists; they
 are read in that order (without ``metadata.yaml``: every ``*.mcap`` in name order) and their
 messages merged in log-time order.
 
-What is read (n rods; times in integer ns of simulated time):
+What is read (n rods; times in integer ns of simulated time), under any one namespace
+(``/arm1/rod_states`` as well as ``/rod_states``):
 
-- ``/rod_states``: phi (N, n) [rad], phi_rate (N, n) [rad/s];
-- ``/bending``: alpha, beta (Nb, n) [rad] (optional topic);
-- ``/node_poses``: node positions (Np, n+1, 2) [m] (optional topic);
-- ``/applied_forces``: forces (K, n, 2) [N] = scripted loads + held command, valid from the
+- ``rod_states``: phi (n,) [rad], phi_rate (n,) [rad/s];
+- ``bending``: alpha, beta (n,) [rad] (optional topic);
+- ``node_poses``: node positions (n+1, 2) [m] (optional topic);
+- ``applied_forces``: forces (n, 2) [N] = scripted loads + held command, valid from the
   message time on (a zero-order hold of the command part).
 
-The time of a state message is its header stamp; a log whose stamps and log times disagree
-is refused (:class:`~rod_sim.io.mcap_log.LogFormatError`): ``/applied_forces`` has no header,
-so its log time is the only clock it has, and that clock must be simulated time. Every problem
-that makes a log unusable is a LogFormatError with a one-line message; problems that only limit
-what can be said (a truncated file, duplicate messages) are collected in ``LogData.notes``.
+:meth:`LogStream.groups` yields them one log time at a time, so memory does not grow with the
+log's length (each file's reader holds only the chunks whose time ranges overlap). The time of
+a state message is its header stamp; a log whose stamps and log times disagree is refused
+(:class:`~rod_sim.io.mcap_log.LogFormatError`): ``applied_forces`` has no header, so its log
+time is the only clock it has, and that clock must be simulated time. Every problem that makes
+a log unusable is a LogFormatError with a one-line message; problems that only limit what can
+be said (a truncated file, duplicate messages) are collected in ``LogStream.notes``.
 """
 from __future__ import annotations
 
 import contextlib
+import heapq
 import io
 import os
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -39,38 +45,18 @@ POSES_TOPIC = "/node_poses"
 APPLIED_TOPIC = "/applied_forces"
 TOPICS = (STATE_TOPIC, BENDING_TOPIC, POSES_TOPIC, APPLIED_TOPIC)
 
-@dataclass
-class Series:
-    """Samples of one topic: ``t_ns`` (N,) int64 [ns] sorted, ``values`` (N, ...) float."""
-
-    t_ns: np.ndarray
-    values: np.ndarray
-
-    def __len__(self) -> int:
-        return int(self.t_ns.size)
-
 
 @dataclass
-class LogData:
-    """Everything ``compare`` reads from a log (see the module docstring for units).
+class Group:
+    """The messages of one log time ``t_ns`` [ns], at most one per topic (duplicates resolved):
+    ``state`` (phi (n,), phi_rate (n,)), ``bending`` (alpha (n,), beta (n,)), ``nodes``
+    (n+1, 2), ``applied`` (n, 2); None where the topic has no message at this time."""
 
-    ``metadata``: the ``rod_sim`` record (str -> str) or None; ``files``: the MCAP files read;
-    ``truncated``: some file ended in an incomplete record (its readable part was used);
-    ``notes``: one-line remarks about what was found and how it was handled.
-    """
-
-    path: Path
-    files: list[Path]
-    metadata: dict[str, str] | None
-    n: int
-    phi: Series
-    phi_rate: Series
-    alpha: Series | None
-    beta: Series | None
-    nodes: Series | None
-    applied: Series
-    truncated: bool = False
-    notes: list[str] = field(default_factory=list)
+    t_ns: int
+    state: tuple[np.ndarray, np.ndarray] | None = None
+    bending: tuple[np.ndarray, np.ndarray] | None = None
+    nodes: np.ndarray | None = None
+    applied: np.ndarray | None = None
 
 
 def log_files(path: str | os.PathLike) -> list[Path]:
@@ -114,159 +100,230 @@ def _stamp_ns(msg: Any) -> int:
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
-def _read_file(path: Path, raw: dict[str, list], notes: list[str]) -> tuple[dict | None, bool]:
-    """Append (log_time, stamp or None, file index, msg) of :data:`TOPICS` to ``raw``;
-    return (rod_sim metadata or None, truncated)."""
-    with LogReader(path) as reader:
+@dataclass
+class LogStream:
+    """A log opened for :meth:`groups` (see the module docstring for units).
+
+    ``metadata``: the ``rod_sim`` record (str -> str) or None; ``files``: the MCAP files;
+    ``topics``: our base topic -> the logged name; ``complete``: every file has its summary.
+    After :meth:`groups` has run: ``n`` (rods), ``truncated`` (some file ended in an incomplete
+    record; its readable part was used), ``notes`` (one-line remarks) and ``counts`` (messages
+    read per topic). Opening checks every file's integrity (:class:`LogReader`).
+    """
+
+    path: Path
+    files: list[Path]
+    metadata: dict[str, str] | None
+    topics: list[dict[str, str]]
+    complete: bool
+    n: int | None = None
+    truncated: bool = False
+    notes: list[str] = field(default_factory=list)
+    counts: dict[str, int] = field(default_factory=lambda: {t: 0 for t in TOPICS})
+    _readers: list[LogReader] = field(default_factory=list, repr=False)
+
+    def close(self) -> None:
+        for reader in self._readers:
+            reader.close()
+        self._readers = []
+
+    def __enter__(self) -> "LogStream":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def _messages(self) -> Iterator[tuple[int, int, str, Any]]:
+        def one(k: int, reader: LogReader, names: dict[str, str]):
+            ours = {logged: "/" + base for base, logged in names.items()}
+            for logged, log_ns, msg in reader.messages(list(ours)):
+                yield int(log_ns), k, ours[logged], msg
+        streams = [one(k, r, names) for k, (r, names) in enumerate(zip(self._readers,
+                                                                         self.topics))]
+        return heapq.merge(*streams, key=lambda m: (m[0], m[1]))
+
+    def groups(self) -> Iterator[Group]:
+        """The log's messages grouped by log time, in time order (see :class:`Group`).
+        Messages of one topic sharing a time: identical ones are merged; different state
+        messages are refused, different applied forces: the last one in file order is used
+        (the node re-records a period's start after a failed step). Raises LogFormatError."""
+        pending: dict[str, list] = {}
+        t_group = None
+        self._dup = {t: 0 for t in TOPICS}
+        messages = self._messages()
         try:
-            metadata = reader.metadata(METADATA_NAME)
-        except LogFormatError:
-            metadata = None
-        for topic, log_ns, msg in reader.messages(TOPICS):
-            stamp = None if topic == APPLIED_TOPIC else _stamp_ns(msg)
-            raw[topic].append((int(log_ns), stamp, msg))
-        truncated = reader.truncated or not reader.complete
-        if not reader.complete:
-            notes.append(f"{path.name} has no summary (writer stopped before closing it); "
-                         "read by scanning" + (", last record incomplete" if reader.truncated
-                                               else ""))
-    return metadata, truncated
-
-
-def _dedupe(topic: str, items: list, key, notes: list[str], *, last_wins: bool = False) -> list:
-    """Sort by time (stable) and resolve messages sharing one time: identical ones are merged;
-    different ones are refused, or for ``last_wins`` the last in file order is kept."""
-    items = sorted(items, key=lambda it: it[0])
-    out: list = []
-    dropped = 0
-    for item in items:
-        if out and out[-1][0] == item[0]:
-            same = np.array_equal(key(out[-1][1]), key(item[1]))
-            if not same and not last_wins:
-                raise LogFormatError(f"two different {topic} messages at t = {item[0] / 1e9:.9g} s "
-                                     "(a tampered or merged log?)")
-            out[-1] = item
-            dropped += 1
-        else:
-            out.append(item)
-    if dropped:
-        notes.append(f"{dropped} {topic} message(s) repeat the time of an earlier one"
-                     + ("; the last one at each time is used" if last_wins else
-                        " with identical content; merged"))
-    return out
-
-
-def _joint(msg: Any) -> tuple[list[str], np.ndarray, np.ndarray]:
-    return (list(msg.name), np.asarray(msg.position, dtype=float),
-            np.asarray(msg.velocity, dtype=float))
-
-
-def read_log(path: str | os.PathLike) -> LogData:
-    """Read a log file or bag directory (see the module docstring). Raises LogFormatError."""
-    path = Path(path)
-    files = log_files(path)
-    raw: dict[str, list] = {t: [] for t in TOPICS}
-    notes: list[str] = []
-    metadata = None
-    truncated = False
-    for f in files:
-        try:
-            # mcap_ros2's vendored .msg parser prints to stderr before raising on a corrupt
-            # schema; the error is re-raised below as one line, so the print is dropped
-            with contextlib.redirect_stderr(io.StringIO()):
-                meta, cut = _read_file(f, raw, notes)
-        except LogFormatError:
+            while True:
+                # mcap_ros2's vendored .msg parser prints to stderr before raising on a corrupt
+                # schema; the error is re-raised below as one line, so the print is dropped
+                with contextlib.redirect_stderr(io.StringIO()):
+                    item = next(messages, None)
+                if item is None:
+                    break
+                log_ns, _, topic, msg = item
+                if t_group is not None and log_ns != t_group:
+                    yield self._group(t_group, pending)
+                    pending = {}
+                t_group = log_ns
+                self.counts[topic] += 1
+                pending.setdefault(topic, []).append(msg)
+            if t_group is not None:
+                yield self._group(t_group, pending)
+        except (LogFormatError, MemoryError):
             raise
         except Exception as exc:  # noqa: BLE001 - a corrupt file can fail in any decoder
-            text = str(exc).splitlines()[0] if str(exc) else ""
-            raise LogFormatError(f"{f}: corrupt or unreadable ({type(exc).__name__}: {text})"
-                                 ) from None
-        truncated |= cut
-        if metadata is None and meta is not None:
-            metadata = meta
+            text = " ".join(str(exc).split())[:200]
+            raise LogFormatError(f"{self.path}: corrupt or unreadable ({type(exc).__name__}: "
+                                 f"{text})") from None
+        dup = self._dup
+        for topic, count in dup.items():
+            if count:
+                self.notes.append(f"{count} {topic} message(s) repeat the time of an earlier one"
+                                  + ("; the last one at each time is used"
+                                     if topic == APPLIED_TOPIC else
+                                     " with identical content; merged"))
+        self.truncated = any(r.truncated or not r.complete for r in self._readers)
+        if self.truncated:
+            self.notes.append("the log is truncated: only its readable part is compared")
 
-    # ----- time base: header stamps of the state topics must be the log times -----
-    for topic in (STATE_TOPIC, BENDING_TOPIC, POSES_TOPIC):
-        bad = [(log_ns, stamp) for log_ns, stamp, _ in raw[topic] if log_ns != stamp]
-        if bad:
-            log_ns, stamp = bad[0]
+    def _group(self, t_ns: int, pending: dict[str, list]) -> Group:
+        """Decode the messages of one log time (states first: they fix n) and resolve
+        repeated ones (see :meth:`groups`)."""
+        values: dict[str, Any] = {}
+        for topic in TOPICS:
+            for msg in pending.get(topic, ()):
+                value = self._decode(topic, t_ns, msg)
+                if topic in values:
+                    same = all(np.array_equal(a, b) for a, b in
+                               zip(np.atleast_1d(values[topic]), np.atleast_1d(value)))
+                    if not same and topic != APPLIED_TOPIC:
+                        raise LogFormatError(f"two different {topic} messages at t = "
+                                             f"{t_ns / 1e9:.9g} s (a tampered or merged log?)")
+                    self._dup[topic] += 1
+                values[topic] = value
+        applied = values.get(APPLIED_TOPIC)
+        if applied is not None and applied.ndim == 1 and self.n is not None:
+            applied = self.applied_array(t_ns, applied)
+        return Group(t_ns, state=values.get(STATE_TOPIC), bending=values.get(BENDING_TOPIC),
+                     nodes=values.get(POSES_TOPIC), applied=applied)
+
+    def _decode(self, topic: str, log_ns: int, msg: Any):
+        """The arrays of one message, checked against the first state message's n."""
+        t = f"{log_ns / 1e9:.9g}"
+        if topic != APPLIED_TOPIC and _stamp_ns(msg) != log_ns:
             raise LogFormatError(
-                f"{topic}: {len(bad)} message(s) whose log time differs from the header stamp "
-                f"(first: log {log_ns / 1e9:.9g} s, stamp {stamp / 1e9:.9g} s); the log times "
-                "are not simulated time (a live recording?) or the log was altered, so the "
-                "applied-force history (no header) cannot be placed in simulated time")
-
-    if not raw[STATE_TOPIC]:
-        raise LogFormatError(f"{path}: no {STATE_TOPIC} messages" + (" in the readable part "
-                                                                      "of a truncated log"
-                                                                      if truncated else ""))
-    if not raw[APPLIED_TOPIC]:
-        raise LogFormatError(f"{path}: no {APPLIED_TOPIC} messages, so the applied-force "
-                             "history cannot be rebuilt")
-
-    # ----- rod states -----
-    states = _dedupe(STATE_TOPIC, [(t, _joint(m)) for t, _, m in raw[STATE_TOPIC]],
-                     lambda j: np.concatenate([j[1], j[2]]), notes)
-    names = states[0][1][0]
-    n = len(names)
-    if n == 0 or names != [f"rod_{k}" for k in range(1, n + 1)]:
-        raise LogFormatError(f"{STATE_TOPIC} names {names[:4]}... are not rod_1..rod_n")
-    for t, (nm, pos, vel) in states:
-        if nm != names or pos.size != n or vel.size != n:
-            raise LogFormatError(f"{STATE_TOPIC} at t = {t / 1e9:.9g} s has {len(nm)} names, "
-                                 f"{pos.size} positions, {vel.size} velocities (expected {n})")
-    t_states = np.array([t for t, _ in states], dtype=np.int64)
-    phi = Series(t_states, np.array([j[1] for _, j in states]))
-    phi_rate = Series(t_states, np.array([j[2] for _, j in states]))
-
-    # ----- bending -----
-    alpha = beta = None
-    if raw[BENDING_TOPIC]:
-        bend = _dedupe(BENDING_TOPIC, [(t, _joint(m)) for t, _, m in raw[BENDING_TOPIC]],
-                       lambda j: j[1], notes)
-        want = [f"alpha_{k}" for k in range(1, n + 1)] + [f"beta_{k}" for k in range(1, n + 1)]
-        for t, (nm, pos, _) in bend:
-            if nm != want or pos.size != 2 * n:
-                raise LogFormatError(f"{BENDING_TOPIC} at t = {t / 1e9:.9g} s does not hold "
+                f"{topic}: a message whose log time differs from the header stamp (log {t} s, "
+                f"stamp {_stamp_ns(msg) / 1e9:.9g} s); the log times are not simulated time (a "
+                "live recording?) or the log was altered, so the applied-force history (no "
+                "header) cannot be placed in simulated time")
+        if topic == STATE_TOPIC:
+            names = list(msg.name)
+            if self.n is None:
+                n = len(names)
+                if n == 0 or names != [f"rod_{k}" for k in range(1, n + 1)]:
+                    raise LogFormatError(f"{STATE_TOPIC} names {names[:4]}... are not "
+                                         "rod_1..rod_n")
+                self.n = n
+            n = self.n
+            pos = np.asarray(msg.position, dtype=float)
+            vel = np.asarray(msg.velocity, dtype=float)
+            if len(names) != n or names[-1] != f"rod_{n}" or pos.size != n or vel.size != n:
+                raise LogFormatError(f"{STATE_TOPIC} at t = {t} s has {len(names)} names, "
+                                     f"{pos.size} positions, {vel.size} velocities (expected {n})")
+            return pos, vel
+        if self.n is None:
+            if topic == APPLIED_TOPIC:
+                return np.asarray(msg.data, dtype=float)     # checked once n is known
+            raise LogFormatError(f"{topic} at t = {t} s comes before the first {STATE_TOPIC}")
+        n = self.n
+        if topic == BENDING_TOPIC:
+            want = [f"alpha_{k}" for k in range(1, n + 1)] + [f"beta_{k}" for k in range(1, n + 1)]
+            pos = np.asarray(msg.position, dtype=float)
+            if list(msg.name) != want or pos.size != 2 * n:
+                raise LogFormatError(f"{BENDING_TOPIC} at t = {t} s does not hold "
                                      f"alpha_1..alpha_{n}, beta_1..beta_{n}")
-        tb = np.array([t for t, _ in bend], dtype=np.int64)
-        values = np.array([j[1] for _, j in bend])
-        alpha, beta = Series(tb, values[:, :n]), Series(tb, values[:, n:])
-    else:
-        notes.append(f"no {BENDING_TOPIC} messages: alpha, beta not compared")
+            return pos[:n], pos[n:]
+        if topic == POSES_TOPIC:
+            xy = np.array([[p.position.x, p.position.y] for p in msg.poses], dtype=float)
+            if xy.shape != (n + 1, 2):
+                raise LogFormatError(f"{POSES_TOPIC} at t = {t} s has {xy.shape[0]} poses "
+                                     f"(expected {n + 1}: nodes 0..{n})")
+            return xy
+        return self.applied_array(log_ns, np.asarray(msg.data, dtype=float))
 
-    # ----- node poses -----
-    nodes = None
-    if raw[POSES_TOPIC]:
-        def xy(msg):
-            return np.array([[p.position.x, p.position.y] for p in msg.poses], dtype=float)
-
-        poses = _dedupe(POSES_TOPIC, [(t, xy(m)) for t, _, m in raw[POSES_TOPIC]],
-                        lambda a: a, notes)
-        for t, a in poses:
-            if a.shape != (n + 1, 2):
-                raise LogFormatError(f"{POSES_TOPIC} at t = {t / 1e9:.9g} s has {a.shape[0]} "
-                                     f"poses (expected {n + 1}: nodes 0..{n})")
-        nodes = Series(np.array([t for t, _ in poses], dtype=np.int64),
-                       np.array([a for _, a in poses]))
-    else:
-        notes.append(f"no {POSES_TOPIC} messages: node positions not compared")
-
-    # ----- applied forces -----
-    forces = []
-    for t, _, m in raw[APPLIED_TOPIC]:
-        data = np.asarray(m.data, dtype=float)
-        if data.size != 2 * n:
-            raise LogFormatError(f"{APPLIED_TOPIC} at t = {t / 1e9:.9g} s has {data.size} "
-                                 f"values (expected 2n = {2 * n})")
+    def applied_array(self, log_ns: int, data: np.ndarray) -> np.ndarray:
+        """``applied_forces`` data as (n, 2) [N]; LogFormatError for a wrong size or a
+        non-finite value."""
+        t = f"{log_ns / 1e9:.9g}"
+        if data.size != 2 * self.n:
+            raise LogFormatError(f"{APPLIED_TOPIC} at t = {t} s has {data.size} values "
+                                 f"(expected 2n = {2 * self.n})")
         if not np.all(np.isfinite(data)):
-            raise LogFormatError(f"{APPLIED_TOPIC} at t = {t / 1e9:.9g} s has a non-finite value")
-        forces.append((t, data.reshape(n, 2)))
-    forces = _dedupe(APPLIED_TOPIC, forces, lambda a: a, notes, last_wins=True)
-    applied = Series(np.array([t for t, _ in forces], dtype=np.int64),
-                     np.array([a for _, a in forces]))
-    if truncated:
-        notes.append("the log is truncated: only its readable part is compared")
-    return LogData(path=path, files=files, metadata=metadata, n=n, phi=phi, phi_rate=phi_rate,
-                   alpha=alpha, beta=beta, nodes=nodes, applied=applied, truncated=truncated,
-                   notes=notes)
+            raise LogFormatError(f"{APPLIED_TOPIC} at t = {t} s has a non-finite value")
+        return data.reshape(self.n, 2)
+
+
+def read_log(path: str | os.PathLike, namespace: str | None = None) -> LogStream:
+    """Open a log file or bag directory for streaming (see the module docstring): every file's
+    integrity is checked and its topics are found under any namespace (``/arm1/rod_states``
+    as well as ``/rod_states``); a log holding them under two namespaces needs ``namespace``.
+    Raises LogFormatError. Close the result (a context manager) when done."""
+    path = Path(path)
+    files = log_files(path)
+    stream = LogStream(path=path, files=files, metadata=None, topics=[], complete=True)
+    try:
+        for f in files:
+            try:
+                reader = LogReader(f)
+            except OSError as exc:
+                raise LogFormatError(f"{f}: {exc.strerror or exc}") from None
+            stream._readers.append(reader)
+            names = reader.resolve(TOPICS, namespace)
+            try:
+                meta = reader.metadata(METADATA_NAME)
+            except LogFormatError:
+                meta = None
+            stream.topics.append(names)
+            stream.complete &= reader.complete
+            if stream.metadata is None:
+                stream.metadata = meta
+            renamed = sorted(v for k, v in names.items() if v != "/" + k)
+            if renamed:
+                stream.notes.append(f"{f.name}: read {', '.join(renamed)}")
+            if not reader.complete:
+                stream.notes.append(f"{f.name} has no summary (writer stopped before closing "
+                                    "it); read by scanning"
+                                    + (", last record incomplete" if reader.truncated else ""))
+    except BaseException:
+        stream.close()
+        raise
+    return stream
+
+
+MAX_METADATA_SCENE_NODES = 10**6
+"""Largest scene in a log's metadata, in YAML nodes after expanding aliases (a resolved scene
+of n rods has about 10 n): a "billion laughs" scene is refused before anything walks it."""
+
+
+def metadata_scene(metadata: dict[str, str] | None, where: str):
+    """The :class:`~rod_sim.core.scene.Scene` of a log's ``rod_sim`` metadata record (None
+    without one). Raises LogFormatError (one line, values quoted at most 80 characters) for a
+    scene that is not valid or expands past :data:`MAX_METADATA_SCENE_NODES`."""
+    from rod_sim.core.scene import SceneError
+    from rod_sim.io.quote import quote, yaml_node_count
+    from rod_sim.io.scene_yaml import scene_from_yaml_text
+
+    if metadata is None or "scene" not in metadata:
+        return None
+    text = metadata["scene"]
+    try:
+        nodes = yaml_node_count(text, MAX_METADATA_SCENE_NODES + 1)
+    except yaml.YAMLError:
+        nodes = 0                      # scene_from_yaml_text reports the YAML error with its line
+    if nodes > MAX_METADATA_SCENE_NODES:
+        raise LogFormatError(f"{where}: the scene in the log's metadata expands to more than "
+                             f"{MAX_METADATA_SCENE_NODES} YAML nodes (a YAML bomb?); refused")
+    try:
+        return scene_from_yaml_text(text, "the log's metadata")
+    except (SceneError, ValueError, TypeError) as exc:
+        raise LogFormatError(f"{where}: the scene in the log's metadata is invalid: "
+                             f"{quote(str(exc), 200, plain=True)}") from None

@@ -14,9 +14,11 @@ then reads every complete chunk by scanning the file.
 from __future__ import annotations
 
 import errno
+import heapq
 import io
 import os
 import struct
+import zlib
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,7 +30,7 @@ from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.reader import make_reader
 from mcap.records import Channel, Chunk, Header, Message, Metadata, Schema
-from mcap.stream_reader import breakup_chunk
+from mcap.stream_reader import breakup_chunk, get_chunk_data_stream
 from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
 from mcap_ros2.decoder import DecoderFactory
@@ -122,7 +124,7 @@ class LogWriter:
         self._file = _FlushingFile(raw)
         try:
             self._writer = McapWriter(self._file, chunk_size=chunk_size,
-                                      compression=kinds[compression])
+                                      compression=kinds[compression], enable_data_crcs=True)
             self._writer.start(profile=PROFILE, library=f"rod_sim/{__version__}")
             self._writer.add_metadata(METADATA_NAME, record)
         except BaseException:
@@ -222,17 +224,55 @@ _RECORD_READERS = {
     Opcode.METADATA: Metadata.read,
     Opcode.CHUNK: Chunk.read,
 }
+_FIRST_RESERVED_OPCODE, _FIRST_PRIVATE_OPCODE = 0x10, 0x80
+"""Opcodes 0x10..0x7F are reserved by the MCAP spec (no writer uses them): one found in the data
+section is a corrupt byte, not an unknown record to skip (0x80.. are user records)."""
+_FOOTER_BODY = 8 + 8 + 4
+
+
+def _chunk_definitions(stream: ReadDataStream, length: int) -> list:
+    """The Schema and Channel records of a decompressed chunk (``stream`` of ``length`` bytes,
+    as :func:`mcap.stream_reader.get_chunk_data_stream` returns it); messages are skipped
+    unparsed. Raises ValueError for a record running past the chunk's end."""
+    data = stream.read(length)
+    out: list = []
+    pos = 0
+    while pos < length:
+        opcode, size = struct.unpack_from("<BQ", data, pos)
+        end = pos + 9 + size
+        if end > length:
+            raise ValueError(f"record of {size} bytes at chunk offset {pos} runs past the chunk")
+        if opcode in (Opcode.SCHEMA, Opcode.CHANNEL):
+            out.append(_RECORD_READERS[opcode](ReadDataStream(io.BytesIO(data[pos + 9:end]))))
+        pos = end
+    return out
+
+
+@dataclass(frozen=True)
+class _Span:
+    """Where messages live in the data section: a chunk (or one un-chunked message record)
+    at byte ``offset`` holding log times ``start``..``end`` [ns]."""
+
+    start: int
+    end: int
+    offset: int
 
 
 class LogReader:
     """Reads an MCAP log (rod_sim's or any ROS 2 one); a context manager.
 
-    Uses the summary and indexes of a complete file; when they are missing or unreadable (a
-    writer killed before ``close``) it scans the file from the start and stops at the first
-    incomplete record. Raises :class:`LogFormatError` for a file that is not MCAP.
+    Opening the file checks its integrity in one pass over the data section (bounded memory:
+    one chunk at a time): every record's framing, every chunk's CRC (of its uncompressed
+    data), the data-section CRC in the DataEnd record and the summary CRC in the footer (each
+    where the writer stored one; 0 means "not computed" in MCAP). Any mismatch raises
+    :class:`LogFormatError` naming the byte offset of the bad record. The summary and indexes
+    of a complete file are used for reading; without them (a writer killed before ``close``)
+    the chunks found by the pass are read, up to the first incomplete record. Message
+    iteration holds at most the chunks whose time ranges overlap (memory independent of the
+    log length). Raises :class:`LogFormatError` for a file that is not MCAP.
 
     Attributes: ``complete`` is True when the file has its summary and indexes (it was closed
-    cleanly); ``truncated`` becomes True once a scan has met an incomplete last record.
+    cleanly); ``truncated`` is True when it ends in an incomplete record.
     """
 
     def __init__(self, path: str | os.PathLike):
@@ -244,20 +284,55 @@ class LogReader:
             if self._file.read(len(MAGIC)) != MAGIC:
                 raise LogFormatError(f"{self.path} is not an MCAP file (bad magic)")
             self._file.seek(0)
-            self._reader = make_reader(self._file, decoder_factories=[DecoderFactory()])
+            self._reader = make_reader(self._file, validate_crcs=True,
+                                       decoder_factories=[DecoderFactory()])
+            self.truncated = False
+            self._footer_at = self._footer_offset()
+            self._data_limit = self._footer_at if self._footer_at is not None else self._size
             self._summary = self._read_summary()
+            self._schemas: dict[int, Schema] = {}
+            self._channels: dict[int, Channel] = {}
+            self._metadata: list[Metadata] = []
+            self._spans: list[_Span] = []
+            self._check_data_section()
         except BaseException:
             self._file.close()
             raise
         self.complete = self._summary is not None
-        self.truncated = False
 
-    def _read_summary(self):
-        if self._size < 2 * len(MAGIC) + 29:
+    def _corrupt(self, pos: int, what: str) -> LogFormatError:
+        return LogFormatError(f"{self.path}: corrupt log: {what} at byte {pos}; nothing of it "
+                              "is used (a damaged copy? re-record, or try `rod-sim repair`)")
+
+    def _footer_offset(self) -> int | None:
+        """Byte offset of the Footer record when the file ends in one (a closed log)."""
+        at = self._size - len(MAGIC) - 9 - _FOOTER_BODY
+        if at < len(MAGIC):
             return None
         self._file.seek(-len(MAGIC), io.SEEK_END)
         if self._file.read(len(MAGIC)) != MAGIC:
             return None
+        self._file.seek(at)
+        opcode, length = struct.unpack("<BQ", self._file.read(9))
+        if opcode != Opcode.FOOTER or length != _FOOTER_BODY:
+            return None
+        return at
+
+    def _read_summary(self):
+        if self._footer_at is None:
+            return None
+        self._file.seek(self._footer_at + 9)
+        summary_start, _, summary_crc = struct.unpack("<QQI", self._file.read(_FOOTER_BODY))
+        self._data_limit = summary_start or self._footer_at
+        if summary_crc:
+            if not len(MAGIC) <= summary_start <= self._footer_at:
+                raise self._corrupt(self._footer_at, f"footer points the summary at byte "
+                                                     f"{summary_start}")
+            begin = summary_start or self._footer_at
+            self._file.seek(begin)
+            data = self._file.read(self._footer_at + 9 + 16 - begin)
+            if zlib.crc32(data) != summary_crc:
+                raise self._corrupt(begin, "summary section CRC mismatch")
         try:
             summary = self._reader.get_summary()
         except (McapError, struct.error, ValueError, UnicodeDecodeError, MemoryError):
@@ -276,37 +351,112 @@ class LogReader:
     def __exit__(self, exc_type, exc, tb) -> None:
         self.close()
 
-    # ----- linear scan, for files without a summary -----
+    # ----- the integrity pass -----
 
-    def _scan(self) -> Iterator[Any]:
-        """Records in file order (chunks broken up), up to the first incomplete record."""
-        f, size, pos = self._file, self._size, len(MAGIC)
-        while pos < size:
+    def _records(self) -> Iterator[tuple[int, int, bytes]]:
+        """(offset, opcode, body) of the data section's records, up to DataEnd (checked
+        against its CRC) or the first incomplete record (``truncated``)."""
+        f, size, pos = self._file, self._data_limit, len(MAGIC)
+        crc = zlib.crc32(MAGIC)
+        complete_file = self._footer_at is not None
+        while True:
             if pos + 9 > size:
-                self.truncated = True
-                return
+                break
             f.seek(pos)
-            opcode, length = struct.unpack("<BQ", f.read(9))
+            head = f.read(9)
+            opcode, length = struct.unpack("<BQ", head)
             end = pos + 9 + length
+            if _FIRST_RESERVED_OPCODE <= opcode < _FIRST_PRIVATE_OPCODE or opcode == 0:
+                raise self._corrupt(pos, f"invalid record opcode {opcode:#x}")
             if end > size:
-                self.truncated = True
+                break
+            if opcode == Opcode.DATA_END:
+                self._readable_end = self._size
+                stored = struct.unpack("<I", f.read(4))[0] if length >= 4 else 0
+                if stored and stored != crc:
+                    raise self._corrupt(pos, f"data section CRC mismatch (stored {stored:#010x}, "
+                                             f"computed {crc:#010x})")
                 return
-            if opcode in (Opcode.DATA_END, Opcode.FOOTER):
-                return
-            reader = _RECORD_READERS.get(opcode)
-            if opcode == Opcode.MESSAGE or reader is not None:
-                body = f.read(length)
-                try:
-                    stream = ReadDataStream(io.BytesIO(body))
-                    record = (Message.read(stream, length) if opcode == Opcode.MESSAGE
-                              else reader(stream))
-                    records = (breakup_chunk(record, validate_crc=True)
-                               if isinstance(record, Chunk) else [record])
-                except Exception as exc:  # noqa: BLE001 - any decoding failure is corruption
-                    raise LogFormatError(f"{self.path}: corrupt record (opcode {opcode:#x}) at "
-                                         f"byte {pos}: {exc}") from exc
-                yield from records
+            if opcode == Opcode.FOOTER:
+                self._readable_end = pos
+                break
+            body = f.read(length)
+            crc = zlib.crc32(body, zlib.crc32(head, crc))
+            yield pos, opcode, body
             pos = end
+        if complete_file:
+            raise self._corrupt(pos, "no DataEnd record where the data section ends (a record "
+                                     "length damaged?)")
+        self._readable_end = pos
+        self.truncated = pos < size
+
+    def _parse(self, pos: int, opcode: int, body: bytes, *, messages: bool = True) -> list:
+        """The record at ``pos`` as a list: a Chunk is decompressed, its CRC checked, and broken
+        up into its records (only its schemas and channels unless ``messages``)."""
+        try:
+            stream = ReadDataStream(io.BytesIO(body))
+            if opcode == Opcode.MESSAGE:
+                return [Message.read(stream, len(body))]
+            record = _RECORD_READERS[opcode](stream)
+            if not isinstance(record, Chunk):
+                return [record]
+            if messages:
+                return breakup_chunk(record, validate_crc=True)
+            return _chunk_definitions(*get_chunk_data_stream(record, validate_crc=True))
+        except MemoryError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - any decoding failure is corruption
+            text = " ".join(str(exc).split())[:200]
+            raise self._corrupt(pos, f"unreadable record (opcode {opcode:#x}: "
+                                     f"{type(exc).__name__}: {text})") from None
+
+    def _check_data_section(self) -> None:
+        for pos, opcode, body in self._records():
+            if opcode == Opcode.MESSAGE:
+                t = self._parse(pos, opcode, body)[0].log_time
+                self._spans.append(_Span(t, t, pos))
+                continue
+            if opcode not in _RECORD_READERS:
+                continue
+            for record in self._parse(pos, opcode, body, messages=False):
+                if isinstance(record, Schema):
+                    self._schemas[record.id] = record
+                elif isinstance(record, Channel):
+                    self._channels[record.id] = record
+                elif isinstance(record, Metadata):
+                    self._metadata.append(record)
+            if opcode == Opcode.CHUNK:
+                start, end = struct.unpack_from("<QQ", body)
+                self._spans.append(_Span(start, end, pos))
+
+    # ----- messages of the data section, in log-time order -----
+
+    def _span_messages(self, span: _Span) -> list[Message]:
+        self._file.seek(span.offset)
+        opcode, length = struct.unpack("<BQ", self._file.read(9))
+        return [r for r in self._parse(span.offset, opcode, self._file.read(length))
+                if isinstance(r, Message)]
+
+    def _scan_ordered(self, wanted: set[str] | None) -> Iterator[tuple[Channel, Message]]:
+        """(channel, message) of the data section in (log time, file order), opening a chunk
+        only when the next message could come from it."""
+        ids = {cid for cid, c in self._channels.items() if wanted is None or c.topic in wanted}
+        spans = sorted(self._spans, key=lambda s: (s.start, s.offset))
+        heap: list = []
+        i = 0
+        while i < len(spans) or heap:
+            while i < len(spans) and (not heap or spans[i].start <= heap[0][0]):
+                span = spans[i]
+                for k, record in enumerate(self._span_messages(span)):
+                    if record.channel_id not in self._channels:
+                        raise LogFormatError(f"{self.path}: message on unknown channel "
+                                             f"{record.channel_id}")
+                    if record.channel_id in ids:
+                        heapq.heappush(heap, (record.log_time, span.offset, k, record))
+                i += 1
+            if heap:
+                record = heapq.heappop(heap)[3]
+                yield self._channels[record.channel_id], record
 
     # ----- queries -----
 
@@ -315,101 +465,95 @@ class LogReader:
 
         Raises LogFormatError when the log has none.
         """
-        try:
-            if self._summary is not None:
-                records = self._reader.iter_metadata()
-            else:
-                records = (r for r in self._scan() if isinstance(r, Metadata))
-            for record in records:
-                if record.name == name:
-                    return dict(record.metadata)
-        except McapError as exc:
-            raise LogFormatError(f"{self.path}: cannot read metadata: {exc}") from exc
-        if self.truncated:
+        for record in self._metadata:
+            if record.name == name:
+                return dict(record.metadata)
+        if self.truncated and not self._metadata:
             raise LogFormatError(f"{self.path} is truncated before its {name!r} metadata record")
         raise LogFormatError(f"{self.path} has no {name!r} metadata record (not a rod_sim log?)")
 
+    def _schemas_channels(self) -> tuple[dict[int, Schema], list[Channel]]:
+        if self._summary is not None:
+            return self._summary.schemas, list(self._summary.channels.values())
+        return self._schemas, list(self._channels.values())
+
     def topics(self) -> dict[str, str]:
         """Absolute topic name -> ROS type name (e.g. ``'/rod_states': 'sensor_msgs/msg/JointState'``)."""
-        if self._summary is not None:
-            schemas, channels = self._summary.schemas, self._summary.channels.values()
-        else:
-            schemas, channels = {}, []
-            for record in self._scan():
-                if isinstance(record, Schema):
-                    schemas[record.id] = record
-                elif isinstance(record, Channel):
-                    channels.append(record)
+        schemas, channels = self._schemas_channels()
         return {c.topic: (schemas[c.schema_id].name if c.schema_id in schemas else "")
                 for c in channels}
+
+    def resolve(self, names: Iterable[str], namespace: str | None = None) -> dict[str, str]:
+        """The logged topic of each base name in ``names`` (e.g. ``rod_states``): see
+        :func:`resolve_topics`. Raises LogFormatError when two namespaces hold them."""
+        return resolve_topics(self.topics(), names, namespace, str(self.path))
 
     def messages(self, topics: Iterable[str] | str | None = None
                  ) -> Iterator[tuple[str, int, Any]]:
         """``(topic, log_time [ns], decoded message)`` in log-time order (file order on ties).
 
         ``topics``: absolute or relative names to keep (default: all). Decoded messages have
-        the ROS field names as attributes. A file without summary is scanned; its raw payloads
-        are then held in memory to be sorted.
+        the ROS field names as attributes.
         """
         wanted = None
         if topics is not None:
             names = [topics] if isinstance(topics, str) else list(topics)
             wanted = {t if t.startswith("/") else "/" + t for t in names}
-        try:
-            if self._summary is not None:
-                for item in self._reader.iter_decoded_messages(topics=wanted, log_time_order=True):
-                    yield item.channel.topic, item.message.log_time, item.decoded_message
-            else:
-                yield from self._scan_messages(wanted)
-        except McapError as exc:
-            raise LogFormatError(f"{self.path}: cannot decode messages: {exc}") from exc
-
-    def _scan_messages(self, wanted: set[str] | None) -> Iterator[tuple[str, int, Any]]:
-        schemas: dict[int, Schema] = {}
-        channels: dict[int, Channel] = {}
-        found: list[tuple[int, int, Message]] = []
-        for record in self._scan():
-            if isinstance(record, Schema):
-                schemas[record.id] = record
-            elif isinstance(record, Channel):
-                channels[record.id] = record
-            elif isinstance(record, Message):
-                channel = channels.get(record.channel_id)
-                if channel is None:
-                    raise LogFormatError(f"{self.path}: message on unknown channel {record.channel_id}")
-                if wanted is None or channel.topic in wanted:
-                    found.append((record.log_time, len(found), record))
-        found.sort(key=lambda item: (item[0], item[1]))
+        schemas, _ = self._schemas_channels()
         factory = DecoderFactory()
         decoders: dict[int, Any] = {}
-        for log_time, _, record in found:
-            channel = channels[record.channel_id]
+        for channel, record in self._ordered(wanted):
             decoder = decoders.get(channel.id)
             if decoder is None:
-                decoder = factory.decoder_for(channel.message_encoding, schemas.get(channel.schema_id))
+                decoder = factory.decoder_for(channel.message_encoding,
+                                              schemas.get(channel.schema_id))
                 if decoder is None:
                     raise LogFormatError(f"{self.path}: cannot decode {channel.topic} "
                                          f"({channel.message_encoding})")
                 decoders[channel.id] = decoder
-            yield channel.topic, log_time, decoder(record.data)
+            yield channel.topic, record.log_time, decoder(record.data)
 
+    def _ordered(self, wanted: set[str] | None) -> Iterator[tuple[Channel, Message]]:
+        if self._summary is None:
+            yield from self._scan_ordered(wanted)
+            return
+        try:
+            for _, channel, message in self._reader.iter_messages(topics=wanted,
+                                                                   log_time_order=True):
+                yield channel, message
+        except (McapError, ValueError) as exc:
+            raise LogFormatError(f"{self.path}: cannot read messages: "
+                                 f"{' '.join(str(exc).split())[:200]}") from None
 
-    # ----- raw access, for players -----
+    # ----- raw access, for players and repair -----
+
+    def header(self) -> Header:
+        """The file's Header record (profile, library)."""
+        try:
+            return self._reader.get_header()
+        except (McapError, ValueError, struct.error) as exc:
+            raise self._corrupt(len(MAGIC), f"unreadable header ({exc})") from None
+
+    def definitions(self) -> tuple[dict[int, Schema], dict[int, Channel], list[Metadata]]:
+        """Schemas and channels by id, and the metadata records, as found in the file."""
+        schemas, channels = self._schemas_channels()
+        return dict(schemas), {c.id: c for c in channels}, list(self._metadata)
+
+    @property
+    def data_end(self) -> int:
+        """[bytes] where the readable data section ends (the size of a complete file)."""
+        return self._readable_end
+
+    def records(self) -> Iterator[tuple[Channel, Message]]:
+        """Every (channel, message record) in log-time order (file order on ties)."""
+        return self._ordered(None)
 
     def channels(self) -> dict[str, ChannelInfo]:
         """Absolute topic name -> :class:`ChannelInfo` (type, encoding, channel metadata such
         as ``offered_qos_profiles``, message count when the summary has statistics)."""
-        if self._summary is not None:
-            schemas, channels = self._summary.schemas, list(self._summary.channels.values())
-            stats = self._summary.statistics
-            counts = dict(stats.channel_message_counts) if stats is not None else {}
-        else:
-            schemas, channels, counts = {}, [], {}
-            for record in self._scan():
-                if isinstance(record, Schema):
-                    schemas[record.id] = record
-                elif isinstance(record, Channel):
-                    channels.append(record)
+        schemas, channels = self._schemas_channels()
+        stats = self._summary.statistics if self._summary is not None else None
+        counts = dict(stats.channel_message_counts) if stats is not None else {}
         return {c.topic: ChannelInfo(
                     topic=c.topic,
                     type_name=schemas[c.schema_id].name if c.schema_id in schemas else "",
@@ -421,32 +565,43 @@ class LogReader:
                      ) -> Iterator[tuple[str, int, bytes]]:
         """``(topic, log_time [ns], serialized payload)`` in log-time order (file order on
         ties), without decoding: for CDR channels the payload is what a ROS publisher sends.
-        ``topics``: absolute names to keep (default: all). A file without summary is scanned
-        and its payloads are held in memory to be sorted."""
+        ``topics``: absolute names to keep (default: all)."""
         wanted = None if topics is None else set(topics)
-        try:
-            if self._summary is not None:
-                for _, channel, message in self._reader.iter_messages(
-                        topics=wanted, log_time_order=True):
-                    yield channel.topic, message.log_time, message.data
-                return
-            channels: dict[int, Channel] = {}
-            found: list[tuple[int, int, str, bytes]] = []
-            for record in self._scan():
-                if isinstance(record, Channel):
-                    channels[record.id] = record
-                elif isinstance(record, Message):
-                    channel = channels.get(record.channel_id)
-                    if channel is None:
-                        raise LogFormatError(f"{self.path}: message on unknown channel "
-                                             f"{record.channel_id}")
-                    if wanted is None or channel.topic in wanted:
-                        found.append((record.log_time, len(found), channel.topic, record.data))
-            found.sort(key=lambda item: (item[0], item[1]))
-            for log_time, _, topic, data in found:
-                yield topic, log_time, data
-        except McapError as exc:
-            raise LogFormatError(f"{self.path}: cannot read messages: {exc}") from exc
+        for channel, record in self._ordered(wanted):
+            yield channel.topic, record.log_time, record.data
+
+
+def base_name(topic: str) -> str:
+    """The last component of a topic name: ``/arm1/rod_states`` -> ``rod_states``."""
+    return topic.rstrip("/").rsplit("/", 1)[-1]
+
+
+def namespace_of(topic: str) -> str:
+    """The namespace of an absolute topic: ``/arm1/rod_states`` -> ``/arm1``, ``/x`` -> ``/``."""
+    ns = topic.rstrip("/").rsplit("/", 1)[0]
+    return ns or "/"
+
+
+def resolve_topics(available: Iterable[str], names: Iterable[str], namespace: str | None = None,
+                   where: str = "the log") -> dict[str, str]:
+    """Map base topic names (``rod_states``, ``/rod_states``) to the absolute topics of
+    ``available`` that end in them under any namespace (a node started with ``-r __ns:=/arm1``
+    records ``/arm1/rod_states``). ``namespace`` (e.g. ``/arm1``) picks one namespace. Names
+    not found are left out. Raises LogFormatError when the names are found under more than one
+    namespace and none was chosen (two nodes recorded in one log)."""
+    available = list(available)
+    bases = [base_name(n) for n in names]
+    if namespace is not None:
+        ns = "/" + namespace.strip("/")
+        prefix = ns if ns != "/" else ""
+        return {b: prefix + "/" + b for b in bases if prefix + "/" + b in available}
+    found: dict[str, list[str]] = {b: sorted(t for t in available if base_name(t) == b)
+                                   for b in bases}
+    spaces = sorted({namespace_of(t) for ts in found.values() for t in ts})
+    if len(spaces) > 1:
+        raise LogFormatError(f"{where} holds our topics under {len(spaces)} namespaces "
+                             f"({', '.join(spaces[:6])}); choose one with --namespace NS")
+    return {b: ts[0] for b, ts in found.items() if ts}
 
 
 @dataclass(frozen=True)
@@ -467,6 +622,7 @@ def _joint_series(path, topic: str, prefix: str) -> tuple[np.ndarray, np.ndarray
     times, position, velocity = [], [], []
     names = None
     with LogReader(path) as reader:
+        topic = reader.resolve([topic]).get(base_name(topic), topic)
         for _, t_ns, msg in reader.messages([topic]):
             if names is None:
                 names = list(msg.name)
@@ -485,8 +641,9 @@ def _joint_series(path, topic: str, prefix: str) -> tuple[np.ndarray, np.ndarray
 
 
 def read_rod_states(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(t (N,) [s], phi (N, n) [rad], phi_rate (N, n) [rad/s])`` from the ``/rod_states`` of a
-    log (complete or truncated). Raises LogFormatError if it has none."""
+    """``(t (N,) [s], phi (N, n) [rad], phi_rate (N, n) [rad/s])`` from the ``rod_states`` topic
+    of a log (complete or truncated; under any one namespace). Raises LogFormatError if it has
+    none."""
     return _joint_series(path, "/rod_states", "rod_")
 
 
@@ -495,7 +652,8 @@ def read_applied_forces(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray
     Raises LogFormatError if the log has none or a message is not of even length."""
     times, forces = [], []
     with LogReader(path) as reader:
-        for _, t_ns, msg in reader.messages(["/applied_forces"]):
+        topic = reader.resolve(["applied_forces"]).get("applied_forces", "/applied_forces")
+        for _, t_ns, msg in reader.messages([topic]):
             data = np.asarray(msg.data, dtype=float)
             if data.size % 2:
                 raise LogFormatError(f"{path}: /applied_forces at {t_ns} ns has odd length {data.size}")

@@ -246,18 +246,35 @@ def absolute(topic: str) -> str:
     return topic if topic.startswith("/") else "/" + topic
 
 
+def find_topic(tracks: Mapping[str, Track], name: str) -> str:
+    """The source's topic for a name given by the user: the absolute name itself; for a
+    relative name without a match at the root (``rod_states``), the one topic with that base
+    name under any namespace (``/arm1/rod_states``). Raises PlaybackError when there is none
+    or several."""
+    full = absolute(name)
+    if full in tracks or name.startswith("/"):
+        if full not in tracks:
+            raise PlaybackError(f"topic {full} is not in the log (it has: "
+                                f"{', '.join(sorted(tracks)) or 'no topics'})")
+        return full
+    matches = sorted(t for t in tracks if t.endswith(full))
+    if len(matches) == 1:
+        return matches[0]
+    if matches:
+        raise PlaybackError(f"topic {name} is ambiguous: the log has {', '.join(matches)}; "
+                            "give the absolute name")
+    raise PlaybackError(f"topic {name} is not in the log (it has: "
+                        f"{', '.join(sorted(tracks)) or 'no topics'})")
+
+
 def select_topics(tracks: Mapping[str, Track], topics: Iterable[str] | None = None,
                   exclude: Iterable[str] | None = None) -> list[str]:
-    """The absolute topics to replay, sorted: ``topics`` (relative names allowed; default all)
-    minus ``exclude``. Raises PlaybackError for a name the source does not have, or when
+    """The absolute topics to replay, sorted: ``topics`` (default all) minus ``exclude``; a
+    relative name also matches the topic of that name under a namespace (see
+    :func:`find_topic`). Raises PlaybackError for a name the source does not have, or when
     nothing is left."""
-    known = sorted(tracks)
-    chosen = known if not topics else [absolute(t) for t in topics]
-    removed = [absolute(t) for t in (exclude or ())]
-    for name in [*chosen, *removed]:
-        if name not in tracks:
-            raise PlaybackError(f"topic {name} is not in the log (it has: "
-                                f"{', '.join(known) or 'no topics'})")
+    chosen = sorted(tracks) if not topics else [find_topic(tracks, t) for t in topics]
+    removed = [find_topic(tracks, t) for t in (exclude or ())]
     selected = sorted(set(chosen) - set(removed))
     if not selected:
         raise PlaybackError("no topic left to replay")

@@ -1,21 +1,27 @@
 """``rod-sim compare LOG``: can this logged run be trusted? Checks every logged sample against a
 converged re-run of the full model with the logged applied forces (SPEC section 3).
 
-Exit 0: max |phi error| <= --tolerance, no gap in the states, reference converged;
-1: any of these fails; 2: the log cannot be compared (one line on stderr, no traceback).
-The numbers are computed by :mod:`rod_sim.tools.comparison`; docs/compare.md explains them.
+Exit 0: PASS (max |phi error| <= --tolerance, no gap in the states, reference converged), or
+PASS up to the predictability horizon and INCONCLUSIVE beyond it (chaotic motion: only
+statistics are meaningful there); 1: FAIL; 2: the log cannot be compared, e.g. a corrupt log
+(one line on stderr naming the byte offset, no traceback, no verdict). The report fits 100
+columns. The numbers are computed by :mod:`rod_sim.tools.comparison`; docs/compare.md explains
+them.
 """
 from __future__ import annotations
 
 import json
 import math
 import sys
+import textwrap
 from pathlib import Path
+
+from ..io.quote import quote
 
 from .common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, positive_float
 
 COMMAND = "compare"
-HELP = "check a log against a converged re-run of the full model"
+HELP = "check a log against a converged re-run of the full model (predictability horizon)"
 
 
 def configure(parser) -> None:
@@ -28,6 +34,10 @@ def configure(parser) -> None:
     parser.add_argument("--tolerance", type=positive_float, default=None,
                         metavar="RAD", help="largest accepted |phi_log - phi_full| [rad] "
                                             "(default 0.01, see docs/compare.md)")
+    parser.add_argument("--namespace", default=None, metavar="NS",
+                        help="read the topics recorded under namespace NS (e.g. /arm1); "
+                             "needed only when the log holds two nodes' topics (by default "
+                             "rod_states, applied_forces, ... are found under any namespace)")
     parser.add_argument("--scene", default=None, metavar="SCENE.yaml",
                         help="scene file, for logs without rod_sim metadata (overrides the "
                              "log's scene when given)")
@@ -35,21 +45,25 @@ def configure(parser) -> None:
 
 def _scene_for(log, scene_path: str | None):
     """(scene, where it came from, note or None)."""
-    from ..io.scene_yaml import load_scene, scene_from_yaml_text, scene_to_yaml
+    from ..io.log_source import metadata_scene
+    from ..io.mcap_log import LogFormatError
+    from ..io.scene_yaml import load_scene, scene_to_yaml
 
-    logged = None
-    if log.metadata is not None and "scene" in log.metadata:
-        logged = scene_from_yaml_text(log.metadata["scene"])
-    if scene_path is not None:
-        scene = load_scene(scene_path)
-        note = None
-        if logged is not None and scene_to_yaml(logged) != scene_to_yaml(scene):
-            note = f"--scene {scene_path} differs from the scene in the log's metadata; using --scene"
-        return scene, f"--scene {scene_path}", note
-    if logged is None:
-        raise UsageError(f"{log.path} has no rod_sim metadata with a scene; pass --scene "
-                         "SCENE.yaml")
-    return logged, "log metadata", None
+    if scene_path is None:
+        logged = metadata_scene(log.metadata, str(log.path))
+        if logged is None:
+            raise UsageError(f"{log.path} has no rod_sim metadata with a scene; pass --scene "
+                             "SCENE.yaml")
+        return logged, "log metadata", None
+    scene = load_scene(scene_path)
+    note = None
+    try:
+        logged = metadata_scene(log.metadata, str(log.path))
+    except LogFormatError as exc:
+        logged, note = None, f"{exc}; using --scene"
+    if logged is not None and scene_to_yaml(logged) != scene_to_yaml(scene):
+        note = f"--scene {scene_path} differs from the scene in the log's metadata; using --scene"
+    return scene, f"--scene {scene_path}", note
 
 
 def _rate(metadata) -> float | None:
@@ -60,74 +74,147 @@ def _rate(metadata) -> float | None:
     return rate if math.isfinite(rate) and rate > 0 else None
 
 
+WIDTH = 100
+"""Columns the text report fits in."""
+COLUMNS = [("phi", "rad"), ("phi_rate", "rad/s"), ("node_position", "m"), ("alpha", "rad"),
+           ("beta", "rad")]
+
+
+def _wrap(text: str, indent: str = "  ") -> list[str]:
+    return textwrap.wrap(text, WIDTH, subsequent_indent=indent, break_on_hyphens=False) or [""]
+
+
+def verdict_line(report) -> str:
+    """PASS ..., PASS up to t = X s, then INCONCLUSIVE: chaotic ..., or FAIL: reasons."""
+    q = report.quantities["phi"]
+    cut = (f" -- TRUNCATED LOG: only t = {report.t_start:g}..{report.t_end:g} s was checked"
+           if report.truncated else "")
+    if report.verdict == "FAIL":
+        return "FAIL: " + "; ".join(report.reasons())
+    if report.verdict == "PASS":
+        rod, t = q.argmax()
+        return (f"PASS: max |phi error| {q.max:.3g} rad (rod {rod}, t = {t:.6g} s) <= tolerance "
+                f"{report.tolerance:g} rad{cut}")
+    chaos, beyond = report.chaos, report.chaos["beyond_horizon"]
+    rod, t = report.within["where"]
+    why = ("an error of the log's size before the onset grows past the tolerance"
+           if chaos["horizon_cause"] == "log_precision" else
+           "two converged full-model runs separate by more than 1 % of the tolerance")
+    kind = "chaotic" if (chaos["lyapunov_exponent"] or 0) > 0 else "perturbations amplified"
+    return (f"PASS up to t = {report.horizon:.6g} s (max |phi error| "
+            f"{report.within['max_phi_error']:.3g} rad, rod {rod}, t = {t:.6g} s), then "
+            f"INCONCLUSIVE: {kind} (predictability horizon: {why}; beyond it max |phi error| "
+            f"{q.max:.3g} rad, {beyond['max_deamplified_phi_error']:.3g} rad divided by the "
+            f"gain){cut}")
+
+
+def chaos_lines(report) -> list[str]:
+    """The predictability summary: gain, Lyapunov exponent, horizon and beyond-horizon checks."""
+    c = report.chaos
+    lam = c["lyapunov_exponent"]
+    lines = [f"chaos: a {c['twin_perturbation']:g} rad perturbation of the full model is "
+             f"amplified at most {c['gain']:.3g}x over t = {report.t_start:g}..{report.t_end:g} s"
+             f" (largest finite-time Lyapunov exponent {lam:.3g} 1/s"
+             + (f", Lyapunov time {1 / lam:.3g} s" if lam and lam > 0 else "") + ")"]
+    if report.horizon is None:
+        lines.append("predictability horizon: none within the log (judged sample by sample "
+                     "to the end)" if c["onset"] is None else
+                     f"predictability horizon: beyond the log (onset of growth at t = "
+                     f"{c['onset']:.6g} s; the log's error {c['log_precision_before_onset']:.2g}"
+                     " rad stays below the tolerance when amplified)")
+        return [w for line in lines for w in _wrap(line)]
+    b = c["beyond_horizon"]
+    lines.append(f"predictability horizon: t = {report.horizon:.6g} s (onset of growth at t = "
+                 f"{c['onset']:.6g} s, log error before it {c['log_precision_before_onset']:.2g}"
+                 " rad)")
+    if b:
+        lines.append(f"beyond the horizon (t = {b['t_start']:.6g}..{b['t_end']:.6g} s, "
+                     f"{b['samples']} samples): per-rod mean phi differs from the full model's by"
+                     f" at most {b['max_mean_difference']:.3g} rad, std by "
+                     f"{b['max_std_difference']:.3g} rad; the log leaves the full model's phi "
+                     f"range by at most {b['max_outside_reference_range']:.3g} rad")
+    return [w for line in lines for w in _wrap(line)]
+
+
 def format_report(report, info: dict) -> str:
-    """The human-readable report: header, verdict, per-rod table, notes."""
+    """The human-readable report (lines of at most WIDTH columns): header, per-rod table,
+    predictability, notes, verdict."""
     q = report.quantities
-    lines = [f"log: {info['log']} ({info['model']} model, {info['integrator']}, "
-             f"source {info['source']})",
-             f"scene: {info['scene']} (n = {report.n}, from {info['scene_source']}); "
-             f"{report.samples} samples, t = {report.t_start:g}..{report.t_end:g} s"
-             + (" [TRUNCATED LOG: readable part only]" if report.truncated else ""),
-             f"reference: full model, {report.reference['integrator']} "
-             f"({report.reference['segments']} segment(s)); check run "
-             f"{report.reference.get('check_integrator', '-')} differs by "
-             f"{report.reference['phi_change']:.1e} rad in phi"
-             f" -> {'converged' if report.reference['converged'] else 'NOT converged'}",
-             f"forces: {report.forces['messages']} /applied_forces messages, "
-             f"{report.forces['segments']} held-command segment(s), max |held| "
-             f"{report.forces['max_abs_held']:.3g} N", ""]
-    cols = [("phi", "rad"), ("phi_rate", "rad/s"), ("node_position", "m"), ("alpha", "rad"),
-            ("beta", "rad")]
-    head = f"{'rod':>3}  " + "  ".join(f"{name + ' [' + unit + ']':>20}" for name, unit in cols)
-    head += f"  {'t of max phi err [s]':>20}"
-    lines += ["max |log - full| per rod (node_position: node k, the end of rod k):", head]
+    ref = report.reference
+    head = [f"log: {info['log']} ({info['model']} model, {info['integrator']}, "
+            f"source {info['source']})",
+            f"scene: {info['scene']} (n = {report.n}, from {info['scene_source']}); "
+            f"{report.samples} samples, t = {report.t_start:g}..{report.t_end:g} s"
+            + (" [TRUNCATED LOG: readable part only]" if report.truncated else ""),
+            f"reference: full model, {ref['integrator']} ({ref['segments']} segment(s)); "
+            f"check run {ref.get('check_integrator', '-')} differs by "
+            + (f"{ref['phi_change']:.1e}" if ref["phi_change"] is not None else "-")
+            + " rad in phi" + (f" ({report.within['phi_change']:.1e} before the horizon)"
+                               if report.horizon is not None else "")
+            + f" -> {'converged' if ref['converged'] else 'NOT converged'}",
+            f"forces: {report.forces['messages']} /applied_forces messages, "
+            f"{report.forces['segments']} held-command segment(s), max |held| "
+            f"{report.forces['max_abs_held']:.3g} N"]
+    lines = [w for line in head for w in _wrap(line)] + [""]
+    lines.append("max |log - full| per rod (node_position: node k, the end of rod k):")
+    lines.append(f"{'rod':>3}  " + "".join(f"{name:>14}" for name, _ in COLUMNS)
+                 + f"{'t of max':>14}")
+    lines.append(f"{'':>3}  " + "".join(f"{'[' + unit + ']':>14}" for _, unit in COLUMNS)
+                 + f"{'phi err [s]':>14}")
     for k in range(1, report.n + 1):
         cells = []
-        for name, _ in cols:
-            if name in q and k in q[name].labels and q[name].err.size:
-                cells.append(f"{max(q[name].err[:, q[name].labels.index(k)]):>20.3e}")
+        for name, _ in COLUMNS:
+            if name in q and k in q[name].labels:
+                cells.append(f"{q[name].col_max[q[name].labels.index(k)]:>14.3e}")
             else:
-                cells.append(f"{'-':>20}")
-        j = q["phi"].err[:, k - 1].argmax()
-        lines.append(f"{k:>3}  " + "  ".join(cells) + f"  {q['phi'].t[j]:>20.6g}")
-    cells = [f"{q[name].max:>20.3e}" if name in q else f"{'-':>20}" for name, _ in cols]
-    lines.append(f"{'max':>3}  " + "  ".join(cells))
-    cells = [f"{q[name].scd:>20.2f}" if name in q else f"{'-':>20}" for name, _ in cols]
-    lines.append(f"{'scd':>3}  " + "  ".join(cells)
-                 + "   (significant correct digits, see docs/compare.md)")
+                cells.append(f"{'-':>14}")
+        lines.append(f"{k:>3}  " + "".join(cells) + f"{q['phi'].col_t[k - 1]:>14.6g}")
+    lines.append(f"{'max':>3}  " + "".join(f"{q[name].max:>14.3e}" if name in q else f"{'-':>14}"
+                                          for name, _ in COLUMNS))
+    lines.append(f"{'scd':>3}  " + "".join(f"{q[name].scd:>14.2f}" if name in q else f"{'-':>14}"
+                                          for name, _ in COLUMNS))
+    lines.append("     (scd: significant correct digits, see docs/compare.md)")
+    lines += chaos_lines(report)
     for note in report.notes:
-        lines.append(f"note: {note}")
+        lines += _wrap(f"note: {note}")
     lines.append("")
-    rod, t = q["phi"].argmax()
-    if report.passed:
-        lines.append(f"PASS: max |phi error| {q['phi'].max:.3g} rad (rod {rod}, t = {t:.6g} s) "
-                     f"<= tolerance {report.tolerance:g} rad"
-                     + (f" -- TRUNCATED LOG: only t = {report.t_start:g}..{report.t_end:g} s "
-                        "was checked" if report.truncated else ""))
-    else:
-        lines.append("FAIL: " + "; ".join(report.reasons()))
+    lines += _wrap(verdict_line(report))
     return "\n".join(lines)
 
 
 def write_plot(report, path: Path, title: str) -> None:
     """phi of the log (solid) and the full model (dashed) per rod, and max_k |phi error| over
-    time (log scale) with the tolerance."""
+    time (log scale) with the tolerance, the predictability horizon and the chaos envelope
+    (the log's error before the onset times the gain). Long logs are decimated."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
 
+    rows, n = report.series.rows, report.n
+    t, err, gain = rows[:, 0], rows[:, 1], rows[:, -1]
+    phi_log, phi_ref = rows[:, 2:2 + n], rows[:, 2 + n:2 + 2 * n]
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
     for k in range(report.n):
-        line, = ax1.plot(report.t, report.phi_log[:, k], lw=1.2, label=f"rod {k + 1}")
-        ax1.plot(report.t, report.phi_ref[:, k], "--", lw=1.0, color=line.get_color())
+        line, = ax1.plot(t, phi_log[:, k], lw=1.2, label=f"rod {k + 1}")
+        ax1.plot(t, phi_ref[:, k], "--", lw=1.0, color=line.get_color())
     ax1.set_ylabel("phi [rad]")
     ax1.set_title(f"{title}\nsolid: log, dashed: full model (reference)")
     ax1.legend(fontsize=7, ncol=4)
-    err = np.max(report.quantities["phi"].err, axis=1)
-    ax2.semilogy(report.t, np.where(err > 0, err, np.nan), label="max over rods |phi error|")
+    ax2.semilogy(t, np.where(err > 0, err, np.nan), label="max over rods |phi error|")
     ax2.axhline(report.tolerance, color="r", ls=":", label=f"tolerance {report.tolerance:g} rad")
+    eps = report.chaos["log_precision_before_onset"]
+    if eps:
+        ax2.semilogy(t, eps * gain, color="0.5", lw=0.8,
+                     label="log error before onset x gain (chaos envelope)")
+    for ax in (ax1, ax2):
+        if report.horizon is not None:
+            ax.axvspan(report.horizon, report.t_end, color="0.9", zorder=0)
+    if report.horizon is not None:
+        ax2.axvline(report.horizon, color="k", lw=0.8,
+                    label=f"predictability horizon t = {report.horizon:.3g} s (grey: "
+                          "inconclusive)")
     ax2.set_xlabel("t [s]")
     ax2.set_ylabel("|phi_log - phi_full| [rad]")
     ax2.legend(fontsize=8)
@@ -143,8 +230,8 @@ def validity_messages(scene, model_name: str, report) -> list[str]:
     from ..core.validity import SMALL_BENDING_RAD, frequency_findings
 
     out = [f.message for f in frequency_findings(scene, model_name)]
-    slopes = [report.quantities[k].ref for k in ("alpha", "beta") if k in report.quantities]
-    worst = max((float(abs(r).max()) for r in slopes if r.size), default=0.0)
+    worst = max((report.quantities[k].ref_max for k in ("alpha", "beta")
+                 if k in report.quantities), default=0.0)
     if worst > SMALL_BENDING_RAD:
         out.append(f"the full model's end slopes reach {worst:.3g} rad (> {SMALL_BENDING_RAD} "
                    "rad): outside the small-bending range of both models")
@@ -159,22 +246,24 @@ def run(args) -> int:
 
     plot = new_output_path(args.plot, "--plot") if args.plot else None
     try:
-        log = read_log(args.log)
+        with read_log(args.log, args.namespace) as log:
+            scene, scene_source, note = _scene_for(log, args.scene)
+            meta = log.metadata or {}
+            info = {"log": str(args.log), "files": [str(f) for f in log.files],
+                    "scene": scene.name, "scene_source": scene_source,
+                    **{k: quote(meta.get(k, "unknown"), 80, plain=True)
+                       for k in ("model", "integrator", "source", "version")}}
+            tolerance = DEFAULT_TOLERANCE if args.tolerance is None else args.tolerance
+            report = compare_log(log, scene, tolerance, rate_hz=_rate(meta))
     except LogFormatError as exc:
         raise UsageError(str(exc)) from None
-    except OSError as exc:
-        raise UsageError(f"{args.log}: {exc.strerror or exc}") from None
-    scene, scene_source, note = _scene_for(log, args.scene)
-    meta = log.metadata or {}
-    info = {"log": str(args.log), "files": [str(f) for f in log.files], "scene": scene.name,
-            "scene_source": scene_source, "model": meta.get("model", "unknown"),
-            "integrator": meta.get("integrator", "unknown"),
-            "source": meta.get("source", "unknown"), "version": meta.get("version", "unknown")}
-    try:
-        tolerance = DEFAULT_TOLERANCE if args.tolerance is None else args.tolerance
-        report = compare_log(log, scene, tolerance, rate_hz=_rate(meta))
     except CompareInputError as exc:
         raise UsageError(str(exc)) from None
+    except MemoryError:
+        raise UsageError(f"{args.log}: ran out of memory while comparing (the log is not known "
+                         "to be corrupt; see docs/compare.md for the memory used)") from None
+    except OSError as exc:
+        raise UsageError(f"{args.log}: {exc.strerror or exc}") from None
     if note:
         report.notes.insert(0, note)
     validity = validity_messages(scene, info["model"], report)

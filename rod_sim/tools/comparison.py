@@ -1,7 +1,25 @@
 """The numbers behind ``rod-sim compare``: a logged run against a converged full-model re-run.
 
-Pure computation on arrays (numpy + rod_sim.core); the log is read by
-:mod:`rod_sim.io.log_source` and the report printed by :mod:`rod_sim.tools.compare`.
+Pure computation (numpy + rod_sim.core) on the stream of :mod:`rod_sim.io.log_source`; the
+report is printed by :mod:`rod_sim.tools.compare`.
+
+Streaming. The log is compared in windows of at most :data:`WINDOW_SAMPLES` states or
+:data:`WINDOW_S` of log time: the full-model runs are continued from window to window and
+only running statistics (maxima and where they occur, significant-digit frontiers, a decimated
+series for the plot) are kept, so memory does not grow with the log's length.
+
+Chaos. A twin full-model run, started with phi perturbed by :data:`TWIN_DELTA` and
+renormalised (Benettin), measures how much the dynamics amplify a small perturbation up to
+each time: the gain G(t) (running maximum, >= 1) and the largest finite-time Lyapunov exponent
+ln(G)/t. Once perturbations have grown :data:`ONSET_GAIN`-fold (chaos onset), the log's error
+so far, eps (its precision while the dynamics did not amplify), is followed forward: the
+**predictability horizon** is the first time eps * G(t) exceeds the tolerance (an error the
+log already had is then expected to exceed the tolerance), or the first time the two reference
+runs (rtol 1e-10 and 1e-12) separate by more than :data:`CONVERGED_FRACTION` of the tolerance.
+Before the horizon the log is judged sample by sample; beyond it only what stays meaningful is
+compared (the error divided by the gain, per-rod bounds and statistics) and the verdict is
+INCONCLUSIVE, unless the log is non-finite or its error grows faster than the gain explains.
+A run whose perturbations never grow ``ONSET_GAIN``-fold has no horizon (a plain verdict).
 
 Applied-force history. A ``/applied_forces`` message at t_i holds the forces acting from t_i
 on: the scene's scripted loads (continuous functions of t, re-evaluated by the model) plus the
@@ -18,7 +36,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -26,6 +44,9 @@ from rod_sim.core.integrators import IntegrationError, make_integrator
 from rod_sim.core.kinematics import node_positions
 from rod_sim.core.models import FullModel
 from rod_sim.core.scene import Scene
+
+if TYPE_CHECKING:
+    from rod_sim.io.log_source import LogStream
 
 NS_PER_S = 1_000_000_000
 
@@ -46,128 +67,74 @@ quantity's largest |ref| over the whole run (near-zero references would otherwis
 SCD_MAX = 16.0
 """Significant digits are capped here (float64 has ~16); an exact match reports SCD_MAX."""
 QUANTITIES = ("phi", "phi_rate", "node_position", "alpha", "beta")
+WINDOW_SAMPLES = 2000
+"""Largest number of /rod_states samples compared in one window."""
+WINDOW_S = 1.0
+"""[s] longest log time of one window (also the twin run's renormalisation interval)."""
+TWIN_DELTA = 1e-7
+"""[rad] initial (and renormalised) phi separation of the twin run measuring the gain."""
+ONSET_GAIN = 2.0
+"""Chaos onset: the twin run's perturbation has grown this many times."""
+PLOT_POINTS = 4000
+"""Samples kept for the plot (decimated evenly, the error panel keeps each bucket's maximum)."""
+MAX_LISTED_GAPS = 100
+"""State gaps listed in the report (all are counted)."""
 
 
 class CompareInputError(ValueError):
     """The log cannot be compared (wrong scene size, incomplete force history, ...): one line."""
 
 
-@dataclass(frozen=True)
-class ForceHistory:
-    """The applied forces as the re-run uses them: on [t_ns[i], t_ns[i+1]) the scripted loads
-    plus ``held[i]`` (n, 2) [N]. ``messages``: /applied_forces messages read; ``max_residual``
-    [N]: largest |held| (0 for a log whose commands were all zero)."""
-
-    t_ns: np.ndarray
-    held: np.ndarray
-    messages: int
-    max_residual: float
+def reference_model(scene: Scene) -> FullModel:
+    """The model every reference run of compare integrates (one place to build it)."""
+    return FullModel(scene)
 
 
-def force_history(scene: Scene, t_ns: np.ndarray, applied: np.ndarray) -> ForceHistory:
-    """Held commands from logged applied forces ``applied`` (K, n, 2) at ``t_ns`` (K,) [ns];
-    consecutive equal commands are merged into one segment."""
-    model = FullModel(scene)
-    held = np.array([applied[i] - model.forces(t / NS_PER_S) for i, t in enumerate(t_ns)])
-    keep = [0] + [i for i in range(1, len(t_ns)) if not np.array_equal(held[i], held[i - 1])]
-    return ForceHistory(np.asarray(t_ns, dtype=np.int64)[keep], held[keep], int(len(t_ns)),
-                        float(np.max(np.abs(held))) if held.size else 0.0)
+class Run:
+    """A full-model run from the scene's initial state, continued window by window with the
+    compiled DOP853 at ``rtol`` (atol = rtol * 1e-2). ``y`` (6n,) is the state at ``t_ns``."""
+
+    def __init__(self, model: FullModel, rtol: float, y0: np.ndarray):
+        self.model = model
+        self.integ = make_integrator("dop853-jit", rtol=rtol, atol=rtol * 1e-2)
+        self.y = np.array(y0, dtype=float)
+        self.t_ns = 0
+
+    def advance(self, t_out: np.ndarray, bounds: list[int], helds: list[np.ndarray]) -> np.ndarray:
+        """States (len(t_out), 6n) at the sorted times ``t_out`` [ns] (all >= ``t_ns``, the
+        last <= ``bounds[-1]``); the held command ``helds[i]`` (n, 2) [N] applies up to
+        ``bounds[i]`` [ns] (the integrator restarts there). Raises IntegrationError."""
+        out = np.empty((t_out.size, self.y.size))
+        k = 0
+        while k < t_out.size and t_out[k] <= self.t_ns:
+            out[k] = self.y
+            k += 1
+        for b, held in zip(bounds, helds):
+            if b <= self.t_ns:
+                continue
+            j = k
+            while j < t_out.size and t_out[j] <= b:
+                j += 1
+            times = np.concatenate([t_out[k:j], [b]]) / NS_PER_S
+            Y = self.integ.integrate(self.model, self.y, self.t_ns / NS_PER_S, times, held)
+            out[k:j] = Y[:-1]
+            self.y = Y[-1].copy()
+            self.t_ns = int(b)
+            k = j
+        return out
 
 
-def find_gaps(t_ns: np.ndarray, period_ns: float) -> list[tuple[float, float]]:
-    """Intervals (t_a, t_b) [s] between consecutive times more than GAP_FACTOR periods apart."""
-    d = np.diff(t_ns)
-    idx = np.flatnonzero(d > GAP_FACTOR * period_ns)
-    return [(t_ns[i] / NS_PER_S, t_ns[i + 1] / NS_PER_S) for i in idx]
-
-
-def sampling_period_ns(t_ns: np.ndarray, rate_hz: float | None) -> float:
-    """The sampling period [ns]: 1/rate_hz when known, else the median step of ``t_ns``."""
-    if rate_hz is not None and math.isfinite(rate_hz) and rate_hz > 0:
-        return NS_PER_S / rate_hz
-    d = np.diff(t_ns)
-    d = d[d > 0]
-    if d.size == 0:
-        raise CompareInputError("only one /rod_states sample: nothing to compare over time")
-    return float(np.median(d))
-
-
-def check_force_coverage(applied_t_ns: np.ndarray, last_state_ns: int,
-                         period_ns: float) -> None:
-    """Refuse (CompareInputError) a force history with a hole: it must start at t = 0, have no
-    step over GAP_FACTOR periods, and reach to within GAP_FACTOR periods of the last state."""
-    if applied_t_ns.size == 0 or applied_t_ns[0] != 0:
-        first = applied_t_ns[0] / NS_PER_S if applied_t_ns.size else float("nan")
-        raise CompareInputError(f"/applied_forces starts at t = {first:.9g} s, not 0: the forces "
-                                "before it are unknown")
-    gaps = find_gaps(applied_t_ns[applied_t_ns <= last_state_ns], period_ns)
-    if gaps:
-        a, b = gaps[0]
-        raise CompareInputError(
-            f"/applied_forces has {len(gaps)} gap(s) longer than {GAP_FACTOR:g} sampling periods "
-            f"(first: {a:.9g} s to {b:.9g} s): messages are missing, so the force history "
-            "cannot be rebuilt")
-    last = applied_t_ns[applied_t_ns <= last_state_ns]
-    if last_state_ns - last[-1] > GAP_FACTOR * period_ns:
-        raise CompareInputError(f"/applied_forces ends at t = {last[-1] / NS_PER_S:.9g} s but the "
-                                f"states go on to {last_state_ns / NS_PER_S:.9g} s: messages "
-                                "are missing")
-
-
-@dataclass
-class Reference:
-    """The full model sampled at ``t_ns`` (N,) [ns]: states ``y`` (N, 6n)."""
-
-    t_ns: np.ndarray
-    y: np.ndarray
-    integrator: str
-    nfev: int
-    segments: int
-
-
-def reference_run(scene: Scene, history: ForceHistory, t_out_ns: np.ndarray,
-                  rtol: float = REFERENCE_RTOL) -> Reference:
-    """Integrate the full model from the scene's initial state at t = 0 through ``history``
-    (integrator restarted at every change of the held command) and sample it at the sorted,
-    unique times ``t_out_ns`` [ns] (all >= 0). Raises IntegrationError."""
-    model = FullModel(scene)
-    integ = make_integrator("dop853-jit", rtol=rtol, atol=rtol * 1e-2)
-    y = model.initial_state()
-    out = np.empty((t_out_ns.size, y.size))
-    starts = history.t_ns
-    t_end = int(t_out_ns[-1])
-    done = 0
-    while done < t_out_ns.size and t_out_ns[done] == 0:
-        out[done] = y
-        done += 1
-    segments = 0
-    for i, a in enumerate(starts):
-        if a >= t_end:
-            break
-        b = int(starts[i + 1]) if i + 1 < starts.size else t_end
-        b = min(b, t_end)
-        stop = done
-        while stop < t_out_ns.size and t_out_ns[stop] <= b:
-            stop += 1
-        times = np.concatenate([t_out_ns[done:stop], [b]]) / NS_PER_S
-        Y = integ.integrate(model, y, a / NS_PER_S, times, history.held[i])
-        out[done:stop] = Y[:-1]
-        y = Y[-1].copy()
-        done = stop
-        segments += 1
-    return Reference(t_out_ns, out, integ.describe(), integ.stats.nfev, segments)
-
-
-def significant_digits(err: np.ndarray, ref: np.ndarray) -> float:
+def significant_digits(err: np.ndarray, ref: np.ndarray, scale: float | None = None) -> float:
     """Significant correct digits: -log10 of the largest relative error |err| / max(|ref|,
-    floor), floor = SCD_FLOOR_FRACTION * max |ref| over all of ``ref`` (any shape). Capped at
-    SCD_MAX; 0 for an infinite error or a nonzero error on an all-zero reference; negative when
-    the error exceeds the value."""
+    floor), floor = SCD_FLOOR_FRACTION * ``scale`` (default: max |ref| over all of ``ref``, any
+    shape). Capped at SCD_MAX; 0 for an infinite error or a nonzero error on an all-zero
+    reference; negative when the error exceeds the value."""
     err = np.abs(np.asarray(err, dtype=float))
     ref = np.abs(np.asarray(ref, dtype=float))
     if err.size == 0:
         return float("nan")
-    scale = float(np.max(ref)) if ref.size else 0.0
+    if scale is None:
+        scale = float(np.max(ref)) if ref.size else 0.0
     if scale == 0.0:                     # a zero reference: no digit of a nonzero value is right
         return SCD_MAX if float(np.max(err)) == 0.0 else 0.0
     floor = SCD_FLOOR_FRACTION * scale
@@ -179,51 +146,168 @@ def significant_digits(err: np.ndarray, ref: np.ndarray) -> float:
     return float(min(SCD_MAX, -math.log10(rel))) + 0.0
 
 
-@dataclass
-class QuantityError:
-    """One compared quantity: errors (N, m) at times ``t`` (N,) [s] for m rods or nodes
-    (``labels`` their numbers), and the reference values (N, m) for significant digits."""
+class QuantityStats:
+    """Running statistics of one compared quantity over m columns (rods, or nodes 0..n:
+    ``labels``): per column the largest error and its time [s], the largest |reference|, and
+    the (|ref|, error) pairs that can still decide the significant digits (a Pareto frontier:
+    a pair is dropped once another has no larger |ref| and no smaller error). With ``keep``
+    the per-sample errors are kept too (``t``, ``err``; for tests and short logs)."""
 
-    name: str
-    t: np.ndarray
-    err: np.ndarray
-    ref: np.ndarray
-    labels: list[int]
+    def __init__(self, name: str, labels: list[int], keep: bool = False):
+        self.name = name
+        self.labels = labels
+        m = len(labels)
+        self.col_max = np.full(m, -np.inf)
+        self.col_t = np.zeros(m)
+        self.ref_max = 0.0
+        self.count = 0
+        self._r = np.empty(0)
+        self._e = np.empty(0)
+        self.keep = keep
+        self._t: list[np.ndarray] = []
+        self._err: list[np.ndarray] = []
+
+    def add(self, t: np.ndarray, err: np.ndarray, ref: np.ndarray) -> None:
+        """Samples at ``t`` (N,) [s]: errors (N, m) (non-finite: infinite) and reference
+        values (N, m)."""
+        if not t.size:
+            return
+        err = np.where(np.isfinite(err), err, np.inf)
+        ref = np.abs(ref)
+        i = np.argmax(err, axis=0)
+        best = err[i, np.arange(err.shape[1])]
+        better = best > self.col_max
+        self.col_max[better] = best[better]
+        self.col_t[better] = t[i[better]]
+        self.ref_max = max(self.ref_max, float(np.max(ref)))
+        self.count += t.size
+        floor = SCD_FLOOR_FRACTION * self.ref_max
+        r = np.concatenate([self._r, ref.ravel()])
+        e = np.concatenate([self._e, err.ravel()])
+        r = np.where(r <= floor, 0.0, r)     # below the floor: the floor divides (exactly)
+        order = np.argsort(r, kind="stable")
+        r, e = r[order], e[order]
+        keep = e > np.concatenate([[-np.inf], np.maximum.accumulate(e)[:-1]])
+        self._r, self._e = r[keep], e[keep]
+        if self.keep:
+            self._t.append(t.copy())
+            self._err.append(err.copy())
+
+    @property
+    def t(self) -> np.ndarray:
+        return np.concatenate(self._t) if self._t else np.empty(0)
+
+    @property
+    def err(self) -> np.ndarray:
+        return np.concatenate(self._err) if self._err else np.empty((0, len(self.labels)))
 
     @property
     def max(self) -> float:
-        return float(np.max(self.err)) if self.err.size else float("nan")
+        return float(np.max(self.col_max)) if self.count else float("nan")
 
     def argmax(self) -> tuple[int, float]:
         """(rod or node number, time [s]) of the largest error."""
-        i, k = np.unravel_index(int(np.argmax(self.err)), self.err.shape)
-        return self.labels[int(k)], float(self.t[int(i)])
+        k = int(np.argmax(self.col_max))
+        return self.labels[k], float(self.col_t[k])
 
     def per_column(self) -> list[float]:
-        return [float(v) for v in np.max(self.err, axis=0)]
+        return [float(v) for v in self.col_max]
 
     @property
     def scd(self) -> float:
-        return significant_digits(self.err, self.ref)
+        return significant_digits(self._e, self._r, self.ref_max) if self.count else float("nan")
+
+
+class Decimated:
+    """At most ``2 * points`` (default :data:`PLOT_POINTS`) samples of a long series, evenly
+    spaced (the stride doubles when full), in one preallocated array: per kept sample its
+    time [s], the maximum of ``peak`` over the samples it stands for, phi of the log and of
+    the reference (n,) [rad] each, and the gain."""
+
+    def __init__(self, points: int | None = None):
+        self.points = points or PLOT_POINTS
+        self.stride = 1
+        self._seen = 0
+        self._rows = 0
+        self._data: np.ndarray | None = None
+        self._peak = -np.inf
+
+    def add(self, t: float, peak: float, phi_log: np.ndarray, phi_ref: np.ndarray,
+            gain: float) -> None:
+        self._peak = max(self._peak, peak)
+        if self._seen % self.stride == 0:
+            if self._data is None:
+                self._data = np.empty((2 * self.points, 3 + 2 * phi_log.size))
+            n = phi_log.size
+            row = self._data[self._rows]
+            row[0], row[1], row[-1] = t, self._peak, gain
+            row[2:2 + n], row[2 + n:2 + 2 * n] = phi_log, phi_ref
+            self._rows += 1
+            self._peak = -np.inf
+            if self._rows == self._data.shape[0]:
+                kept = self._data[0::2].copy()
+                kept[:, 1] = np.maximum(self._data[0::2, 1], self._data[1::2, 1])
+                self._data[:self.points] = kept
+                self._rows = self.points
+                self.stride *= 2
+        self._seen += 1
+
+    @property
+    def rows(self) -> np.ndarray:
+        """(kept samples, 3 + 2n): t, peak, phi_log (n), phi_ref (n), gain."""
+        return self._data[:self._rows] if self._data is not None else np.empty((0, 3))
+
+
+class Stats:
+    """Per-column count, mean, standard deviation, min and max of a streamed (N, m) series."""
+
+    def __init__(self, m: int):
+        self.count = 0
+        self.sum = np.zeros(m)
+        self.sumsq = np.zeros(m)
+        self.min = np.full(m, np.inf)
+        self.max = np.full(m, -np.inf)
+
+    def add(self, x: np.ndarray) -> None:
+        self.count += x.shape[0]
+        self.sum += x.sum(axis=0)
+        self.sumsq += (x * x).sum(axis=0)
+        self.min = np.minimum(self.min, x.min(axis=0))
+        self.max = np.maximum(self.max, x.max(axis=0))
+
+    @property
+    def mean(self) -> np.ndarray:
+        return self.sum / max(self.count, 1)
+
+    @property
+    def std(self) -> np.ndarray:
+        return np.sqrt(np.maximum(self.sumsq / max(self.count, 1) - self.mean ** 2, 0.0))
 
 
 @dataclass
 class Report:
-    """The comparison's result; :meth:`as_json` is the ``--json`` output (docs/compare.md)."""
+    """The comparison's result; :meth:`as_json` is the ``--json`` output (docs/compare.md).
+
+    ``horizon``: the predictability horizon [s] (None: the run has none, the whole log is
+    judged sample by sample); ``chaos``: gain, Lyapunov exponent, onset, the log's precision
+    before the onset, what set the horizon, and beyond-horizon comparisons. ``series``:
+    decimated (t, max |phi error|, phi_log (n,), phi_ref (n,), gain) rows for the plot."""
 
     n: int
     tolerance: float
     samples: int
     t_start: float
     t_end: float
-    quantities: dict[str, QuantityError]
-    phi_log: np.ndarray
-    phi_ref: np.ndarray
-    t: np.ndarray
+    quantities: dict[str, QuantityStats]
     reference: dict[str, Any]
     forces: dict[str, Any]
     gaps: list[tuple[float, float]]
+    gap_count: int
     truncated: bool
+    horizon: float | None
+    chaos: dict[str, Any]
+    within: dict[str, Any]
+    series: Decimated
     info: dict[str, Any] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
 
@@ -235,53 +319,64 @@ class Report:
     def first_exceeded(self) -> float | None:
         """The first sample time [s] at which some rod's |phi error| exceeds the tolerance
         (None if none does): before it, the log agrees with the full model."""
-        bad = np.flatnonzero(~(np.max(self.quantities["phi"].err, axis=1) <= self.tolerance))
-        return float(self.t[bad[0]]) if bad.size else None
+        return self.within["first_exceeded"]
 
     def reasons(self) -> list[str]:
-        """Why the verdict is not a pass (empty for a pass)."""
+        """Why the verdict is not a pass (empty for a pass, also for PASS then INCONCLUSIVE)."""
         out = []
-        e = self.quantities["phi"].max
-        if not math.isfinite(e):
+        e = self.within["max_phi_error"]
+        upto = "" if self.horizon is None else f" before the horizon t = {self.horizon:.6g} s"
+        if not math.isfinite(self.quantities["phi"].max):
             out.append("the log holds non-finite phi values")
         elif e > self.tolerance:
-            rod, t = self.quantities["phi"].argmax()
-            out.append(f"max |phi error| {e:.3g} rad (rod {rod}, t = {t:.6g} s) exceeds the "
-                       f"tolerance {self.tolerance:g} rad (first at t = "
+            rod, t = self.within["where"]
+            out.append(f"max |phi error|{upto} {e:.3g} rad (rod {rod}, t = {t:.6g} s) exceeds "
+                       f"the tolerance {self.tolerance:g} rad (first at t = "
                        f"{self.first_exceeded():.6g} s)")
-        if self.gaps:
+        if self.gap_count:
             a, b = self.gaps[0]
-            out.append(f"/rod_states has {len(self.gaps)} gap(s) (first {a:.6g} s to {b:.6g} s): "
+            out.append(f"/rod_states has {self.gap_count} gap(s) (first {a:.6g} s to {b:.6g} s): "
                        "the missing samples were not checked")
         if not self.reference["converged"]:
-            out.append(f"the reference is not converged (estimated phi error "
-                       f"{self.reference['phi_change']:.2g} rad)")
+            out.append(f"the reference is not converged{upto} (estimated phi error "
+                       f"{self.within['phi_change']:.2g} rad)")
+        beyond = self.chaos.get("beyond_horizon")
+        if beyond and beyond["max_deamplified_phi_error"] > self.tolerance \
+                and math.isfinite(self.quantities["phi"].max):
+            out.append(f"beyond the horizon the log departs faster than the dynamics amplify "
+                       f"perturbations (max |phi error| / gain "
+                       f"{beyond['max_deamplified_phi_error']:.3g} rad > tolerance)")
         return out
 
     @property
     def passed(self) -> bool:
         return not self.reasons()
 
-    def as_json(self) -> dict[str, Any]:
-        def where(q):
-            if not self.quantities[q].err.size:
-                return None
-            label, t = self.quantities[q].argmax()
-            return {"node" if q == "node_position" else "rod": label, "t": t}
+    @property
+    def verdict(self) -> str:
+        """'PASS', 'PASS_THEN_INCONCLUSIVE' (pass up to the horizon, chaotic beyond) or 'FAIL'."""
+        if not self.passed:
+            return "FAIL"
+        return "PASS" if self.horizon is None else "PASS_THEN_INCONCLUSIVE"
 
+    def as_json(self) -> dict[str, Any]:
         def num(x):
             return None if x is None or not math.isfinite(x) else float(x)
 
-        present = [q for q in QUANTITIES if q in self.quantities]
+        def where(q):
+            label, t = self.quantities[q].argmax()
+            return {"node" if q == "node_position" else "rod": label, "t": t}
+
+        present = [q for q in QUANTITIES if q in self.quantities and self.quantities[q].count]
         per_rod = []
         for k in range(1, self.n + 1):
             row: dict[str, Any] = {"rod": k}
             for q in present:
-                qe = self.quantities[q]
-                if k in qe.labels and qe.err.size:
-                    j = qe.labels.index(k)
-                    row[q] = num(float(np.max(qe.err[:, j])))
-                    row[q + "_t"] = float(qe.t[int(np.argmax(qe.err[:, j]))])
+                qs = self.quantities[q]
+                if k in qs.labels:
+                    j = qs.labels.index(k)
+                    row[q] = num(float(qs.col_max[j]))
+                    row[q + "_t"] = float(qs.col_t[j])
             per_rod.append(row)
         return {
             **self.info,
@@ -292,110 +387,359 @@ class Report:
             "tolerance": self.tolerance,
             "tolerance_applies_to": "phi",
             "pass": self.passed,
+            "verdict": self.verdict,
             "within_tolerance": self.within_tolerance,
             "reasons": self.reasons(),
             "tolerance_first_exceeded_at": self.first_exceeded(),
-            "max_abs_error": {q: (num(self.quantities[q].max) if q in self.quantities else None)
+            "horizon": num(self.horizon),
+            "max_abs_error_within_horizon": {"phi": num(self.within["max_phi_error"])},
+            "chaos": self.chaos,
+            "max_abs_error": {q: (num(self.quantities[q].max) if q in present else None)
                               for q in QUANTITIES},
-            "where": {q: (where(q) if q in self.quantities else None) for q in QUANTITIES},
-            "significant_digits": {q: (num(self.quantities[q].scd) if q in self.quantities
-                                       else None) for q in QUANTITIES},
+            "where": {q: (where(q) if q in present else None) for q in QUANTITIES},
+            "significant_digits": {q: (num(self.quantities[q].scd) if q in present else None)
+                                   for q in QUANTITIES},
             "per_rod": per_rod,
             "reference": self.reference,
             "forces": self.forces,
-            "gaps": {"rod_states": [list(g) for g in self.gaps]},
+            "gaps": {"rod_states": [list(g) for g in self.gaps], "count": self.gap_count},
             "truncated": self.truncated,
             "notes": list(self.notes),
         }
 
 
-def _rows(t_ns: np.ndarray, ref_t_ns: np.ndarray) -> np.ndarray:
-    return np.searchsorted(ref_t_ns, t_ns)
+class _Comparison:
+    """Window-by-window state of :func:`compare_log` (see the module docstring)."""
+
+    def __init__(self, log: "LogStream", scene: Scene, tolerance: float, rtol: float,
+                 check_rtol: float | None, rate_hz: float | None, keep: bool):
+        self.log, self.scene, self.tol = log, scene, tolerance
+        self.n = n = scene.n
+        self.model = reference_model(scene)
+        y0 = self.model.initial_state()
+        self.ref = Run(self.model, rtol, y0)
+        self.check = Run(self.model, check_rtol, y0) if check_rtol else None
+        twin0 = y0.copy()
+        twin0[:n] += TWIN_DELTA * np.where(np.arange(n) % 2 == 0, 1.0, -1.0)
+        self.twin = Run(self.model, rtol, twin0)
+        self.log_gain = 0.0                 # ln of the twin's renormalisations so far
+        self.gain = 1.0                     # running max of the amplification
+        self.rate_hz = rate_hz
+        self.period: float | None = None
+        rods = list(range(1, n + 1))
+        self.q = {"phi": QuantityStats("phi", rods, keep),
+                  "phi_rate": QuantityStats("phi_rate", rods, keep),
+                  "node_position": QuantityStats("node_position", list(range(n + 1)), keep),
+                  "alpha": QuantityStats("alpha", rods, keep),
+                  "beta": QuantityStats("beta", rods, keep)}
+        self.states: list[tuple[int, np.ndarray, np.ndarray]] = []
+        self.bending: list[tuple[int, np.ndarray, np.ndarray]] = []
+        self.nodes: list[tuple[int, np.ndarray]] = []
+        self.applied: list[tuple[int, np.ndarray]] = []
+        self.held: np.ndarray | None = None
+        self.last_applied: int | None = None
+        self.applied_messages = 0
+        self.segments = 0
+        self.max_held = 0.0
+        self.state_count = 0
+        self.first_state: int | None = None
+        self.last_state: int | None = None
+        self.gaps: list[tuple[float, float]] = []
+        self.gap_count = 0
+        self.phi_change = 0.0
+        self.rate_change = 0.0
+        self.phi_change_within = 0.0
+        # chaos and horizon
+        self.onset: float | None = None
+        self.eps = 0.0
+        self.horizon: float | None = None
+        self.horizon_cause = None
+        self.within_max = -np.inf
+        self.within_where = (1, 0.0)
+        self.first_exceeded: float | None = None
+        self.deamplified = 0.0
+        self.beyond_log = Stats(n)
+        self.beyond_ref = Stats(n)
+        self.series = Decimated()
+
+    # ----- input -----
+
+    def add(self, g) -> None:
+        if g.state is not None:
+            if self.log.n != self.n:
+                raise CompareInputError(f"the log has {self.log.n} rods but the scene "
+                                        f"{self.scene.name!r} has {self.n}: wrong scene")
+            self.states.append((g.t_ns, *g.state))
+        if g.bending is not None:
+            self.bending.append((g.t_ns, *g.bending))
+        if g.nodes is not None:
+            self.nodes.append((g.t_ns, g.nodes))
+        if g.applied is not None:
+            self.applied.append((g.t_ns, g.applied))
+        if g.state is not None and self.states and (
+                len(self.states) >= WINDOW_SAMPLES
+                or g.t_ns - self.states[0][0] >= WINDOW_S * NS_PER_S):
+            self.window(g.t_ns)
+
+    def finish(self) -> None:
+        if self.states:
+            self.window(self.states[-1][0])
+        if self.state_count == 0:
+            raise CompareInputError(f"{self.log.path}: no /rod_states messages"
+                                    + (" in the readable part of a truncated log"
+                                       if self.log.truncated else ""))
+        if self.state_count < 2:
+            raise CompareInputError(f"only {self.state_count} /rod_states sample: nothing to "
+                                    "compare over time")
+        if self.last_state - self.last_applied > GAP_FACTOR * self.period:
+            raise CompareInputError(
+                f"/applied_forces ends at t = {self.last_applied / NS_PER_S:.9g} s but the "
+                f"states go on to {self.last_state / NS_PER_S:.9g} s: messages are missing")
+
+    # ----- one window -----
+
+    def _period(self, t: np.ndarray) -> float:
+        rate = self.rate_hz
+        if rate is not None and math.isfinite(rate) and rate > 0:
+            return NS_PER_S / rate
+        d = np.diff(t)
+        d = d[d > 0]
+        if d.size == 0:
+            raise CompareInputError("only one /rod_states sample: nothing to compare over time")
+        return float(np.median(d))
+
+    def _forces(self, t_cut: int) -> tuple[list[int], list[np.ndarray]]:
+        """Integration bounds and held commands up to ``t_cut`` from the buffered applied
+        forces (held = applied - scripted loads; consecutive equal commands merged); refuses
+        a force history with a hole."""
+        use = [(t, a) for t, a in self.applied if t <= t_cut]
+        self.applied = [(t, a) for t, a in self.applied if t > t_cut]
+        if self.last_applied is None:
+            if not use:
+                raise CompareInputError(
+                    f"no /applied_forces messages up to t = {t_cut / NS_PER_S:.9g} s, so the "
+                    "applied-force history cannot be rebuilt")
+            if use[0][0] != 0:
+                raise CompareInputError(f"/applied_forces starts at t = {use[0][0] / NS_PER_S:.9g}"
+                                        " s, not 0: the forces before it are unknown")
+        bounds, helds = [], []
+        for t, applied in use:
+            if applied.ndim == 1:
+                applied = self.log.applied_array(t, applied)
+            if self.last_applied is not None and t - self.last_applied > GAP_FACTOR * self.period:
+                raise CompareInputError(
+                    f"/applied_forces has a gap longer than {GAP_FACTOR:g} sampling periods "
+                    f"({self.last_applied / NS_PER_S:.9g} s to {t / NS_PER_S:.9g} s): messages "
+                    "are missing, so the force history cannot be rebuilt")
+            self.last_applied = t
+            self.applied_messages += 1
+            held = applied - self.model.forces(t / NS_PER_S)
+            self.max_held = max(self.max_held, float(np.max(np.abs(held))))
+            if self.held is None or not np.array_equal(held, self.held):
+                bounds.append(t)
+                helds.append(self.held)
+                self.held = held
+                self.segments += 1
+        bounds.append(t_cut)
+        helds.append(self.held)
+        return bounds, helds
+
+    def window(self, t_cut: int) -> None:
+        n = self.n
+        states = [s for s in self.states if s[0] <= t_cut]
+        self.states = [s for s in self.states if s[0] > t_cut]
+        t_st = np.array([s[0] for s in states], dtype=np.int64)
+        if self.period is None:
+            self.period = self._period(t_st)
+            if t_st[0] > GAP_FACTOR * self.period:
+                self._gap(0, int(t_st[0]))
+        prev = self.last_state
+        steps = np.diff(np.concatenate([[prev], t_st])) if prev is not None else np.diff(t_st)
+        base = [prev] + list(t_st) if prev is not None else list(t_st)
+        for i in np.flatnonzero(steps > GAP_FACTOR * self.period):
+            self._gap(int(base[i]), int(base[i + 1]))
+        if self.first_state is None:
+            self.first_state = int(t_st[0])
+        self.last_state = int(t_st[-1])
+        self.state_count += t_st.size
+        bounds, helds = self._forces(t_cut)
+        bend = [b for b in self.bending if b[0] <= t_cut]
+        self.bending = [b for b in self.bending if b[0] > t_cut]
+        poses = [p for p in self.nodes if p[0] <= t_cut]
+        self.nodes = [p for p in self.nodes if p[0] > t_cut]
+        t_out = np.unique(np.concatenate([t_st] + [np.array([x[0] for x in lst], dtype=np.int64)
+                                                   for lst in (bend, poses) if lst]))
+        try:
+            y = self.ref.advance(t_out, bounds, helds)
+            yc = self.check.advance(t_out, bounds, helds) if self.check else None
+            yt = self.twin.advance(t_out, bounds, helds)
+        except IntegrationError as exc:
+            raise CompareInputError(f"the full-model re-run failed: {exc}") from None
+        rows = np.searchsorted(t_out, t_st)
+        ts = t_st / NS_PER_S
+        phi_ref, rate_ref = y[rows, :n], y[rows, 3 * n:4 * n]
+        phi_log = np.array([s[1] for s in states])
+        err = np.abs(phi_log - phi_ref)
+        self.q["phi"].add(ts, err, phi_ref)
+        self.q["phi_rate"].add(ts, np.abs(np.array([s[2] for s in states]) - rate_ref), rate_ref)
+        if poses:
+            r = np.searchsorted(t_out, [p[0] for p in poses])
+            p_ref = np.array([node_positions(np.asarray(self.scene.length, dtype=float), p)
+                              for p in y[r, :n]])
+            d = np.linalg.norm(np.array([p[1] for p in poses]) - p_ref, axis=2)
+            self.q["node_position"].add(np.array([p[0] for p in poses]) / NS_PER_S, d,
+                                        np.linalg.norm(p_ref, axis=2))
+        if bend:
+            r = np.searchsorted(t_out, [b[0] for b in bend])
+            tb = np.array([b[0] for b in bend]) / NS_PER_S
+            a_ref, b_ref = y[r, n:2 * n], y[r, 2 * n:3 * n]
+            self.q["alpha"].add(tb, np.abs(np.array([b[1] for b in bend]) - a_ref), a_ref)
+            self.q["beta"].add(tb, np.abs(np.array([b[2] for b in bend]) - b_ref), b_ref)
+        ref_sep = np.zeros(t_st.size)
+        if yc is not None:
+            ref_sep = np.max(np.abs(yc[rows, :n] - phi_ref), axis=1)
+            self.phi_change = max(self.phi_change, float(np.max(ref_sep)))
+            self.rate_change = max(self.rate_change, float(np.max(
+                np.abs(yc[rows, 3 * n:4 * n] - rate_ref))))
+        sep = np.max(np.abs(yt[rows, :n] - phi_ref), axis=1)
+        gain = np.maximum.accumulate(np.maximum(np.exp(self.log_gain) * sep / TWIN_DELTA,
+                                                self.gain))
+        self.gain = float(gain[-1])
+        self._judge(ts, np.where(np.isfinite(err), err, np.inf), gain, ref_sep, phi_log, phi_ref)
+        self._renormalise()
+
+    def _gap(self, a: int, b: int) -> None:
+        self.gap_count += 1
+        if len(self.gaps) < MAX_LISTED_GAPS:
+            self.gaps.append((a / NS_PER_S, b / NS_PER_S))
+
+    def _renormalise(self) -> None:
+        """Scale the twin's separation back to TWIN_DELTA (Benettin) and book the growth."""
+        n = self.n
+        d = self.twin.y - self.ref.y
+        sep = float(np.max(np.abs(d[:n])))
+        if sep > 0 and math.isfinite(sep):
+            self.log_gain += math.log(sep / TWIN_DELTA)
+            self.twin.y = self.ref.y + d * (TWIN_DELTA / sep)
+
+    def _judge(self, ts, err, gain, ref_sep, phi_log, phi_ref) -> None:
+        """Sample by sample: chaos onset, the log's precision before it, the horizon, and the
+        within / beyond-horizon statistics."""
+        e = np.max(err, axis=1)
+        limit = CONVERGED_FRACTION * self.tol
+        over = np.flatnonzero(~(e <= self.tol))
+        if over.size and self.first_exceeded is None:
+            self.first_exceeded = float(ts[over[0]])
+        beyond_from = 0 if self.horizon is not None else ts.size
+        for i in range(ts.size):
+            if self.horizon is None:
+                if self.onset is None:
+                    self.eps = max(self.eps, float(e[i]))
+                    if gain[i] >= ONSET_GAIN:
+                        self.onset = float(ts[i])
+                if self.onset is not None:
+                    if self.eps * gain[i] > self.tol:
+                        self.horizon, self.horizon_cause = float(ts[i]), "log_precision"
+                    elif ref_sep[i] > limit:
+                        self.horizon, self.horizon_cause = float(ts[i]), "reference_separation"
+                if self.horizon is not None:
+                    beyond_from = i
+                    break
+        within = slice(0, beyond_from)
+        if beyond_from:
+            ew = e[within]
+            k = int(np.argmax(ew))
+            if ew[k] > self.within_max:
+                self.within_max = float(ew[k])
+                self.within_where = (int(np.argmax(err[k])) + 1, float(ts[k]))
+            self.phi_change_within = max(self.phi_change_within,
+                                         float(np.max(ref_sep[within])))
+        if beyond_from < ts.size:
+            rest = slice(beyond_from, ts.size)
+            self.deamplified = max(self.deamplified, float(np.max(e[rest] / gain[rest])))
+            self.beyond_log.add(phi_log[rest])
+            self.beyond_ref.add(phi_ref[rest])
+        for i in range(ts.size):
+            self.series.add(float(ts[i]), float(e[i]), phi_log[i], phi_ref[i], float(gain[i]))
+
+    # ----- result -----
+
+    def report(self) -> Report:
+        tol = self.tol
+        reference: dict[str, Any] = {"model": self.model.name,
+                                     "integrator": self.ref.integ.describe(),
+                                     "segments": self.segments,
+                                     "rhs_evaluations": self.ref.integ.stats.nfev}
+        if self.check is not None:
+            reference["check_integrator"] = self.check.integ.describe()
+            reference["phi_change"] = self.phi_change
+            reference["phi_rate_change"] = self.rate_change
+            reference["phi_change_within_horizon"] = self.phi_change_within
+            reference["converged"] = bool(self.phi_change_within <= CONVERGED_FRACTION * tol)
+        else:
+            reference["phi_change"] = None
+            reference["converged"] = False
+        t_span = (self.last_state - self.first_state) / NS_PER_S
+        chaos: dict[str, Any] = {
+            "gain": self.gain,
+            "lyapunov_exponent": (self.log_gain / t_span if t_span > 0 else None),
+            "onset": self.onset,
+            "log_precision_before_onset": self.eps if self.onset is not None else None,
+            "horizon_cause": self.horizon_cause,
+            "twin_perturbation": TWIN_DELTA,
+            "twin_rhs_evaluations": self.twin.integ.stats.nfev,
+            "beyond_horizon": None,
+        }
+        if self.horizon is not None and self.beyond_log.count:
+            lg, rf = self.beyond_log, self.beyond_ref
+            chaos["beyond_horizon"] = {
+                "t_start": self.horizon, "t_end": self.last_state / NS_PER_S,
+                "samples": lg.count,
+                "max_deamplified_phi_error": self.deamplified,
+                "phi_mean": {"log": lg.mean.tolist(), "reference": rf.mean.tolist()},
+                "phi_std": {"log": lg.std.tolist(), "reference": rf.std.tolist()},
+                "phi_min": {"log": lg.min.tolist(), "reference": rf.min.tolist()},
+                "phi_max": {"log": lg.max.tolist(), "reference": rf.max.tolist()},
+                "max_mean_difference": float(np.max(np.abs(lg.mean - rf.mean))),
+                "max_std_difference": float(np.max(np.abs(lg.std - rf.std))),
+                "max_outside_reference_range": float(max(0.0, np.max(rf.min - lg.min),
+                                                         np.max(lg.max - rf.max))),
+            }
+        within = {"max_phi_error": self.within_max, "where": self.within_where,
+                  "first_exceeded": self.first_exceeded, "phi_change": self.phi_change_within}
+        notes = list(self.log.notes)
+        for s in ("alpha", "node_position"):
+            if 0 < self.q[s].count < self.state_count:
+                notes.append(f"{s}: {self.q[s].count} samples for {self.state_count} "
+                             "/rod_states samples")
+        for topic, missing in (("/bending", "alpha, beta"), ("/node_poses", "node positions")):
+            if not self.log.counts[topic]:
+                notes.append(f"no {topic} messages: {missing} not compared")
+        if self.gap_count > len(self.gaps):
+            notes.append(f"only the first {len(self.gaps)} of {self.gap_count} /rod_states "
+                         "gaps are listed")
+        return Report(
+            n=self.n, tolerance=float(tol), samples=self.state_count,
+            t_start=self.first_state / NS_PER_S, t_end=self.last_state / NS_PER_S,
+            quantities={k: v for k, v in self.q.items() if v.count},
+            reference=reference,
+            forces={"messages": self.applied_messages, "segments": self.segments,
+                    "max_abs_held": self.max_held},
+            gaps=self.gaps, gap_count=self.gap_count, truncated=bool(self.log.truncated),
+            horizon=self.horizon, chaos=chaos, within=within, series=self.series, notes=notes)
 
 
-def compare_log(log, scene: Scene, tolerance: float = DEFAULT_TOLERANCE, *,
+def compare_log(log: "LogStream", scene: Scene, tolerance: float = DEFAULT_TOLERANCE, *,
                 rtol: float = REFERENCE_RTOL, check_rtol: float | None = CHECK_RTOL,
-                rate_hz: float | None = None) -> Report:
-    """Compare a read log (:class:`rod_sim.io.log_source.LogData`) with the full model of
-    ``scene``. Raises CompareInputError when it cannot be compared honestly."""
-    if log.n != scene.n:
-        raise CompareInputError(f"the log has {log.n} rods but the scene {scene.name!r} has "
-                                f"{scene.n}: wrong scene")
+                rate_hz: float | None = None, keep_samples: bool = False) -> Report:
+    """Compare a log opened by :func:`rod_sim.io.log_source.read_log` with the full model of
+    ``scene``, window by window (memory independent of the log's length; ``keep_samples``
+    also keeps every sample's errors, for tests). Raises CompareInputError when it cannot be
+    compared honestly, LogFormatError for a log that turns out unreadable."""
     if not (math.isfinite(tolerance) and tolerance > 0):
         raise CompareInputError(f"--tolerance must be > 0 (got {tolerance!r})")
-    t_states = log.phi.t_ns
-    if t_states.size < 2:
-        raise CompareInputError(f"only {t_states.size} /rod_states sample: nothing to compare "
-                                "over time")
-    period = sampling_period_ns(t_states, rate_hz)
-    last = int(t_states[-1])
-    check_force_coverage(log.applied.t_ns, last, period)
-    use = log.applied.t_ns <= last
-    history = force_history(scene, log.applied.t_ns[use], log.applied.values[use])
-    gaps = find_gaps(t_states, period)
-    if t_states[0] > GAP_FACTOR * period:
-        gaps.insert(0, (0.0, t_states[0] / NS_PER_S))
-
-    wanted = [t_states]
-    for s in (log.alpha, log.nodes):
-        if s is not None:
-            wanted.append(s.t_ns[s.t_ns <= last])
-    t_ref = np.unique(np.concatenate(wanted))
-    try:
-        ref = reference_run(scene, history, t_ref, rtol)
-        check = reference_run(scene, history, t_ref, check_rtol) if check_rtol else None
-    except IntegrationError as exc:
-        raise CompareInputError(f"the full-model re-run failed: {exc}") from None
-    model = FullModel(scene)
-    n = scene.n
-    y = ref.y
-    phi_ref, rate_ref = y[:, :n], y[:, 3 * n:4 * n]
-    rows = _rows(t_states, t_ref)
-    t_s = t_states / NS_PER_S
-    bad = lambda e: np.where(np.isfinite(e), e, np.inf)  # noqa: E731 - NaN in the log = infinite error
-    q: dict[str, QuantityError] = {}
-    labels = list(range(1, n + 1))
-    q["phi"] = QuantityError("phi", t_s, bad(np.abs(log.phi.values - phi_ref[rows])),
-                             phi_ref[rows], labels)
-    q["phi_rate"] = QuantityError("phi_rate", t_s,
-                                  bad(np.abs(log.phi_rate.values - rate_ref[rows])),
-                                  rate_ref[rows], labels)
-    l = np.asarray(scene.length, dtype=float)
-    if log.nodes is not None:
-        keep = log.nodes.t_ns <= last
-        r = _rows(log.nodes.t_ns[keep], t_ref)
-        p_ref = np.array([node_positions(l, p) for p in phi_ref[r]])
-        d = np.linalg.norm(log.nodes.values[keep] - p_ref, axis=2)
-        q["node_position"] = QuantityError("node_position", log.nodes.t_ns[keep] / NS_PER_S,
-                                           bad(d), np.linalg.norm(p_ref, axis=2),
-                                           list(range(0, n + 1)))
-    if log.alpha is not None:
-        keep = log.alpha.t_ns <= last
-        r = _rows(log.alpha.t_ns[keep], t_ref)
-        tb = log.alpha.t_ns[keep] / NS_PER_S
-        a_ref, b_ref = y[r, n:2 * n], y[r, 2 * n:3 * n]
-        q["alpha"] = QuantityError("alpha", tb, bad(np.abs(log.alpha.values[keep] - a_ref)),
-                                   a_ref, labels)
-        q["beta"] = QuantityError("beta", tb, bad(np.abs(log.beta.values[keep] - b_ref)),
-                                  b_ref, labels)
-
-    reference: dict[str, Any] = {"model": model.name, "integrator": ref.integrator,
-                                 "segments": ref.segments, "rhs_evaluations": ref.nfev}
-    if check is not None:
-        reference["check_integrator"] = check.integrator
-        reference["phi_change"] = float(np.max(np.abs(check.y[:, :n] - phi_ref)))
-        reference["phi_rate_change"] = float(np.max(np.abs(check.y[:, 3 * n:4 * n] - rate_ref)))
-        reference["converged"] = bool(reference["phi_change"] <= CONVERGED_FRACTION * tolerance)
-    else:
-        reference["phi_change"] = None
-        reference["converged"] = False
-    forces = {"messages": history.messages, "segments": int(history.t_ns.size),
-              "max_abs_held": history.max_residual}
-    notes = list(log.notes)
-    extra_states = [s for s in ("alpha", "node_position") if s in q and q[s].t.size < t_s.size]
-    for s in extra_states:
-        notes.append(f"{s}: {q[s].t.size} samples for {t_s.size} /rod_states samples")
-    return Report(n=n, tolerance=float(tolerance), samples=int(t_s.size), t_start=float(t_s[0]),
-                  t_end=float(t_s[-1]), quantities=q, phi_log=log.phi.values,
-                  phi_ref=phi_ref[rows], t=t_s, reference=reference, forces=forces, gaps=gaps,
-                  truncated=bool(log.truncated), notes=notes)
+    run = _Comparison(log, scene, float(tolerance), rtol, check_rtol, rate_hz, keep_samples)
+    for group in log.groups():
+        run.add(group)
+    run.finish()
+    return run.report()

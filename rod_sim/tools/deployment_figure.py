@@ -30,11 +30,13 @@ def run(args) -> int:
 
     from ..core.kinematics import node_positions
     from ..io.hinge_events import read_hinge_events
+    from ..io.log_source import metadata_scene
     from ..io.mcap_log import LogReader, read_rod_states
-    from ..io.scene_yaml import scene_from_yaml_text
 
     with LogReader(args.log) as reader:
-        scene = scene_from_yaml_text(reader.metadata()["scene"])
+        scene = metadata_scene(reader.metadata(), args.log)
+    if scene is None:
+        raise ValueError(f"{args.log}: its rod_sim metadata has no scene")
     t, phi, _ = read_rod_states(args.log)
     events = read_hinge_events(args.log)
     latches = [e for e in events if e["event"] == "latch"]

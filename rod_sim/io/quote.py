@@ -1,0 +1,61 @@
+"""Bounded quoting of untrusted values (log metadata, scene entries) in one-line messages.
+
+``repr()`` of a value from a file can be arbitrarily large: a YAML "billion laughs" scene
+shares one list a billion times and its repr takes minutes and gigabytes (issue 11 item 8).
+:func:`quote` never builds more than about ``limit`` characters; :func:`yaml_node_count`
+measures what a YAML text expands to before anything walks it.
+"""
+from __future__ import annotations
+
+import reprlib
+
+import yaml
+
+_REPR = reprlib.Repr()
+_REPR.maxlevel = 3
+_REPR.maxlist = _REPR.maxtuple = _REPR.maxdict = _REPR.maxset = 6
+_REPR.maxstring = _REPR.maxother = 60
+_REPR.maxlong = 40
+
+
+def quote(value, limit: int = 80, *, plain: bool = False) -> str:
+    """``repr(value)`` (``str`` for a string with ``plain``) cut to at most ``limit``
+    characters (an ellipsis marks the cut), built without expanding large or deeply shared
+    containers."""
+    if isinstance(value, str):
+        text = value[:limit + 1] if plain else repr(value[:limit + 1])
+    else:
+        _REPR.maxstring = _REPR.maxother = max(8, limit)
+        text = _REPR.repr(value)
+    text = " ".join(text.split())
+    return text if len(text) <= limit else text[:max(limit - 3, 1)] + "..."
+
+
+def yaml_node_count(text: str, cap: int = 10**6) -> int:
+    """How many YAML nodes ``text`` (one document) expands to when every alias is replaced by
+    its anchor's content, counted without expanding (capped at ``cap``; a recursive alias
+    counts as ``cap``). Raises yaml.YAMLError for text that is not YAML."""
+    root = yaml.compose(text, Loader=yaml.SafeLoader)
+    if root is None:
+        return 0
+    size: dict[int, int] = {}
+    stack: list[tuple[yaml.Node, bool]] = [(root, False)]
+    active: set[int] = set()
+    while stack:
+        node, done = stack.pop()
+        key = id(node)
+        if key in size and not done:
+            continue
+        children = (node.value if isinstance(node, yaml.SequenceNode) else
+                    [x for pair in node.value for x in pair]
+                    if isinstance(node, yaml.MappingNode) else [])
+        if not done:
+            if key in active:
+                return cap                      # recursive alias
+            active.add(key)
+            stack.append((node, True))
+            stack.extend((c, False) for c in children if id(c) not in size)
+            continue
+        active.discard(key)
+        size[key] = min(cap, 1 + sum(size.get(id(c), cap) for c in children))
+    return size[id(root)]

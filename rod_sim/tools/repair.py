@@ -1,0 +1,56 @@
+"""``rod-sim repair LOG [--out OUT]``: rewrite a truncated log (its writer was killed before
+closing it, e.g. by SIGKILL or a power cut) with a summary and indexes, keeping every message
+of its complete chunks, so that rosbags, ``ros2 bag`` and other MCAP readers that need the
+summary open it (like ``mcap recover``).
+
+Exit 0 when the repaired copy was written (or LOG was already complete: nothing written);
+2 with one line for a missing, non-MCAP or corrupt LOG (a CRC mismatch: its bytes are not
+copied) or an existing OUT. LOG itself is never changed.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from .common import EXIT_OK, UsageError, new_output_path
+
+COMMAND = "repair"
+HELP = "rewrite a truncated log (writer killed) with its summary and indexes"
+
+
+def configure(parser) -> None:
+    parser.description = __doc__.split("\n\n")[0].replace("``", "").split(": ", 1)[1]
+    parser.add_argument("log", metavar="LOG", help="the truncated MCAP log")
+    parser.add_argument("--out", default=None, metavar="OUT",
+                        help="file to write (must not exist; default: LOG with .repaired.mcap "
+                             "in place of .mcap)")
+
+
+def default_out(log: Path) -> Path:
+    stem = log.name[:-len(".mcap")] if log.name.endswith(".mcap") else log.name
+    return log.with_name(stem + ".repaired.mcap")
+
+
+def run(args) -> int:
+    from ..io.mcap_log import LogReader
+    from ..io.repair import repair_log
+
+    log = Path(args.log)
+    if not log.is_file():
+        raise UsageError(f"{log}: no such file" if not log.exists() else f"{log}: not a file")
+    with LogReader(log) as reader:          # refuses a non-MCAP or corrupt log before writing
+        if reader.complete:
+            print(f"{log} is complete (it has its summary and indexes): nothing to repair")
+            return EXIT_OK
+    out = new_output_path(args.out if args.out is not None else str(default_out(log)))
+    try:
+        result = repair_log(log, out)
+    except OSError as exc:
+        raise UsageError(f"cannot write {out}: {exc.strerror or exc} (nothing written)") from None
+    span = ("no messages" if result.first_ns is None else
+            f"log time {result.first_ns / 1e9:.9g}..{result.last_ns / 1e9:.9g} s")
+    print(f"{out}: {result.messages} messages on {result.channels} channels ({span}), "
+          f"{result.metadata} metadata record(s); dropped the incomplete last "
+          f"{result.dropped_bytes} bytes of {log}")
+    sys.stdout.flush()
+    return EXIT_OK
