@@ -183,6 +183,10 @@ def run(args) -> int:
     if plot is not None:
         try:
             write_plot(report, plot, f"{info['log']}: {info['model']} model vs full")
+        except ImportError:
+            print("rod-sim compare: --plot needs matplotlib (pip install 'rod_sim[plot]'); "
+                  f"{plot} was not written", file=sys.stderr)
+            plot = None
         except OSError as exc:
             raise UsageError(f"--plot: cannot write {plot}: {exc.strerror or exc}") from None
     if args.json:
