@@ -8,7 +8,7 @@ VPY = $(VENV)/bin/python
 STAMP = $(VENV)/.installed
 
 # Tests that start a ROS graph pick their own ROS_DOMAIN_ID; this default keeps everything else
-# off the common domain 0. Discovery never leaves the machine (SPEC section 7).
+# off the common domain 0. Discovery never leaves the machine.
 ROS_DOMAIN_ID ?= 42
 ROS_ENV = ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST ROS_DOMAIN_ID=$(ROS_DOMAIN_ID)
 

@@ -184,11 +184,11 @@ class Scene:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> "Scene":
-        """Build and validate a scene from the structure of SPEC section 2."""
+        """Build and validate a scene from the structure of docs/interface.md section 1."""
         return _SceneParser().parse(data)
 
     def to_dict(self) -> dict[str, Any]:
-        """The resolved scene (every per-rod value spelled out), as SPEC section 2 data."""
+        """The resolved scene (every per-rod value spelled out), as scene data (docs/interface.md section 1)."""
 
         def lst(a):
             return [float(v) for v in a]

@@ -1,4 +1,4 @@
-"""Scene files (SPEC section 2): YAML text to a validated :class:`~rod_sim.core.scene.Scene` and back.
+"""Scene files (docs/interface.md section 1): YAML text to a validated :class:`~rod_sim.core.scene.Scene` and back.
 
 Only ``yaml.SafeLoader``-based loading is used, with two changes that matter for scene files:
 

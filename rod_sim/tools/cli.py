@@ -63,7 +63,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     sim = sub.add_parser("simulate", help="offline run of a scene, written as an MCAP log",
                          description="Offline run of a scene (no ROS graph); writes the log of "
-                                     "SPEC section 5 sampled at --rate in simulated time.")
+                                     "docs/interface.md section 4 sampled at --rate in simulated time.")
     sim.add_argument("scene", help="scene YAML file")
     sim.add_argument("--model", choices=sorted(MODEL_NAMES), default="reduced")
     sim.add_argument("--t-end", type=_positive_float, required=True, help="end time [s]")
@@ -79,12 +79,12 @@ def build_parser() -> argparse.ArgumentParser:
                      help="largest step of fixed-step integrators [s] (default 1e-3)")
     sim.add_argument("--frame-id", default="world")
 
-    t1 = sub.add_parser("table1", help="recompute the seed paper's Table 1",
-                        description="Recompute Table 1 of the seed paper with the full and "
+    t1 = sub.add_parser("table1", help="recompute Table 1 of the paper",
+                        description="Recompute Table 1 of the paper with the full and "
                                     "reduced models and print it beside the published values.")
     t1.add_argument("--json", action="store_true", help="machine-readable output")
     t1.add_argument("--scene", default=str(PAPER_EXAMPLE), help=argparse.SUPPRESS)
-    node = sub.add_parser("node", help="the ROS 2 simulator node (SPEC section 4)",
+    node = sub.add_parser("node", help="the ROS 2 simulator node (docs/interface.md section 3)",
                           description="Run the rod_sim ROS 2 node until SIGINT/SIGTERM. ROS "
                                       "arguments follow --ros-args, e.g. --ros-args -p "
                                       "scene_file:=config/paper_example.yaml -p sync_mode:=true "
@@ -247,7 +247,7 @@ def cmd_table1(args) -> int:
     if args.json:
         print(json.dumps({"rows": [r.as_dict() for r in rows]}, indent=1))
     else:
-        print("Table 1 of the seed paper (n = 8, tip pulse): published values beside ours")
+        print("Table 1 of the paper (n = 8, tip pulse): published values beside ours")
         print(table1.format_table(rows))
         worst = table1.summary(rows)
         print("largest |ours - paper|: " + ", ".join(f"{k} {v:.2g}" for k, v in worst.items()))

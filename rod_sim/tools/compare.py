@@ -1,5 +1,5 @@
 """``rod-sim compare LOG``: can this logged run be trusted? Checks every logged sample against a
-converged re-run of the full model with the logged applied forces (SPEC section 3).
+converged re-run of the full model with the logged applied forces (docs/interface.md section 2).
 
 Exit 0: max |phi error| <= --tolerance, no gap in the states, reference converged;
 1: any of these fails; 2: the log cannot be compared (one line on stderr, no traceback).

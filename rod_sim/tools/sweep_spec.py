@@ -84,7 +84,7 @@ class Parameter:
 
 @dataclass(frozen=True)
 class SweepSpec:
-    """A validated sweep spec. ``base_scene`` is plain scene data (SPEC section 2)."""
+    """A validated sweep spec. ``base_scene`` is plain scene data (docs/interface.md section 1)."""
 
     name: str
     base_scene: dict
