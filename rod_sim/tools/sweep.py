@@ -2,7 +2,7 @@
 
 The spec (``docs/sweep.md``, parsed by :mod:`.sweep_spec`) is expanded into runs, every run's
 scene is validated before any run starts, then the runs go to a local process pool
-(``--workers``, default ``os.cpu_count()``; ``--workers 0`` runs them in this process) or to an
+(``--workers``, default ``os.cpu_count() - 1``; ``--workers 0`` runs them in this process) or to an
 existing Dask cluster (``--scheduler ADDRESS``). Each run is one call of
 :func:`.sweep_worker.run_one` and one row of the result table (``--out``, CSV or Parquet),
 in run order whatever order the runs finish in; failed runs are rows with their reason.
@@ -60,8 +60,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plot", default=None, metavar="PNG",
                         help="summary plot of outputs against each swept parameter")
     parser.add_argument("--workers", type=_workers, default=None,
-                        help="local worker processes (default: os.cpu_count(); 0 = run in "
-                             "this process)")
+                        help="local worker processes (default: os.cpu_count() - 1, at least 1; "
+                             "0 = run in this process)")
     parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
                         help="run on an existing Dask cluster (e.g. tcp://10.0.0.5:8786) "
                              "instead of local processes")
@@ -182,9 +182,29 @@ def run_dask(tasks: list[dict], address: str, on_row=None) -> dict:
     return rows
 
 
+def _plural(count: int, word: str) -> str:
+    return f"{count} {word}" + ("" if count == 1 else "s")
+
+
+def _design(spec) -> str:
+    """What the runs are, e.g. "3 x 4 grid, 64 Monte-Carlo draws each, 2 models"."""
+    parts = []
+    sizes = [len(p.values) for p in spec.parameters if not p.random]
+    if sizes:
+        parts.append(" x ".join(map(str, sizes)) + " grid")
+    if any(p.random for p in spec.parameters):
+        draws = _plural(spec.draws, "Monte-Carlo draw")
+        parts.append(draws + (" per grid point" if sizes else ""))
+    if not parts:
+        parts.append("the base scene")
+    parts.append(_plural(len(spec.models), "model"))
+    return ", ".join(parts)
+
+
 def local_workers(requested: int | None, runs: int) -> int:
-    """Worker processes to start: ``requested`` (default os.cpu_count()), at most one per run."""
-    return max(1, min(requested or os.cpu_count() or 1, runs))
+    """Worker processes to start: ``requested`` (default os.cpu_count() - 1, leaving a core to
+    the machine), at most one per run."""
+    return max(1, min(requested or (os.cpu_count() or 2) - 1, runs))
 
 
 def execute(tasks: list[dict], workers: int | None = None, scheduler: str | None = None,
@@ -250,9 +270,8 @@ def run(args) -> int:
     where = (f"Dask scheduler {args.scheduler}" if args.scheduler else
              "this process" if args.workers == 0 else
              f"{local_workers(args.workers, len(tasks))} local worker processes")
-    grid = " x ".join(str(len(p.values)) for p in spec.parameters if not p.random) or "1"
-    print(f"rod-sim sweep: {spec.name}: {len(tasks)} runs (grid {grid}, {spec.draws} draws, "
-          f"{len(spec.models)} models) on {where}", file=sys.stderr, flush=True)
+    print(f"rod-sim sweep: {spec.name}: {len(tasks)} runs ({_design(spec)}) on {where}",
+          file=sys.stderr, flush=True)
 
     bar = _progress(len(tasks), spec.name)
     started = time.perf_counter()
