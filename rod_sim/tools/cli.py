@@ -63,21 +63,32 @@ def build_parser() -> argparse.ArgumentParser:
 
     sim = sub.add_parser("simulate", help="offline run of a scene, written as an MCAP log",
                          description="Offline run of a scene (no ROS graph); writes the log of "
-                                     "docs/interface.md section 4 sampled at --rate in simulated time.")
-    sim.add_argument("scene", help="scene YAML file")
-    sim.add_argument("--model", choices=sorted(MODEL_NAMES), default="reduced")
-    sim.add_argument("--t-end", type=_positive_float, required=True, help="end time [s]")
+                                     "docs/interface.md section 4 sampled at --rate in simulated "
+                                     "time, the t = 0 state first. Limits: docs/interface.md "
+                                     "section 6.")
+    sim.add_argument("scene", help="scene YAML file (docs/interface.md section 1)")
+    sim.add_argument("--model", choices=sorted(MODEL_NAMES), default="reduced",
+                     help="full (3n ODEs), reduced (n ODEs, quasi-static bending) or rigid "
+                          "(default reduced)")
+    sim.add_argument("--t-end", type=_positive_float, required=True,
+                     help=f"end time [s], at most {limits.MAX_T_END:g}")
     sim.add_argument("--out", required=True, help="MCAP log to write (must not exist)")
     sim.add_argument("--rate", type=_positive_float, default=100.0,
-                     help="sampling rate of the log [Hz of simulated time] (default 100)")
-    sim.add_argument("--integrator", choices=INTEGRATORS, default="dop853-jit")
+                     help="sampling rate of the log [Hz of simulated time], at most "
+                          f"{limits.MAX_RATE:g} (default 100)")
+    sim.add_argument("--integrator", choices=INTEGRATORS, default="dop853-jit",
+                     help="dop853-jit (default; compiled adaptive, --rtol/--atol), rk4, rk2, "
+                          "euler (compiled fixed step, --step) or a scipy method")
     sim.add_argument("--rtol", type=_positive_float, default=None,
-                     help="relative tolerance of adaptive integrators (default 1e-8)")
+                     help="relative tolerance of adaptive integrators, "
+                          f"{limits.RTOL_RANGE[0]:g} .. {limits.RTOL_RANGE[1]:g} (default 1e-8)")
     sim.add_argument("--atol", type=_positive_float, default=None,
                      help="absolute tolerance (default = rtol)")
     sim.add_argument("--step", type=_positive_float, default=None,
-                     help="largest step of fixed-step integrators [s] (default 1e-3)")
-    sim.add_argument("--frame-id", default="world")
+                     help="largest step of fixed-step integrators [s], at least 1e-9 "
+                          "(default 1e-3)")
+    sim.add_argument("--frame-id", default="world",
+                     help="frame of the logged headers, poses and markers (default world)")
 
     t1 = sub.add_parser("table1", help="recompute Table 1 of the paper",
                         description="Recompute Table 1 of the paper with the full and "
