@@ -197,3 +197,19 @@ def test_first_run_with_a_cold_cache_says_it_compiles(tmp_path):
     assert cold.returncode == 0 and warm.returncode == 0
     assert COMPILE_NOTICE in cold.stderr
     assert COMPILE_NOTICE not in warm.stderr
+
+
+def test_a_failure_during_the_jit_warm_up_is_no_traceback(tmp_path, capsys, monkeypatch):
+    """The warm-up integration (1 ms, before the clock starts) may fail where the run itself
+    fails; the run then reports it (here the run succeeds: only the warm-up is made to fail)."""
+    from rod_sim.core.integrators import IntegrationError
+    from rod_sim.core.simulator import Simulator
+
+    def fail(self, dt):
+        raise IntegrationError("step size fell below the minimum", 0.0)
+
+    monkeypatch.setattr(Simulator, "advance", fail)
+    assert simulate(tmp_path, PAPER, "--t-end", "0.2") == 0
+    assert "Traceback" not in capsys.readouterr().err
+    t, _, _ = read_rod_states(tmp_path / "run.mcap")
+    assert t.size == 21
