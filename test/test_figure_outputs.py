@@ -106,3 +106,28 @@ def test_compare_without_matplotlib_prints_its_verdict(log, tmp_path, capsys, mo
     assert "PASS" in out or "FAIL" in out
     assert "rod_sim[plot]" in err and "Traceback" not in err
     assert not (tmp_path / "c.png").exists()
+
+
+def yaml_bomb() -> str:
+    """A scene whose rods.length is a mapping of nested aliases: 9**9 strings if expanded."""
+    levels = ["a: &a [" + ", ".join(["lol"] * 9) + "]"]
+    for prev, name in zip("abcdefgh", "bcdefghi"):
+        levels.append(f"{name}: &{name} [" + ", ".join([f"*{prev}"] * 9) + "]")
+    return ("rods: {count: 2, mass_per_length: 1, bending_stiffness: 1, length: {"
+            + ", ".join(levels) + "}}\nnodes: {mass: 1}\nhinges: {stiffness: 1, damping: 1}\n")
+
+
+@pytest.mark.parametrize("command", ["deployment-figure", "compare"])
+def test_a_yaml_bomb_in_the_log_metadata_is_quoted_briefly(tmp_path, capsys, command):
+    import time
+    scene = scene_from_yaml_text(SCENE)
+    path = tmp_path / "bomb.mcap"
+    with LogWriter(path, metadata={"scene": yaml_bomb(), "model": "reduced",
+                                   "integrator": "x"}) as writer:
+        writer.write_snapshot(Simulator(make_model("reduced", scene)).snapshot(), scene)
+    started = time.perf_counter()
+    args = [path, tmp_path / "a.png"] if command == "deployment-figure" else [path]
+    assert cli.main([command, *map(str, args)]) == 2
+    line = error_line(capsys)
+    assert time.perf_counter() - started < 10.0
+    assert "rods.length" in line and len(line) < 400, line
