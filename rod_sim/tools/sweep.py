@@ -182,8 +182,8 @@ def run_dask(tasks: list[dict], address: str, on_row=None) -> dict:
     return rows
 
 
-def _plural(count: int, word: str) -> str:
-    return f"{count} {word}" + ("" if count == 1 else "s")
+def _plural(count: int, word: str, plural: str = "") -> str:
+    return f"{count} {word if count == 1 else plural or word + 's'}"
 
 
 def _design(spec) -> str:
@@ -269,7 +269,8 @@ def run(args) -> int:
     tasks = [r.task(spec) for r in runs]
     where = (f"Dask scheduler {args.scheduler}" if args.scheduler else
              "this process" if args.workers == 0 else
-             f"{local_workers(args.workers, len(tasks))} local worker processes")
+             _plural(local_workers(args.workers, len(tasks)), "local worker process",
+                     "local worker processes"))
     print(f"rod-sim sweep: {spec.name}: {len(tasks)} runs ({_design(spec)}) on {where}",
           file=sys.stderr, flush=True)
 
