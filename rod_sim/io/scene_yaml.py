@@ -26,8 +26,9 @@ from rod_sim.core.scene import Scene, SceneError
 __all__ = ["MAX_SCENE_BYTES", "load_scene", "scene_from_yaml_text", "scene_to_yaml"]
 
 # Largest scene file read [bytes]. A chain of 8000 rods (about the most whose reduced model fits
-# in 20 GB of memory) written with one value per rod takes about 1.5 MB; parsing costs about
-# 100 bytes of memory per byte of YAML.
+# in 20 GB of memory) with one value per rod for its 8 per-rod keys is ~8 x 8000 x 20 bytes,
+# about 1.3 MB. Parsing costs ~100 bytes of memory per byte of YAML (a 50 MB list took 5.6 GB
+# and 230 s in the review of issue 11), so 4 MiB keep it below ~0.5 GB.
 MAX_SCENE_BYTES = 4 * 1024 * 1024
 
 _MERGE_TAG = "tag:yaml.org,2002:merge"
