@@ -6,25 +6,34 @@ PYTHON ?= python3
 VENV ?= .venv
 VPY = $(VENV)/bin/python
 STAMP = $(VENV)/.installed
+WARM = $(VENV)/.jit-warm
 
 # Tests that start a ROS graph pick their own ROS_DOMAIN_ID; this default keeps everything else
-# off the common domain 0. Discovery never leaves the machine (SPEC section 7).
+# off the common domain 0. Discovery never leaves the machine.
 ROS_DOMAIN_ID ?= 42
 ROS_ENV = ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST ROS_DOMAIN_ID=$(ROS_DOMAIN_ID)
 
 PYTEST_ARGS ?=
 
-.PHONY: venv test demo bench bench-report clean
+.PHONY: venv warm test demo bench bench-report clean
 
-venv: $(STAMP)
+venv: $(STAMP) $(WARM)
 
 $(VPY):
 	$(PYTHON) -m venv $(VENV)
 
 $(STAMP): setup.py | $(VPY)
-	$(VPY) -m pip install --upgrade pip
-	$(VPY) -m pip install -e '.[ros,test,plot,peer,sweep]'
+	$(VPY) -m pip install -q --upgrade pip
+	$(VPY) -m pip install -q -e '.[ros,test,plot,peer,sweep]'
 	touch $(STAMP)
+
+# Compile every registered model x integrator (and the hinge drivers) into numba's cache, so
+# that the first command does not wait ~20 s for it; again whenever rod_sim/core changes.
+warm: $(WARM)
+
+$(WARM): $(STAMP) $(wildcard rod_sim/core/*.py)
+	$(VPY) -m rod_sim.tools.jit_warm
+	touch $(WARM)
 
 test: venv
 	$(ROS_ENV) $(VPY) -m pytest $(PYTEST_ARGS)

@@ -387,3 +387,38 @@ def test_inline_scene_and_text_values():
                                         {"loads[0].shape": "step", "loads[0].duration": 0.05}]
     assert runs[1].scene["loads"][0]["shape"] == "step" and runs[1].model == "rigid"
     assert base["loads"][0]["shape"] == "constant"         # the caller's data is not changed
+
+
+def test_plot_legend_names_the_other_parameters_levels_and_axes_carry_units(tmp_path,
+                                                                          monkeypatch):
+    import matplotlib.pyplot as plt
+    from rod_sim.tools.sweep_plot import plot_sweep
+    rows = [{"model": "reduced", "status": "ok", "hinges.stiffness": k, "loads[0].amplitude": a,
+             "max_tip_displacement": k * a, "max_abs_phi": 1.0, "max_abs_alpha": 0.1,
+             "max_abs_beta": 0.2, "nfev": 10} for k in (30.0, 80.0) for a in (5.0, 9.0)]
+    figures = []
+    monkeypatch.setattr(plt, "close", figures.append)       # keep the figure to inspect it
+    plot_sweep(rows, ["hinges.stiffness", "loads[0].amplitude"], set(), tmp_path / "p.png")
+    fig, = figures
+    legends = [t.get_text() for ax in fig.axes if ax.get_legend()
+               for t in ax.get_legend().get_texts()]
+    assert {"loads[0].amplitude = 5", "loads[0].amplitude = 9", "hinges.stiffness = 30",
+            "hinges.stiffness = 80", "reduced"} <= set(legends)
+    xlabels = {ax.get_xlabel() for ax in fig.axes}
+    assert {"hinges.stiffness [N m/rad]", "loads[0].amplitude [N]"} <= xlabels
+
+
+def test_default_workers_leave_a_core_and_the_design_is_worded(monkeypatch):
+    from types import SimpleNamespace as NS
+    from rod_sim.tools import sweep
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    assert sweep.local_workers(None, 100) == 1
+    monkeypatch.setattr(os, "cpu_count", lambda: 8)
+    assert sweep.local_workers(None, 100) == 7 and sweep.local_workers(3, 100) == 3
+    grid, rnd = NS(values=(1, 2), random=False), NS(values=(), random=True)
+    assert sweep._design(NS(parameters=[grid, grid], draws=0, models=("reduced",))) == \
+        "2 x 2 grid, 1 model"
+    assert sweep._design(NS(parameters=[grid, rnd], draws=64, models=("full", "rigid"))) == \
+        "2 grid, 64 Monte-Carlo draws per grid point, 2 models"
+    assert sweep._design(NS(parameters=[rnd], draws=1, models=("full",))) == \
+        "1 Monte-Carlo draw, 1 model"

@@ -1,4 +1,4 @@
-"""Table 1 of the seed paper against our recomputation (README explains every gap).
+"""Table 1 of the paper against our recomputation (README explains every gap).
 
 The tolerances below are the agreement we measured and document in the README, not knobs:
 our models are the printed equations, verified independently (test_lagrangian.py); the
@@ -58,3 +58,14 @@ def test_cli_json_has_the_spec_shape(capsys):
     row = data["rows"][0]
     assert set(row) == {"var", "rod", "model", "t", "paper", "ours"}
     assert row["var"] in ("phi", "phi_rate", "alpha", "beta") and row["model"] in ("full", "reduced")
+
+
+def test_table_fits_100_columns_and_shows_every_cell():
+    from rod_sim.tools.table1 import PAPER, TIMES, Row, format_table
+    rows = [Row(var, rod, model, t, paper, -123456.789)
+            for (var, rod, model), values in PAPER.items() for t, paper in zip(TIMES, values)]
+    text = format_table(rows)
+    assert max(len(line) for line in text.splitlines()) <= 100
+    assert text.count("-1.2346e+05") == len(rows)
+    for t in TIMES:
+        assert text.count(f"t = {t:.1f} s") == 1

@@ -19,6 +19,7 @@ from . import erk
 
 DEFAULT_RTOL = 1e-8
 DEFAULT_STEP = 1e-3
+MIN_STEP = 1e-9         # [s]: smallest fixed step (the step count of an interval stays exact)
 from .names import INTEGRATOR_NAMES as INTEGRATORS
 from .names import SCIPY_METHODS
 
@@ -294,6 +295,8 @@ def make_integrator(name: str = "dop853-jit", *, rtol: float | None = None,
         raise ValueError(f"atol: must be a positive number (got {atol!r})")
     if name == "dop853-jit":
         return JitDop853(rtol=rtol, atol=atol)
+    if step is not None and not (np.isfinite(step) and step >= MIN_STEP):
+        raise ValueError(f"step: must be a number >= {MIN_STEP:g} s (got {step!r})")
     if name in _TABLEAUX:
         return JitFixedStep(name=name, step=DEFAULT_STEP if step is None else float(step))
     if name in SCIPY_METHODS:

@@ -16,8 +16,13 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .quote import quote
+
 LOAD_SHAPES = ("raised_cosine_pulse", "constant", "step")
 LOAD_AXES = ("x", "y")
+MAX_RODS = 100_000          # rods.count; the models' memory is checked at the edges too
+MAX_MAGNITUDE = 1e12        # |value| of every scene number, SI units
+MIN_POSITIVE = 1e-12        # smallest length [m] and bending stiffness [N m^2]
 
 
 class SceneError(ValueError):
@@ -179,11 +184,11 @@ class Scene:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> "Scene":
-        """Build and validate a scene from the structure of SPEC section 2."""
+        """Build and validate a scene from the structure of docs/interface.md section 1."""
         return _SceneParser().parse(data)
 
     def to_dict(self) -> dict[str, Any]:
-        """The resolved scene (every per-rod value spelled out), as SPEC section 2 data."""
+        """The resolved scene (every per-rod value spelled out), as scene data (docs/interface.md section 1)."""
 
         def lst(a):
             return [float(v) for v in a]
@@ -235,6 +240,14 @@ _LOAD_KEYS = {"node", "axis", "shape", "amplitude", "start", "duration"}
 _STOP_KEYS = {"angle", "stiffness", "damping"}
 
 
+def _num(v) -> float:
+    """float(v), with integers too large for a float read as +-inf (instead of OverflowError)."""
+    try:
+        return float(v)
+    except OverflowError:
+        return math.copysign(math.inf, v)
+
+
 def _is_number(v: Any) -> bool:
     return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
 
@@ -260,12 +273,14 @@ class _SceneParser:
         if "count" not in rods:
             raise SceneError("rods.count", "missing")
         count = rods["count"]
-        if not (isinstance(count, (int, np.integer)) and not isinstance(count, bool)) or count < 1:
-            raise SceneError("rods.count", f"must be a whole number >= 1 (got {count!r})")
+        if (not (isinstance(count, (int, np.integer)) and not isinstance(count, bool))
+                or not 1 <= count <= MAX_RODS):
+            raise SceneError("rods.count", f"must be a whole number 1..{MAX_RODS} "
+                                           f"(got {quote(count)})")
         n = int(count)
         name = data.get("name", "scene")
         if not isinstance(name, str) or not name:
-            raise SceneError("name", f"must be a non-empty string (got {name!r})")
+            raise SceneError("name", f"must be a non-empty string (got {quote(name)})")
 
         def arr(section, key, *, default=None, minimum=None, strict=False):
             path = f"{section}.{key}"
@@ -333,7 +348,7 @@ class _SceneParser:
             pairs, per_hinge = list(angle), True
         else:
             raise SceneError(path, f"must be one [lower, upper] pair or a list of {n} pairs "
-                                   f"(null for a hinge without stops) (got {angle!r})")
+                                   f"(null for a hinge without stops) (got {quote(angle)})")
         lower = np.full(n, -math.inf)
         upper = np.full(n, math.inf)
         for i, pair in enumerate(pairs):
@@ -341,16 +356,16 @@ class _SceneParser:
                 continue
             where = f" at index {i}" if per_hinge else ""
             if not (isinstance(pair, (list, tuple)) and len(pair) == 2):
-                raise SceneError(path, f"must be a [lower, upper] pair{where} (got {pair!r})")
+                raise SceneError(path, f"must be a [lower, upper] pair{where} (got {quote(pair)})")
             lo, hi = pair
             lo = -math.inf if lo is None else lo
             hi = math.inf if hi is None else hi
             for v in (lo, hi):
-                if not _is_number(v) or math.isnan(float(v)):
-                    raise SceneError(path, f"angles must be numbers{where} (got {pair!r})")
-            if not float(lo) < float(hi) or float(lo) == math.inf or float(hi) == -math.inf:
-                raise SceneError(path, f"needs lower < upper{where} (got {pair!r})")
-            lower[i], upper[i] = float(lo), float(hi)
+                if not _is_number(v) or math.isnan(_num(v)):
+                    raise SceneError(path, f"angles must be numbers{where} (got {quote(pair)})")
+            if not _num(lo) < _num(hi) or _num(lo) == math.inf or _num(hi) == -math.inf:
+                raise SceneError(path, f"needs lower < upper{where} (got {quote(pair)})")
+            lower[i], upper[i] = _num(lo), _num(hi)
         stiffness = self._array("hinges.stop.stiffness", stop["stiffness"], n, minimum=0.0,
                                 strict=True)
         damping = self._array("hinges.stop.damping", stop.get("damping", 0.0), n, minimum=0.0)
@@ -362,19 +377,20 @@ class _SceneParser:
         if isinstance(value, (bool, np.bool_)):
             return np.full(n, bool(value))
         if not isinstance(value, (list, tuple)):
-            raise SceneError(path, f"must be true/false or a list of {n} booleans (got {value!r})")
+            raise SceneError(path, f"must be true/false or a list of {n} booleans (got {quote(value)})")
         if len(value) != n:
             raise SceneError(path, f"expected a boolean or a list of {n} booleans, got {len(value)}")
         for i, v in enumerate(value):
             if not isinstance(v, (bool, np.bool_)):
-                raise SceneError(path, f"must be true or false at index {i} (got {v!r})")
+                raise SceneError(path, f"must be true or false at index {i} (got {quote(v)})")
         return np.array(value, dtype=bool)
 
     @staticmethod
     def _unknown(mapping: Mapping, allowed: set, prefix: str) -> None:
         for key in mapping:
             if key not in allowed:
-                raise SceneError(f"{prefix}{key}",
+                name = key if isinstance(key, str) and len(key) <= 40 else quote(key, 40)
+                raise SceneError(f"{prefix}{name}",
                                  f"unknown key (allowed: {', '.join(sorted(allowed))})")
 
     @staticmethod
@@ -394,16 +410,22 @@ class _SceneParser:
                 raise SceneError(path, f"expected a scalar or a list of {n} values, got {len(value)}")
             values = list(value)
         else:
-            raise SceneError(path, f"must be a number or a list of {n} numbers (got {value!r})")
+            raise SceneError(path, f"must be a number or a list of {n} numbers (got {quote(value)})")
         for i, v in enumerate(values):
             where = f" at index {i}" if len(values) > 1 and not _is_number(value) else ""
             if not _is_number(v):
-                raise SceneError(path, f"must be a number{where} (got {v!r})")
-            if not math.isfinite(float(v)):
-                raise SceneError(path, f"must be finite{where} (got {v!r})")
-            if minimum is not None and (float(v) <= minimum if strict else float(v) < minimum):
+                raise SceneError(path, f"must be a number{where} (got {quote(v)})")
+            x = _num(v)
+            if not math.isfinite(x):
+                raise SceneError(path, f"must be finite{where} (got {quote(v)})")
+            if abs(x) > MAX_MAGNITUDE:
+                raise SceneError(path, f"magnitude must be <= {MAX_MAGNITUDE:g}{where} "
+                                       f"(got {quote(v)})")
+            if minimum is not None and (x <= minimum if strict else x < minimum):
                 op = ">" if strict else ">="
-                raise SceneError(path, f"must be {op} {minimum:g}{where} (got {v!r})")
+                raise SceneError(path, f"must be {op} {minimum:g}{where} (got {quote(v)})")
+            if strict and x < MIN_POSITIVE:
+                raise SceneError(path, f"must be >= {MIN_POSITIVE:g}{where} (got {quote(v)})")
         return np.asarray(values, dtype=float)
 
     def _loads(self, loads, n) -> tuple[Load, ...]:
@@ -422,20 +444,21 @@ class _SceneParser:
                     raise SceneError(f"{key}.{req}", "missing")
             node = entry["node"]
             if not (isinstance(node, (int, np.integer)) and not isinstance(node, bool)) or not 1 <= node <= n:
-                raise SceneError(f"{key}.node", f"must be a node number 1..{n} (got {node!r})")
+                raise SceneError(f"{key}.node", f"must be a node number 1..{n} (got {quote(node)})")
             axis = entry["axis"]
             if axis not in LOAD_AXES:
-                raise SceneError(f"{key}.axis", f"must be 'x' or 'y' (got {axis!r})")
+                raise SceneError(f"{key}.axis", f"must be 'x' or 'y' (got {quote(axis)})")
             shape = entry["shape"]
             if shape not in LOAD_SHAPES:
-                raise SceneError(f"{key}.shape", f"must be one of {', '.join(LOAD_SHAPES)} (got {shape!r})")
+                raise SceneError(f"{key}.shape", f"must be one of {', '.join(LOAD_SHAPES)} (got {quote(shape)})")
             numbers = {}
             for k in ("amplitude", "start", "duration"):
                 if k not in entry:
                     continue
                 v = entry[k]
-                if not _is_number(v) or not math.isfinite(float(v)):
-                    raise SceneError(f"{key}.{k}", f"must be a finite number (got {v!r})")
+                if not _is_number(v) or not abs(_num(v)) <= MAX_MAGNITUDE:
+                    raise SceneError(f"{key}.{k}", f"must be a finite number of magnitude <= "
+                                                   f"{MAX_MAGNITUDE:g} (got {quote(v)})")
                 numbers[k] = float(v)
             start = numbers.get("start", 0.0)
             if start < 0.0:

@@ -1,4 +1,4 @@
-"""The rod_sim log (SPEC section 5): an MCAP file in the ROS 2 profile, as rosbag2 Jazzy writes it.
+"""The rod_sim log (docs/interface.md section 4): an MCAP file in the ROS 2 profile, as rosbag2 Jazzy writes it.
 
 Layout: header (profile ``ros2``), a metadata record ``rod_sim`` (written first, so that even a
 truncated log can be replayed), then zstd-compressed chunks of CDR messages (encoded by

@@ -2,33 +2,15 @@
 
 ``repr()`` of a value from a file can be arbitrarily large: a YAML "billion laughs" scene
 shares one list a billion times and its repr takes minutes and gigabytes (issue 11 item 8).
-:func:`quote` never builds more than about ``limit`` characters; :func:`yaml_node_count`
+:func:`rod_sim.core.quote.quote` never builds more than about ``limit`` characters;
+:func:`yaml_node_count`
 measures what a YAML text expands to before anything walks it.
 """
 from __future__ import annotations
 
-import reprlib
-
 import yaml
 
-_REPR = reprlib.Repr()
-_REPR.maxlevel = 3
-_REPR.maxlist = _REPR.maxtuple = _REPR.maxdict = _REPR.maxset = 6
-_REPR.maxstring = _REPR.maxother = 60
-_REPR.maxlong = 40
-
-
-def quote(value, limit: int = 80, *, plain: bool = False) -> str:
-    """``repr(value)`` (``str`` for a string with ``plain``) cut to at most ``limit``
-    characters (an ellipsis marks the cut), built without expanding large or deeply shared
-    containers."""
-    if isinstance(value, str):
-        text = value[:limit + 1] if plain else repr(value[:limit + 1])
-    else:
-        _REPR.maxstring = _REPR.maxother = max(8, limit)
-        text = _REPR.repr(value)
-    text = " ".join(text.split())
-    return text if len(text) <= limit else text[:max(limit - 3, 1)] + "..."
+from rod_sim.core.quote import quote  # noqa: F401  (re-exported for the readers)
 
 
 def yaml_node_count(text: str, cap: int = 10**6) -> int:

@@ -1,6 +1,7 @@
-"""Scene files (SPEC section 2): YAML text to a validated :class:`~rod_sim.core.scene.Scene` and back.
+"""Scene files (docs/interface.md section 1): YAML text to a validated :class:`~rod_sim.core.scene.Scene` and back.
 
-Only ``yaml.SafeLoader``-based loading is used, with two changes that matter for scene files:
+Only safe loading is used (libyaml's ``CSafeLoader`` when PyYAML has it, else ``SafeLoader``;
+the C parser reads a 4 MiB list 5x faster), with two changes that matter for scene files:
 
 * floats are read as YAML 1.2 writes them, so ``1e5`` and ``1.0e5`` are numbers (plain PyYAML
   reads both as strings, which would then be rejected as "not a number");
@@ -13,6 +14,7 @@ from __future__ import annotations
 
 import os
 import re
+import stat
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -22,7 +24,13 @@ import yaml
 
 from rod_sim.core.scene import Scene, SceneError
 
-__all__ = ["load_scene", "scene_from_yaml_text", "scene_to_yaml"]
+__all__ = ["MAX_SCENE_BYTES", "load_scene", "scene_from_yaml_text", "scene_to_yaml"]
+
+# Largest scene file read [bytes]. A chain of 8000 rods (about the most whose reduced model fits
+# in 20 GB of memory) with one value per rod for its 8 per-rod keys is ~8 x 8000 x 20 bytes,
+# about 1.3 MB. Measured: a 4 MiB list is refused after 13 s with a peak of 0.65 GB RSS
+# (CSafeLoader; 71 s and 0.9 GB with the pure-Python SafeLoader), on 2 shared cores.
+MAX_SCENE_BYTES = 4 * 1024 * 1024
 
 _MERGE_TAG = "tag:yaml.org,2002:merge"
 
@@ -39,7 +47,7 @@ _FLOAT_RE = re.compile(
 )
 
 
-class _SceneLoader(yaml.SafeLoader):
+class _SceneLoader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):
     """A SafeLoader that reads YAML 1.2 floats and rejects duplicate keys in a mapping."""
 
     def construct_document(self, node: yaml.Node) -> Any:
@@ -123,7 +131,18 @@ def load_scene(path: str | os.PathLike) -> Scene:
     """
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        info = os.stat(p)             # before opening: opening a FIFO would block
+        if not stat.S_ISREG(info.st_mode) and not stat.S_ISDIR(info.st_mode):
+            raise SceneError("scene", f"cannot read {os.fspath(path)}: not a regular file")
+        if info.st_size > MAX_SCENE_BYTES:
+            raise SceneError("scene", f"{os.fspath(path)} is {info.st_size} bytes; a scene file "
+                                      f"may have at most {MAX_SCENE_BYTES} bytes")
+        with open(p, "rb") as fh:
+            data = fh.read(MAX_SCENE_BYTES + 1)
+        if len(data) > MAX_SCENE_BYTES:
+            raise SceneError("scene", f"{os.fspath(path)} grew beyond {MAX_SCENE_BYTES} bytes "
+                                      "while being read")
+        text = data.decode("utf-8")
     except FileNotFoundError:
         raise SceneError("scene", f"file not found: {os.fspath(path)}") from None
     except IsADirectoryError:

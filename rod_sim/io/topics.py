@@ -1,4 +1,4 @@
-"""Snapshot -> ROS 2 message dicts for the topics of SPEC section 4 (no rclpy needed).
+"""Snapshot -> ROS 2 message dicts for the topics of docs/interface.md section 3 (no rclpy needed).
 
 Messages are nested dicts and lists of plain Python numbers/strings, the form mcap_ros2's CDR
 encoder takes (``header: {stamp: {sec, nanosec}, frame_id}``); the ROS node can fill rclpy

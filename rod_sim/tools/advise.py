@@ -5,7 +5,7 @@ Every candidate (rigid, reduced, full model; dop853-jit at a few tolerances) is 
 trial [0, T] and compared, at 100 Hz samples, with a full-model reference at rtol 1e-11
 (itself checked against rtol 1e-10: if the two differ by more than a tenth of the tolerance
 the reference is not converged and the command fails). The error is max over rods and samples
-of |phi - phi_ref| [rad] (SPEC section 6). Among the candidates whose error is at most
+of |phi - phi_ref| [rad] (docs/bench.md). Among the candidates whose error is at most
 :data:`MARGIN` x tolerance, the cheapest fidelity wins (rigid, then reduced, then full), and
 within it the setting with the fewest right-hand side evaluations; the speed-up (wall time,
 minimum of the repeats) is against the full model at the default settings. Exit 0 with a recommendation, 1 when none meets the

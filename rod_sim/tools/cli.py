@@ -25,8 +25,9 @@ from ..core.names import INTEGRATOR_NAMES as INTEGRATORS
 from ..core.names import MODEL_NAMES
 from ..core.scene import SceneError
 
+from . import limits
 from .common import (EXIT_BAD_INPUT, EXIT_CHECK_FAILED, EXIT_OK, PAPER_EXAMPLE, UsageError,
-                     load_scene, new_output_path)
+                     compile_notice, load_scene, new_output_path)
 from .common import positive_float as _positive_float
 
 __all__ = ["EXIT_OK", "EXIT_CHECK_FAILED", "EXIT_BAD_INPUT", "PAPER_EXAMPLE", "UsageError",
@@ -62,34 +63,39 @@ def build_parser() -> argparse.ArgumentParser:
 
     sim = sub.add_parser("simulate", help="offline run of a scene, written as an MCAP log",
                          description="Offline run of a scene (no ROS graph); writes the log of "
-                                     "SPEC section 5 sampled at --rate in simulated time.")
-    sim.add_argument("scene", help="scene YAML file")
+                                     "docs/interface.md section 4 sampled at --rate in simulated "
+                                     "time, the t = 0 state first. Limits: docs/interface.md "
+                                     "section 6.")
+    sim.add_argument("scene", help="scene YAML file (docs/interface.md section 1)")
     sim.add_argument("--model", choices=sorted(MODEL_NAMES), default="reduced",
-                     help="fidelity: full (3n ODEs), reduced (n ODEs, quasi-static bending) or "
-                          "rigid (default reduced)")
-    sim.add_argument("--t-end", type=_positive_float, required=True, help="end time [s]")
+                     help="full (3n ODEs), reduced (n ODEs, quasi-static bending) or rigid "
+                          "(default reduced)")
+    sim.add_argument("--t-end", type=_positive_float, required=True,
+                     help=f"end time [s], at most {limits.MAX_T_END:g}")
     sim.add_argument("--out", required=True, help="MCAP log to write (must not exist)")
     sim.add_argument("--rate", type=_positive_float, default=100.0,
-                     help="sampling rate of the log [Hz of simulated time] (default 100)")
+                     help="sampling rate of the log [Hz of simulated time], at most "
+                          f"{limits.MAX_RATE:g} (default 100)")
     sim.add_argument("--integrator", choices=INTEGRATORS, default="dop853-jit",
-                     help="time stepper: dop853-jit (compiled adaptive Dormand-Prince 8(5,3), "
-                          "--rtol/--atol; the default), rk4, rk2, euler (compiled fixed step, "
-                          "--step) or scipy's RK45, DOP853, Radau, BDF, LSODA")
+                     help="dop853-jit (default; compiled adaptive, --rtol/--atol), rk4, rk2, "
+                          "euler (compiled fixed step, --step) or a scipy method")
     sim.add_argument("--rtol", type=_positive_float, default=None,
-                     help="relative tolerance of adaptive integrators (default 1e-8)")
+                     help="relative tolerance of adaptive integrators, "
+                          f"{limits.RTOL_RANGE[0]:g} .. {limits.RTOL_RANGE[1]:g} (default 1e-8)")
     sim.add_argument("--atol", type=_positive_float, default=None,
                      help="absolute tolerance (default = rtol)")
     sim.add_argument("--step", type=_positive_float, default=None,
-                     help="largest step of fixed-step integrators [s] (default 1e-3)")
+                     help="largest step of fixed-step integrators [s], at least 1e-9 "
+                          "(default 1e-3)")
     sim.add_argument("--frame-id", default="world",
-                     help="frame_id of the logged headers, poses and markers (default world)")
+                     help="frame of the logged headers, poses and markers (default world)")
 
-    t1 = sub.add_parser("table1", help="recompute the seed paper's Table 1",
-                        description="Recompute Table 1 of the seed paper with the full and "
+    t1 = sub.add_parser("table1", help="recompute Table 1 of the paper",
+                        description="Recompute Table 1 of the paper with the full and "
                                     "reduced models and print it beside the published values.")
     t1.add_argument("--json", action="store_true", help="machine-readable output")
     t1.add_argument("--scene", default=str(PAPER_EXAMPLE), help=argparse.SUPPRESS)
-    node = sub.add_parser("node", help="the ROS 2 simulator node (SPEC section 4)",
+    node = sub.add_parser("node", help="the ROS 2 simulator node (docs/interface.md section 3)",
                           description="Run the rod_sim ROS 2 node until SIGINT/SIGTERM. ROS "
                                       "arguments follow --ros-args, e.g. --ros-args -p "
                                       "scene_file:=config/paper_example.yaml -p sync_mode:=true "
@@ -109,74 +115,140 @@ def cmd_node(args) -> int:
     return node_main(list(args.ros_args), prog="rod-sim node")
 
 
+def _sample_grid_ns(rate_hz: float, k: int) -> int:
+    """Time [ns] of sample k of the log's grid (as Simulator.run places its samples)."""
+    return int(round(k * (1e9 / rate_hz)))
+
+
 def cmd_simulate(args) -> int:
     from ..core.integrators import IntegrationError, make_integrator
     from ..core.models import make_model
     from ..core.simulator import Simulator
-    from ..io.hinge_events import write_events
     from ..io.mcap_log import LogWriter
     from ..io.scene_yaml import scene_to_yaml
 
     scene = load_scene(args.scene)
-    model = make_model(args.model, scene)
+    limits.check_rtol(args.rtol)
+    limits.check_sampling(args.t_end, args.rate, scene.n)
     integrator = make_integrator(args.integrator, rtol=args.rtol, atol=args.atol, step=args.step)
+    if not integrator.adaptive and args.t_end / integrator.step > limits.MAX_FIXED_STEPS:
+        raise UsageError(f"--step: {args.t_end:g} s in steps of {integrator.step:g} s is more "
+                         f"than {limits.MAX_FIXED_STEPS:g} steps")
+    limits.check_model_memory(scene.n)
+    model = make_model(args.model, scene)
     out = new_output_path(args.out)
-    Simulator(model, make_integrator(args.integrator, step=args.step)).advance(1e-3)  # JIT warm-up
+    with compile_notice():
+        try:            # compile (or load) the kernels before the clock starts
+            Simulator(model, make_integrator(args.integrator)).advance(1e-3)
+        except IntegrationError:
+            pass        # the run below meets the same failure and reports it
     sim = Simulator(model, integrator)
     metadata = {"scene": scene_to_yaml(scene), "model": model.name,
                 "integrator": integrator.describe(), "version": __version__,
                 "rate_hz": repr(args.rate), "source": "rod-sim simulate"}
-    from ..core.validity import ValidityMonitor
+    try:
+        log = LogWriter(out, metadata=metadata)
+    except OSError as err:
+        raise UsageError(f"--out: cannot write {out}: {err.strerror or err}") from None
+    run = _LoggedRun(sim, scene, log, args.frame_id)
+    try:
+        with log:
+            status = run.integrate(args.t_end, args.rate, IntegrationError)
+    except OSError as err:
+        print(f"rod-sim simulate: error: writing {out} failed at t = {run.t_logged:g} s: "
+              f"{err.strerror or err}; {_salvage(out)}", file=sys.stderr)
+        return EXIT_CHECK_FAILED
+    rtf = sim.t / run.wall if run.wall > 0 else math.inf
+    print(f"{scene.name}: {model.name} model, {integrator.describe()}, t = 0..{sim.t:g} s, "
+          f"{run.samples} samples -> {out} (integration {run.wall:.3f} s wall, {rtf:.0f}x real "
+          f"time, {integrator.stats.nfev} rhs evaluations"
+          + (f", {run.logged_events} hinge events" if run.logged_events else "") + ")")
+    if run.validity.summary():
+        print(f"rod-sim simulate: validity warning: {run.validity.summary()}", file=sys.stderr)
+    return status
 
-    validity = ValidityMonitor(model)
-    wall = 0.0
-    samples = 0
-    status = EXIT_OK
-    chunk = 0.5                                  # simulated seconds integrated per call
-    logged_events = 0                            # hinge events (docs/hinges.md) written so far
-    with LogWriter(out, metadata=metadata) as log:
-        first = True
 
-        def write(traj) -> None:
-            """Log the samples of ``traj`` (its first one is the previous call's last) and the
-            hinge events since the last call; the validity monitor sees every sample."""
-            nonlocal first, samples, logged_events
-            for i in range(0 if first else 1, traj.t.size):
-                snap = traj.snapshot(i)
-                validity.update(snap.t, traj.y[i], None, snap.alpha, snap.beta)
-                log.write_snapshot(snap, scene, frame_id=args.frame_id)
-                samples += 1
-            first = False
-            logged_events += write_events(log, sim.events[logged_events:])
+class _LoggedRun:
+    """A simulator run logged sample by sample: the t = 0 state first, then chunks of at most
+    CHUNK_SAMPLES samples on the grid of --rate (plus the end time), with the hinge events."""
 
-        while sim.t_ns < round(args.t_end * 1e9):
-            t_next = min(args.t_end, (math.floor(sim.t / chunk + 1e-9) + 1) * chunk)
+    CHUNK_SAMPLES = 10_000
+    CHUNK_SECONDS = 0.5          # simulated seconds integrated per call at most
+
+    def __init__(self, sim, scene, log, frame_id: str):
+        from ..core.validity import ValidityMonitor
+
+        self.sim, self.scene, self.log, self.frame_id = sim, scene, log, frame_id
+        self.validity = ValidityMonitor(sim.model)
+        self.samples = 0
+        self.logged_events = 0
+        self.wall = 0.0
+        self.t_logged = 0.0
+
+    def _write(self, t: float, y) -> None:
+        snap = self.sim.model.snapshot(t, y)
+        self.validity.update(snap.t, y, None, snap.alpha, snap.beta)
+        self.log.write_snapshot(snap, self.scene, frame_id=self.frame_id)
+        self.samples += 1
+        self.t_logged = t
+
+    def _write_traj(self, traj) -> None:
+        """The samples of ``traj`` after its first (the previous call's last), then the hinge
+        events since the last call."""
+        from ..io.hinge_events import write_events
+
+        for i in range(1, traj.t.size):
+            self._write(float(traj.t[i]), traj.y[i])
+        self.logged_events += write_events(self.log, self.sim.events[self.logged_events:])
+
+    def integrate(self, t_end: float, rate_hz: float, failure) -> int:
+        """Run to t_end [s]; on ``failure`` (IntegrationError) keep every finite sample, print
+        one line and return EXIT_CHECK_FAILED."""
+        sim = self.sim
+        self._write(sim.t, sim.y)
+        end_ns = round(t_end * 1e9)
+        per_chunk = max(1, min(self.CHUNK_SAMPLES, math.floor(self.CHUNK_SECONDS * rate_hz)))
+        k = 0
+        while sim.t_ns < end_ns:
+            k += per_chunk
+            t_next = min(end_ns, _sample_grid_ns(rate_hz, k)) / 1e9
             started = time.perf_counter()
             try:
-                traj = sim.run(t_next, args.rate)
-            except IntegrationError as err:
+                traj = sim.run(t_next, rate_hz)
+            except failure as err:
                 # redo the chunk one sample at a time so the log keeps every finite sample
                 try:
-                    while True:
-                        write(sim.run(min(t_next, sim.t + 1.0 / args.rate), args.rate))
-                except IntegrationError as again:
+                    while sim.t_ns < round(t_next * 1e9):
+                        j = math.floor(sim.t_ns * rate_hz / 1e9 + 1e-6) + 1
+                        self._write_traj(sim.run(min(t_next, _sample_grid_ns(rate_hz, j) / 1e9),
+                                                 rate_hz))
+                except failure as again:
                     err = again
-                except ValueError:
-                    pass
-                print(f"rod-sim: {err}; the log holds the samples up to t = {sim.t:g} s",
-                      file=sys.stderr)
-                status = EXIT_CHECK_FAILED
-                break
-            wall += time.perf_counter() - started
-            write(traj)
-    rtf = sim.t / wall if wall > 0 else math.inf
-    print(f"{scene.name}: {model.name} model, {integrator.describe()}, t = 0..{sim.t:g} s, "
-          f"{samples} samples -> {out} (integration {wall:.3f} s wall, {rtf:.0f}x real time, "
-          f"{integrator.stats.nfev} rhs evaluations"
-          + (f", {logged_events} hinge events" if logged_events else "") + ")")
-    if validity.summary():
-        print(f"rod-sim simulate: validity warning: {validity.summary()}", file=sys.stderr)
-    return status
+                print(f"rod-sim: {err}; the log holds {self.samples} samples, t = 0.."
+                      f"{self.t_logged:g} s", file=sys.stderr)
+                return EXIT_CHECK_FAILED
+            self.wall += time.perf_counter() - started
+            self._write_traj(traj)
+        return EXIT_OK
+
+
+def _salvage(path: Path) -> str:
+    """After a failed write: keep ``path`` if it holds complete samples (say which), else
+    remove it. Returns what was done, for the error line."""
+    from ..io.mcap_log import read_rod_states
+
+    try:
+        t, _, _ = read_rod_states(path)
+    except Exception:                         # nothing readable: no complete chunk
+        t = ()
+    if len(t):
+        return (f"{path} keeps the {len(t)} samples of t = 0..{t[-1]:g} s written in complete "
+                "chunks (no summary: readers scan it)")
+    try:
+        path.unlink()
+    except OSError as err:
+        return f"{path} holds no complete sample and could not be removed: {err.strerror or err}"
+    return f"removed {path}, which held no complete sample"
 
 
 def cmd_table1(args) -> int:
@@ -187,7 +259,7 @@ def cmd_table1(args) -> int:
     if args.json:
         print(json.dumps({"rows": [r.as_dict() for r in rows]}, indent=1))
     else:
-        print("Table 1 of the seed paper (n = 8, tip pulse): published values beside ours")
+        print("Table 1 of the paper (n = 8, tip pulse): published values beside ours")
         print(table1.format_table(rows))
         worst = table1.summary(rows)
         print("largest |ours - paper|: " + ", ".join(f"{k} {v:.2g}" for k, v in worst.items()))
@@ -204,6 +276,13 @@ def run(args: argparse.Namespace) -> int:
     return plugin_modules()[args.command].run(args)
 
 
+def _error(command: str, err, status: int) -> int:
+    """Print the first line of ``err`` as ``rod-sim COMMAND: error: ...``; return ``status``."""
+    message = str(err).splitlines()[0] if str(err) else type(err).__name__
+    print(f"rod-sim {command}: error: {message}", file=sys.stderr)
+    return status
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv[:1] == ["node"]:
@@ -217,9 +296,14 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return run(args)
     except (SceneError, UsageError, FileExistsError, ValueError) as err:   # ModelError too
-        message = str(err).splitlines()[0] if str(err) else type(err).__name__
-        print(f"rod-sim {args.command}: error: {message}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+        return _error(args.command, err, EXIT_BAD_INPUT)
+    except OSError as err:                  # a file that cannot be read or written
+        where = f"{err.filename}: " if err.filename else ""
+        return _error(args.command, f"{where}{err.strerror or err}", EXIT_BAD_INPUT)
+    except MemoryError:
+        return _error(args.command, "out of memory", EXIT_CHECK_FAILED)
+    except RuntimeError as err:             # IntegrationError: the run could not go on
+        return _error(args.command, err, EXIT_CHECK_FAILED)
     except KeyboardInterrupt:
         print("rod-sim: interrupted", file=sys.stderr)
         return 130

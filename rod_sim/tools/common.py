@@ -13,8 +13,13 @@ Modules import their heavy dependencies (ROS, matplotlib, dask, ...) inside ``ru
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
+import sys
+import threading
 from pathlib import Path
+
+from ..core.quote import quote
 
 EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 PAPER_EXAMPLE = Path(__file__).resolve().parents[2] / "config" / "paper_example.yaml"
@@ -30,7 +35,7 @@ def positive_float(text: str) -> float:
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        raise argparse.ArgumentTypeError(f"not a number: {quote(text)}") from None
     if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"must be a positive finite number (got {text})")
     return value
@@ -51,3 +56,23 @@ def new_output_path(text: str, option: str = "--out") -> Path:
     if not out.parent.is_dir():
         raise UsageError(f"{option}: directory {out.parent} does not exist")
     return out
+
+
+COMPILE_NOTICE = "compiling kernels, first run only, ~20 s"
+
+
+@contextlib.contextmanager
+def compile_notice(after: float = 2.0, stream=None):
+    """Print one line (COMPILE_NOTICE) on stderr if the block is still running after
+    ``after`` seconds: loading compiled kernels from numba's cache takes ~0.3 s, compiling
+    them (a cold cache: the first run after an install or a change of rod_sim.core) ~20 s."""
+    def notice():
+        print(f"rod-sim: {COMPILE_NOTICE}", file=stream or sys.stderr, flush=True)
+
+    timer = threading.Timer(after, notice)
+    timer.daemon = True
+    timer.start()
+    try:
+        yield
+    finally:
+        timer.cancel()

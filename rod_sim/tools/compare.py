@@ -1,5 +1,5 @@
 """``rod-sim compare LOG``: can this logged run be trusted? Checks every logged sample against a
-converged re-run of the full model with the logged applied forces (SPEC section 3).
+converged re-run of the full model with the logged applied forces (docs/interface.md section 2).
 
 Exit 0: PASS (max |phi error| <= --tolerance, no gap in the states, reference converged), or
 PASS up to the predictability horizon and INCONCLUSIVE beyond it (chaotic motion: only
@@ -272,6 +272,10 @@ def run(args) -> int:
     if plot is not None:
         try:
             write_plot(report, plot, f"{info['log']}: {info['model']} model vs full")
+        except ImportError:
+            print("rod-sim compare: --plot needs matplotlib (pip install 'rod_sim[plot]'); "
+                  f"{plot} was not written", file=sys.stderr)
+            plot = None
         except OSError as exc:
             raise UsageError(f"--plot: cannot write {plot}: {exc.strerror or exc}") from None
     if args.json:

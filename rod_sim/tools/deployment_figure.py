@@ -7,9 +7,13 @@ lengths) at several simulated times, and marks the latch events of ``/hinge_even
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 
 import numpy as np
+
+from ..core.quote import quote
+from .common import UsageError, new_output_path
 
 COMMAND = "deployment-figure"
 HELP = "draw snapshots of a logged chain (e.g. the deployment scene) with its latch events"
@@ -17,27 +21,53 @@ HELP = "draw snapshots of a logged chain (e.g. the deployment scene) with its la
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("log", help="MCAP log written by rod-sim simulate or the node")
-    parser.add_argument("png", help="picture to write")
-    parser.add_argument("--times", type=float, nargs="+", default=None,
+    parser.add_argument("png", help="picture to write (must not exist)")
+    parser.add_argument("--times", type=finite_time, nargs="+", default=None,
                         help="snapshot times [s] (default: 8 evenly spaced up to the last "
                              "latch, and the end)")
 
 
+def finite_time(text: str) -> float:
+    """argparse type: a finite time [s] >= 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {quote(text)}") from None
+    if not (math.isfinite(value) and value >= 0.0):
+        raise argparse.ArgumentTypeError(f"must be a finite time >= 0 s (got {text})")
+    return value
+
+
+def _log_scene(path: str):
+    """The scene of a log's metadata (UsageError when the log has none or it is invalid)."""
+    from ..io.log_source import metadata_scene
+    from ..io.mcap_log import LogReader
+
+    with LogReader(path) as reader:
+        scene = metadata_scene(reader.metadata(), path)   # bounded: YAML bombs refused
+    if scene is None:
+        raise UsageError(f"{path}: the log's metadata holds no scene")
+    return scene
+
+
 def run(args) -> int:
-    import matplotlib
+    from ..io.hinge_events import read_hinge_events
+    from ..io.mcap_log import read_rod_states
+
+    png = new_output_path(args.png, "png")
+    scene = _log_scene(args.log)
+    t, phi, _ = read_rod_states(args.log)
+    if phi.shape[1] != scene.n:
+        raise UsageError(f"{args.log}: /rod_states has {phi.shape[1]} rods but the scene in the "
+                         f"log's metadata has {scene.n}")
+    try:
+        import matplotlib
+    except ImportError:
+        raise UsageError("the picture needs matplotlib: pip install 'rod_sim[plot]'") from None
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     from ..core.kinematics import node_positions
-    from ..io.hinge_events import read_hinge_events
-    from ..io.log_source import metadata_scene
-    from ..io.mcap_log import LogReader, read_rod_states
-
-    with LogReader(args.log) as reader:
-        scene = metadata_scene(reader.metadata(), args.log)
-    if scene is None:
-        raise ValueError(f"{args.log}: its rod_sim metadata has no scene")
-    t, phi, _ = read_rod_states(args.log)
     events = read_hinge_events(args.log)
     latches = [e for e in events if e["event"] == "latch"]
     if args.times:
@@ -69,16 +99,19 @@ def run(args) -> int:
     ax2.set_ylabel("hinge angle [rad]")
     ax2.legend(fontsize=7, ncol=scene.n)
     fig.tight_layout()
-    fig.savefig(args.png, dpi=110)
-    print(f"{args.png}: {len(times)} snapshots, {len(latches)} latch events")
+    try:
+        fig.savefig(png, dpi=110)
+    except OSError as err:
+        raise UsageError(f"png: cannot write {png}: {err.strerror or err}") from None
+    print(f"{png}: {len(times)} snapshots, {len(latches)} latch events")
     return 0
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m rod_sim.tools.deployment_figure",
-                                     description=__doc__.splitlines()[0])
-    configure(parser)
-    return run(parser.parse_args(argv))
+    """The same as ``rod-sim deployment-figure ...`` (one-line errors, exit statuses)."""
+    from .cli import main as cli_main
+
+    return cli_main([COMMAND, *(sys.argv[1:] if argv is None else argv)])
 
 
 if __name__ == "__main__":

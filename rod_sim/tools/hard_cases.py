@@ -27,7 +27,7 @@ TIP_PULSES = "tip_pulses"
 
 def chain(n=8, *, total_length=16.0, m=3.0, EI=1e5, mu=3.0, kappa=100.0, nu=0.01, phi=0.0,
           phi_rate=0.0, loads=TIP_PULSES, scale=1.0, name="hard") -> Scene:
-    """The seed's example generalised: n equal rods of total length ``total_length`` [m],
+    """The paper's example generalised: n equal rods of total length ``total_length`` [m],
     m [kg/m], EI [N m^2], node masses mu [kg] (scalar or list), hinges kappa [N m/rad],
     nu [N m s/rad]; ``loads`` = the paper's tip pulses times ``scale``, or a list of load dicts."""
     if loads == TIP_PULSES:
@@ -82,7 +82,7 @@ def cases(quick: bool = False) -> list[Case]:
         Case("EI = 1e8 full", chain(EI=1e8), "full", 2.0, "stiff bending (kHz modes)"),
         Case("EI = 1e8 reduced", chain(EI=1e8), "reduced", 2.0, "stiff bending"),
         Case("locked hinges full", chain(kappa=[100.0] + [1e6] * 7), "full", 2.0,
-             "hinges 1..7 locked the seed's way (kappa 1e6)"),
+             "hinges 1..7 locked the paper's way (kappa 1e6)"),
         Case("locked hinges reduced", chain(kappa=[100.0] + [1e6] * 7), "reduced", 2.0,
              "hinges 1..7 locked (kappa 1e6)"),
         Case("free hinges full", chain(kappa=0.0, nu=0.0), "full", 2.0, "kappa = nu = 0"),

@@ -2,7 +2,7 @@
 
 The spec (``docs/sweep.md``, parsed by :mod:`.sweep_spec`) is expanded into runs, every run's
 scene is validated before any run starts, then the runs go to a local process pool
-(``--workers``, default ``os.cpu_count()``; ``--workers 0`` runs them in this process) or to an
+(``--workers``, default ``os.cpu_count() - 1``; ``--workers 0`` runs them in this process) or to an
 existing Dask cluster (``--scheduler ADDRESS``). Each run is one call of
 :func:`.sweep_worker.run_one` and one row of the result table (``--out``, CSV or Parquet),
 in run order whatever order the runs finish in; failed runs are rows with their reason.
@@ -16,6 +16,7 @@ import sys
 import time
 from pathlib import Path
 
+from ..core.quote import quote
 from .common import EXIT_OK, UsageError, new_output_path
 
 COMMAND = "sweep"
@@ -35,7 +36,7 @@ def _workers(text: str) -> int:
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+        raise argparse.ArgumentTypeError(f"not a whole number: {quote(text)}") from None
     if value < 0:
         raise argparse.ArgumentTypeError(f"must be >= 0 (got {value})")
     return value
@@ -45,7 +46,7 @@ def _seed(text: str) -> int:
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+        raise argparse.ArgumentTypeError(f"not a whole number: {quote(text)}") from None
     if value < 0:
         raise argparse.ArgumentTypeError(f"must be >= 0 (got {value})")
     return value
@@ -59,8 +60,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plot", default=None, metavar="PNG",
                         help="summary plot of outputs against each swept parameter")
     parser.add_argument("--workers", type=_workers, default=None,
-                        help="local worker processes (default: os.cpu_count(); 0 = run in "
-                             "this process)")
+                        help="local worker processes (default: os.cpu_count() - 1, at least 1; "
+                             "0 = run in this process)")
     parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
                         help="run on an existing Dask cluster (e.g. tcp://10.0.0.5:8786) "
                              "instead of local processes")
@@ -181,9 +182,29 @@ def run_dask(tasks: list[dict], address: str, on_row=None) -> dict:
     return rows
 
 
+def _plural(count: int, word: str, plural: str = "") -> str:
+    return f"{count} {word if count == 1 else plural or word + 's'}"
+
+
+def _design(spec) -> str:
+    """What the runs are, e.g. "3 x 4 grid, 64 Monte-Carlo draws each, 2 models"."""
+    parts = []
+    sizes = [len(p.values) for p in spec.parameters if not p.random]
+    if sizes:
+        parts.append(" x ".join(map(str, sizes)) + " grid")
+    if any(p.random for p in spec.parameters):
+        draws = _plural(spec.draws, "Monte-Carlo draw")
+        parts.append(draws + (" per grid point" if sizes else ""))
+    if not parts:
+        parts.append("the base scene")
+    parts.append(_plural(len(spec.models), "model"))
+    return ", ".join(parts)
+
+
 def local_workers(requested: int | None, runs: int) -> int:
-    """Worker processes to start: ``requested`` (default os.cpu_count()), at most one per run."""
-    return max(1, min(requested or os.cpu_count() or 1, runs))
+    """Worker processes to start: ``requested`` (default os.cpu_count() - 1, leaving a core to
+    the machine), at most one per run."""
+    return max(1, min(requested or (os.cpu_count() or 2) - 1, runs))
 
 
 def execute(tasks: list[dict], workers: int | None = None, scheduler: str | None = None,
@@ -248,10 +269,10 @@ def run(args) -> int:
     tasks = [r.task(spec) for r in runs]
     where = (f"Dask scheduler {args.scheduler}" if args.scheduler else
              "this process" if args.workers == 0 else
-             f"{local_workers(args.workers, len(tasks))} local worker processes")
-    grid = " x ".join(str(len(p.values)) for p in spec.parameters if not p.random) or "1"
-    print(f"rod-sim sweep: {spec.name}: {len(tasks)} runs (grid {grid}, {spec.draws} draws, "
-          f"{len(spec.models)} models) on {where}", file=sys.stderr, flush=True)
+             _plural(local_workers(args.workers, len(tasks)), "local worker process",
+                     "local worker processes"))
+    print(f"rod-sim sweep: {spec.name}: {len(tasks)} runs ({_design(spec)}) on {where}",
+          file=sys.stderr, flush=True)
 
     bar = _progress(len(tasks), spec.name)
     started = time.perf_counter()

@@ -2,8 +2,9 @@
 
 One column of panels per swept parameter, one row per output (tip displacement, max |phi|,
 max bending slope, rhs evaluations: all reproducible, unlike wall time). Grid sweeps draw lines through
-the runs that share every other parameter (and the model); Monte-Carlo sweeps are scatter
-plots. Failed runs are marked with a red x on the bottom edge of each panel. matplotlib
+the runs that share every other parameter (and the model): the colour is the model, the line
+style and marker the level of the other parameters (in the legend); Monte-Carlo sweeps are
+scatter plots. Axes carry the units of the scene keys. Failed runs are marked with a red x on the bottom edge of each panel. matplotlib
 (the ``plot`` extra) is used with the Agg backend.
 """
 from __future__ import annotations
@@ -15,6 +16,30 @@ PLOTTED = (("max_tip_displacement", "max tip displacement [m]"),
            ("max_abs_phi", "max |phi| [rad]"),
            ("max_abs_bending", "max |alpha|, |beta| [rad]"),
            ("nfev", "rhs evaluations"))
+
+
+# Units of the scene keys a sweep parameter path may end with (docs/interface.md section 1).
+UNITS = {"length": "m", "mass_per_length": "kg/m", "bending_stiffness": "N m^2", "mass": "kg",
+         "stiffness": "N m/rad", "damping": "N m s/rad", "phi": "rad", "phi_rate": "rad/s",
+         "amplitude": "N", "start": "s", "duration": "s", "rest_angle": "rad", "latch": "rad",
+         "angle": "rad"}
+STYLES = ("-", "--", ":", "-.")
+MARKERS = ("o", "s", "^", "v", "D", "P", "X", "*")
+
+
+def axis_label(path: str) -> str:
+    """``path`` with the unit of its last key, e.g. ``hinges.stiffness [N m/rad]``."""
+    last = path.split(".")[-1].split("[")[0]
+    return f"{path} [{UNITS[last]}]" if last in UNITS else path
+
+
+def _level_text(names: list[str], level: tuple) -> str:
+    return ", ".join(f"{n} = {v:.4g}" if _number(v) else f"{n} = {v}"
+                     for n, v in zip(names, level))
+
+
+def _level_order(level: tuple) -> tuple:
+    return tuple((0, v, "") if _number(v) else (1, 0.0, str(v)) for v in level)
 
 
 def _value(row: dict, key: str) -> float:
@@ -62,13 +87,22 @@ def plot_sweep(rows: list[dict], params: list[str], random: set, path: str | Pat
                 groups: dict = {}
                 for r in ok:
                     groups.setdefault((r["model"],) + tuple(r[o] for o in others), []).append(r)
+                levels = sorted({g[1:] for g in groups}, key=_level_order)
+                style = {lv: (STYLES[k % len(STYLES)], MARKERS[k % len(MARKERS)])
+                         for k, lv in enumerate(levels)}
                 for g, members in groups.items():
                     members.sort(key=lambda r: r[x])
+                    ls, mk = style[g[1:]]
                     ax.plot([r[x] for r in members], [_value(r, key) for r in members],
-                            "o-", ms=3, lw=1, color=colors[g[0]], alpha=0.75)
+                            ls=ls, marker=mk, ms=3, lw=1, color=colors[g[0]], alpha=0.75)
                 if i == 0:
                     for m in models:
-                        ax.plot([], [], "o-", color=colors[m], label=m)
+                        ax.plot([], [], "-", color=colors[m], label=m)
+                    if others and len(levels) > 1:
+                        for lv in levels:
+                            ls, mk = style[lv]
+                            ax.plot([], [], ls=ls, marker=mk, ms=3, color="0.4",
+                                    label=_level_text(others, lv))
             if failed:
                 ax.plot([r[x] for r in failed], [0.0] * len(failed), "x", color="red",
                         transform=ax.get_xaxis_transform(), clip_on=False,
@@ -83,7 +117,7 @@ def plot_sweep(rows: list[dict], params: list[str], random: set, path: str | Pat
             if j == 0:
                 ax.set_ylabel(label)
             if i == len(PLOTTED) - 1:
-                ax.set_xlabel(x)
+                ax.set_xlabel("run" if x == "run" else axis_label(x))
             ax.grid(alpha=0.3)
         axes[0][j].legend(fontsize=7)
     if title:

@@ -29,6 +29,7 @@ import yaml
 from ..core.integrators import INTEGRATORS, make_integrator
 from ..core.models import MODELS, ModelError, make_model
 from ..core.scene import Scene, SceneError
+from ..core.quote import quote
 
 __all__ = ["SweepSpecError", "Parameter", "SweepSpec", "Run", "load_spec", "parse_spec",
            "expand", "parse_path", "apply_path"]
@@ -83,7 +84,7 @@ class Parameter:
 
 @dataclass(frozen=True)
 class SweepSpec:
-    """A validated sweep spec. ``base_scene`` is plain scene data (SPEC section 2)."""
+    """A validated sweep spec. ``base_scene`` is plain scene data (docs/interface.md section 1)."""
 
     name: str
     base_scene: dict
@@ -166,17 +167,17 @@ def _is_number(v: Any) -> bool:
 
 def _number(key: str, v: Any, *, positive=False, minimum=None) -> float:
     if not _is_number(v) or not math.isfinite(float(v)):
-        raise SweepSpecError(key, f"must be a finite number (got {v!r})")
+        raise SweepSpecError(key, f"must be a finite number (got {quote(v)})")
     if positive and not float(v) > 0:
-        raise SweepSpecError(key, f"must be > 0 (got {v!r})")
+        raise SweepSpecError(key, f"must be > 0 (got {quote(v)})")
     if minimum is not None and float(v) < minimum:
-        raise SweepSpecError(key, f"must be >= {minimum:g} (got {v!r})")
+        raise SweepSpecError(key, f"must be >= {minimum:g} (got {quote(v)})")
     return float(v)
 
 
 def _whole(key: str, v: Any, minimum: int) -> int:
     if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < minimum:
-        raise SweepSpecError(key, f"must be a whole number >= {minimum} (got {v!r})")
+        raise SweepSpecError(key, f"must be a whole number >= {minimum} (got {quote(v)})")
     return int(v)
 
 
@@ -184,12 +185,12 @@ def parse_path(path: Any) -> tuple:
     """``'loads[1].amplitude'`` -> ``('loads', 1, 'amplitude')`` (SweepSpecError if malformed)."""
     key = f"parameters.{path}"
     if not isinstance(path, str) or not path:
-        raise SweepSpecError(f"parameters.{path!r}", "a parameter path must be a non-empty string")
+        raise SweepSpecError(f"parameters.{quote(path)}", "a parameter path must be a non-empty string")
     segments: list = []
     for part in path.split("."):
         m = _SEGMENT.match(part)
         if not m:
-            raise SweepSpecError(key, f"malformed path segment {part!r} (write e.g. "
+            raise SweepSpecError(key, f"malformed path segment {quote(part)} (write e.g. "
                                       f"hinges.stiffness, loads[1].amplitude, initial.phi[0])")
         segments.append(m.group(1))
         segments.extend(int(i) for i in re.findall(r"\[([0-9]+)\]", m.group(2)))
@@ -210,14 +211,14 @@ def apply_path(scene: dict, segments: tuple, value: Any, path: str = "") -> None
         nxt = None if last else segments[i + 1]
         if isinstance(seg, str):
             if not isinstance(node, dict):
-                raise SweepSpecError(key, f"{seg!r} addresses into a {type(node).__name__}, "
+                raise SweepSpecError(key, f"{quote(seg)} addresses into a {type(node).__name__}, "
                                           f"not a mapping")
             if last:
                 node[seg] = value
                 return
             if node.get(seg) is None:
                 if isinstance(nxt, int):
-                    raise SweepSpecError(key, f"{seg!r} is not set in the base scene, so it "
+                    raise SweepSpecError(key, f"{quote(seg)} is not set in the base scene, so it "
                                               f"cannot be indexed")
                 node[seg] = {}
             if isinstance(nxt, int) and _is_number(node[seg]):
@@ -254,7 +255,7 @@ def _parameter(path: Any, body: Any) -> Parameter:
             raise SweepSpecError(sub, "must be a non-empty list")
         for v in arg:
             if _is_number(v) and not math.isfinite(float(v)):
-                raise SweepSpecError(sub, f"must be finite (got {v!r})")
+                raise SweepSpecError(sub, f"must be finite (got {quote(v)})")
         if len({repr(v) for v in arg}) != len(arg):
             raise SweepSpecError(sub, "has a repeated value")
         return Parameter(str(path), segments, "grid", values=tuple(arg))
@@ -313,7 +314,7 @@ def _base_scene(value: Any, base_dir: Path) -> dict:
         data = copy.deepcopy(dict(value))
         data.setdefault("name", "scene")
     else:
-        raise SweepSpecError("scene", f"must be a file path or a mapping (got {value!r})")
+        raise SweepSpecError("scene", f"must be a file path or a mapping (got {quote(value)})")
     try:
         Scene.from_dict(data)
     except SceneError as err:
@@ -332,7 +333,7 @@ def parse_spec(data: Any, base_dir: str | Path = ".", default_name: str = "sweep
             raise SweepSpecError(str(k), f"unknown key (allowed: {', '.join(sorted(TOP_KEYS))})")
     name = data.get("name", default_name)
     if not isinstance(name, str) or not name:
-        raise SweepSpecError("name", f"must be a non-empty string (got {name!r})")
+        raise SweepSpecError("name", f"must be a non-empty string (got {quote(name)})")
     base = _base_scene(data.get("scene"), Path(base_dir))
 
     models = data.get("models", "reduced")
@@ -341,13 +342,13 @@ def parse_spec(data: Any, base_dir: str | Path = ".", default_name: str = "sweep
         raise SweepSpecError("models", "must be a model name or a non-empty list of them")
     for m in models:
         if m not in MODELS:
-            raise SweepSpecError("models", f"unknown model {m!r} (choose from {', '.join(MODELS)})")
+            raise SweepSpecError("models", f"unknown model {quote(m)} (choose from {', '.join(MODELS)})")
     if len(set(models)) != len(models):
         raise SweepSpecError("models", "a model is listed twice")
 
     integrator = data.get("integrator", "dop853-jit")
     if integrator not in INTEGRATORS:
-        raise SweepSpecError("integrator", f"unknown integrator {integrator!r} "
+        raise SweepSpecError("integrator", f"unknown integrator {quote(integrator)} "
                                            f"(choose from {', '.join(INTEGRATORS)})")
     tol = {k: (None if data.get(k) is None else _number(k, data[k], positive=True))
            for k in ("rtol", "atol", "step")}
@@ -429,7 +430,7 @@ def expand(spec: SweepSpec, validate: bool = True) -> list[Run]:
 
 def check_run(spec: SweepSpec, run: Run) -> None:
     """Build the run's scene and model; SweepSpecError naming the parameter if either fails."""
-    where = ", ".join(f"{k}={v!r}" for k, v in run.params.items()) or "the base scene"
+    where = ", ".join(f"{k}={quote(v)}" for k, v in run.params.items()) or "the base scene"
     try:
         make_model(run.model, Scene.from_dict(run.scene))
     except SceneError as err:

@@ -96,7 +96,7 @@ def run_one(task: dict) -> dict:
     """Run one scene and summarise it.
 
     ``task``: ``index``, ``model``, ``params`` ({path: value}, copied into the row), ``scene``
-    (SPEC section 2 data), ``integrator``, ``rtol``, ``atol``, ``step``, ``t_end`` [s],
+    (scene data (docs/interface.md section 1)), ``integrator``, ``rtol``, ``atol``, ``step``, ``t_end`` [s],
     ``rate_hz`` [Hz] (samples the outputs are taken over). Returns the row: ``run``, the
     params, then :data:`OUTPUTS`.
     """

@@ -1,4 +1,4 @@
-"""The seed paper's Table 1 and its recomputation with our full and reduced models.
+"""Table 1 of the paper and its recomputation with our full and reduced models.
 
 The published values (section 3 of the paper: n = 8, tip pulse, integration to 2 s) are
 transcribed below as printed; "П" (full) is ``full`` and "Р" (reduced) is ``reduced``.
@@ -99,21 +99,26 @@ def compute(scene, rtol: float = 1e-11) -> list[Row]:
     return rows
 
 
-def format_table(rows: list[Row]) -> str:
-    """Plain-text table: for each variable, rod and model, paper / ours / difference."""
-    head = f"{'var':9s}{'rod':>4s} {'model':8s}" + "".join(
-        f"{'t = %.1f s' % t:>34s}" for t in TIMES)
-    sub = " " * 22 + "".join(f"{'paper':>12s}{'ours':>12s}{'diff':>10s}" for _ in TIMES)
-    lines = [head, sub]
-    by_key: dict[tuple, list[Row]] = {}
+def format_table(rows: list[Row], times_per_block: int = 2) -> str:
+    """Plain-text table: for each variable, rod and model, paper / ours / difference; the
+    times are split into blocks of ``times_per_block`` (two keep lines within 100 columns)."""
+    by_key: dict[tuple, dict[float, Row]] = {}
     for r in rows:
-        by_key.setdefault((r.var, r.rod, r.model), []).append(r)
-    for (var, rod, model_name), cells in by_key.items():
-        line = f"{var:9s}{rod:>4d} {model_name:8s}"
-        for c in cells:
-            line += f" {c.paper:>11.5g} {c.ours:>11.5g} {c.diff:>9.2g}"
-        lines.append(line)
-    return "\n".join(lines)
+        by_key.setdefault((r.var, r.rod, r.model), {})[r.t] = r
+    blocks = []
+    for i in range(0, len(TIMES), times_per_block):
+        times = TIMES[i:i + times_per_block]
+        lines = [f"{'var':9s}{'rod':>4s} {'model':8s}"
+                 + "".join(f"{'t = %.1f s' % t:>34s}" for t in times),
+                 " " * 22 + "".join(f"{'paper':>12s}{'ours':>12s}{'diff':>10s}" for _ in times)]
+        for (var, rod, model_name), cells in by_key.items():
+            line = f"{var:9s}{rod:>4d} {model_name:8s}"
+            for t in times:
+                c = cells[t]
+                line += f" {c.paper:>11.5g} {c.ours:>11.5g} {c.diff:>9.2g}"
+            lines.append(line)
+        blocks.append("\n".join(lines))
+    return "\n\n".join(blocks)
 
 
 def summary(rows: list[Row]) -> dict[str, float]:

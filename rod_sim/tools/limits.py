@@ -1,0 +1,79 @@
+"""Resource limits of the command line: what ``rod-sim`` refuses before it allocates.
+
+Every figure here is stated in docs/interface.md ("Limits") and the README ("Reliability").
+A refusal is a :class:`~rod_sim.tools.common.UsageError` naming the option or scene key.
+"""
+from __future__ import annotations
+
+import math
+import os
+
+from .common import UsageError
+
+MAX_T_END = 1e6                     # [s] of simulated time (--t-end)
+MAX_RATE = 1e9                      # [Hz]: log times are whole nanoseconds
+RTOL_RANGE = (1e-14, 1e-2)          # --rtol, the same range as the node's parameter
+MAX_OUTPUT_BYTES = 4 * 1024 ** 3    # estimated (uncompressed) size of a simulate log
+# Uncompressed bytes per logged sample of an n-rod chain: every topic of one sample, measured
+# on logs of n = 8 (6325 B) and n = 64 (45733 B); zstd makes the file 3x (moving chain) to 40x
+# (chain at rest) smaller.
+LOG_BYTES_PER_SAMPLE = (700, 704)   # (fixed, per rod)
+# Peak memory of a model's construction and first steps, in n x n float64 matrices (measured
+# with tracemalloc at n = 1000: 13 for the full and rigid models, 33 for the reduced one; a
+# reduced n = 1500 run peaks at 0.7 GB RSS).
+MODEL_MATRICES = 36
+MAX_FIXED_STEPS = 1e8               # --t-end / --step of a fixed-step integrator
+
+
+def gib(nbytes: float) -> str:
+    """``nbytes`` in GiB, 3 significant digits."""
+    return f"{nbytes / 1024 ** 3:.3g} GiB"
+
+
+def check_rtol(rtol: float | None) -> None:
+    """--rtol within RTOL_RANGE (None: the default)."""
+    lo, hi = RTOL_RANGE
+    if rtol is not None and not lo <= rtol <= hi:
+        raise UsageError(f"--rtol: must be between {lo:g} and {hi:g} (got {rtol:g})")
+
+
+def check_sampling(t_end: float, rate_hz: float, n: int) -> int:
+    """Refuse a --t-end / --rate whose log would exceed MAX_OUTPUT_BYTES; returns the number
+    of samples the log will hold."""
+    if t_end > MAX_T_END:
+        raise UsageError(f"--t-end: at most {MAX_T_END:g} s (got {t_end:g})")
+    if rate_hz > MAX_RATE:
+        raise UsageError(f"--rate: at most {MAX_RATE:g} Hz, since log times are whole "
+                         f"nanoseconds (got {rate_hz:g})")
+    samples = math.floor(t_end * rate_hz + 1e-9) + 2          # t = 0, the grid and t_end
+    fixed, per_rod = LOG_BYTES_PER_SAMPLE
+    size = samples * (fixed + per_rod * n)
+    if size > MAX_OUTPUT_BYTES:
+        raise UsageError(f"--rate x --t-end: the log would hold {samples:.3g} samples of "
+                         f"{n} rods, about {gib(size)}; the limit is {gib(MAX_OUTPUT_BYTES)} "
+                         "(lower --rate or --t-end)")
+    return samples
+
+
+def available_memory() -> int | None:
+    """Bytes of memory available to a new allocation (Linux MemAvailable; None if unknown)."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def check_model_memory(n: int, available: int | None = None) -> None:
+    """Refuse a chain whose model would not fit in memory, before allocating it."""
+    need = MODEL_MATRICES * 8 * n * n
+    have = available_memory() if available is None else available
+    if have is not None and need > have:
+        raise UsageError(f"rods.count: a chain of {n} rods needs about {gib(need)} of memory "
+                         f"({MODEL_MATRICES} n x n matrices of float64); {gib(have)} available")

@@ -1,0 +1,215 @@
+"""Bad or extreme input to ``rod-sim simulate`` and the scene loader: one line naming the option
+or key, exit status 2 (1 when a started run stops), no traceback, no file left behind, and
+the resource limits of rod_sim/tools/limits.py."""
+import errno
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rod_sim.core.quote import QUOTE_LIMIT, quote
+from rod_sim.core.scene import Scene, SceneError
+from rod_sim.io import mcap_log
+from rod_sim.io.mcap_log import read_rod_states
+from rod_sim.io.scene_yaml import MAX_SCENE_BYTES, load_scene
+from rod_sim.tools import cli, limits
+from rod_sim.tools.common import COMPILE_NOTICE, UsageError, compile_notice
+
+ROOT = Path(__file__).resolve().parents[1]
+PAPER = ROOT / "config" / "paper_example.yaml"
+SMALL = {"rods": {"count": 3, "length": 1.0, "mass_per_length": 1.0, "bending_stiffness": 100.0},
+         "nodes": {"mass": 1.0}, "hinges": {"stiffness": 10.0, "damping": 0.1},
+         "loads": [{"node": 3, "axis": "y", "shape": "constant", "amplitude": 1.0}]}
+
+
+def scene_yaml(tmp_path, section=None, key=None, value=None, text=None) -> Path:
+    """SMALL with one entry replaced (written as YAML text ``value``)."""
+    lines = [
+        f"rods: {{count: {value if key == 'count' else 3}, "
+        f"length: {value if key == 'length' else 1.0}, mass_per_length: 1.0, "
+        f"bending_stiffness: {value if key == 'bending_stiffness' else 100.0}}}",
+        "nodes: {mass: 1.0}",
+        f"hinges: {{stiffness: {value if key == 'stiffness' else 10.0}, damping: 0.1}}",
+        f"initial: {{phi: {value if key == 'phi' else 0.0}}}",
+        "loads:",
+        f"  - {{node: 3, axis: y, shape: constant, "
+        f"amplitude: {value if key == 'amplitude' else 1.0}}}"]
+    path = tmp_path / "s.yaml"
+    path.write_text(text if text is not None else "\n".join(lines) + "\n")
+    return path
+
+
+def simulate(tmp_path, scene, *options, out="run.mcap"):
+    return cli.main(["simulate", str(scene), "--out", str(tmp_path / out), *options])
+
+
+def one_line_error(capsys) -> str:
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if "compiling kernels" not in ln]
+    assert len(lines) == 1, err
+    assert "Traceback" not in err
+    return lines[0]
+
+
+@pytest.mark.parametrize("key, value, named", [
+    ("amplitude", "1.0e300", "loads[0].amplitude"), ("length", "1.0e308", "rods.length"),
+    ("length", "1.0e-308", "rods.length"), ("bending_stiffness", "1.0e308",
+                                             "rods.bending_stiffness"),
+    ("phi", "1.0e308", "initial.phi"), ("stiffness", "1.0e308", "hinges.stiffness"),
+    ("count", "1" + "0" * 400, "rods.count")])
+def test_extreme_scene_values_are_refused_with_the_key(tmp_path, capsys, key, value, named):
+    scene = scene_yaml(tmp_path, key=key, value=value)
+    assert simulate(tmp_path, scene, "--t-end", "0.1") == 2
+    line = one_line_error(capsys)
+    assert named in line and len(line) < 200, line
+    assert not (tmp_path / "run.mcap").exists()
+
+
+def test_a_chain_too_large_for_memory_is_refused_with_the_figure(tmp_path, capsys):
+    scene = scene_yaml(tmp_path, key="count", value="100000")
+    assert simulate(tmp_path, scene, "--t-end", "0.1") == 2
+    line = one_line_error(capsys)
+    assert "rods.count" in line and "GiB" in line
+    assert not (tmp_path / "run.mcap").exists()
+    limits.check_model_memory(1000, available=10 ** 9)            # 0.29 GB: fits
+    with pytest.raises(UsageError, match="0.268 GiB"):
+        limits.check_model_memory(1000, available=10 ** 8)
+
+
+def test_quote_is_short_and_bounded_for_a_yaml_bomb():
+    bomb = ["lol"] * 9
+    for _ in range(12):                  # 9**13 leaves: repr() would never finish
+        bomb = [bomb] * 9
+    started = time.perf_counter()
+    assert len(quote(bomb)) <= QUOTE_LIMIT
+    with pytest.raises(SceneError) as info:
+        Scene.from_dict({**SMALL, "rods": {**SMALL["rods"], "length": bomb}})
+    assert time.perf_counter() - started < 5.0
+    assert "rods.length" in str(info.value) and len(str(info.value)) < 200
+    assert "..." in quote("x" * 10 ** 6) and len(quote("x" * 10 ** 6)) <= QUOTE_LIMIT and len(quote(10 ** 5000)) <= QUOTE_LIMIT
+
+
+def test_scene_files_must_be_small_regular_files(tmp_path):
+    big = tmp_path / "big.yaml"
+    big.write_text("# " + "x" * MAX_SCENE_BYTES + "\n")
+    with pytest.raises(SceneError, match=f"at most {MAX_SCENE_BYTES} bytes"):
+        load_scene(big)
+    fifo = tmp_path / "fifo.yaml"
+    os.mkfifo(fifo)                       # opening it would block until a writer comes
+    with pytest.raises(SceneError, match="not a regular file"):
+        load_scene(fifo)
+    with pytest.raises(SceneError, match="not a regular file"):
+        load_scene("/dev/zero")
+
+
+@pytest.mark.parametrize("options, named", [
+    (["--t-end", "1", "--rtol", "1e-15"], "--rtol"),
+    (["--t-end", "1", "--rtol", "0.1"], "--rtol"),
+    (["--t-end", "1", "--rate", "2e9"], "--rate"),
+    (["--t-end", "1e308"], "--t-end"),
+    (["--t-end", "1", "--rate", "1e9"], "--rate x --t-end"),
+    (["--t-end", "1", "--integrator", "rk4", "--step", "1e-300"], "step"),
+    (["--t-end", "100", "--integrator", "rk4", "--step", "1e-7"], "--step"),
+])
+def test_simulate_option_limits(tmp_path, capsys, options, named):
+    assert simulate(tmp_path, PAPER, *options) == 2
+    line = one_line_error(capsys)
+    assert named in line, line
+    assert not (tmp_path / "run.mcap").exists()
+
+
+def test_rates_below_2_hz_are_honoured_exactly(tmp_path, capsys):
+    assert simulate(tmp_path, PAPER, "--t-end", "3.2", "--rate", "0.5") == 0
+    t, _, _ = read_rod_states(tmp_path / "run.mcap")
+    assert np.array_equal(t, [0.0, 2.0, 3.2])
+
+
+def test_a_run_failing_at_its_first_step_logs_t0_and_says_so(tmp_path, capsys):
+    status = simulate(tmp_path, PAPER, "--model", "full", "--integrator", "euler", "--step",
+                      "0.05", "--t-end", "3", "--rate", "1")
+    assert status == 1
+    err = capsys.readouterr().err
+    assert "the log holds 1 samples, t = 0..0 s" in err and "Traceback" not in err
+    t, _, _ = read_rod_states(tmp_path / "run.mcap")
+    assert list(t) == [0.0]
+
+
+def test_out_in_a_directory_without_permission(tmp_path, capsys):
+    assert simulate(tmp_path, PAPER, "--t-end", "0.1", out="/sys/rod_sim_test.mcap") == 2
+    line = one_line_error(capsys)
+    assert "--out" in line and "Permission denied" in line
+
+
+def full_disk(monkeypatch, budget: int) -> None:
+    """Writes of the log fail with ENOSPC once ``budget`` bytes are written."""
+    written = [0]
+    real = mcap_log._FlushingFile.write
+
+    def write(self, data):
+        if written[0] + len(data) > budget:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        written[0] += len(data)
+        return real(self, data)
+
+    monkeypatch.setattr(mcap_log._FlushingFile, "write", write)
+
+
+def test_full_disk_before_the_first_chunk_removes_the_log(tmp_path, capsys, monkeypatch):
+    full_disk(monkeypatch, 8 * 1024)
+    assert simulate(tmp_path, PAPER, "--t-end", "4", "--rate", "1000") == 1
+    err = capsys.readouterr().err
+    assert "No space left on device" in err and "removed" in err and "Traceback" not in err
+    assert not (tmp_path / "run.mcap").exists()
+
+
+def test_full_disk_later_keeps_the_complete_chunks_and_says_so(tmp_path, capsys, monkeypatch):
+    full_disk(monkeypatch, 3 * 1024 * 1024)
+    assert simulate(tmp_path, PAPER, "--t-end", "4", "--rate", "1000") == 1
+    err = capsys.readouterr().err
+    assert "No space left on device" in err and "keeps the" in err
+    t, _, _ = read_rod_states(tmp_path / "run.mcap")
+    assert t.size > 100 and t[0] == 0.0 and f"keeps the {t.size} samples" in err
+
+
+def test_compile_notice_only_when_slow(capsys):
+    with compile_notice(after=0.05):
+        time.sleep(0.5)
+    with compile_notice(after=5.0):
+        pass
+    time.sleep(0.1)
+    assert capsys.readouterr().err.count(COMPILE_NOTICE) == 1
+
+
+@pytest.mark.slow
+def test_first_run_with_a_cold_cache_says_it_compiles(tmp_path):
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+
+    def run(name):
+        return subprocess.run([sys.executable, "-m", "rod_sim.tools.cli", "simulate", str(PAPER),
+                               "--t-end", "0.1", "--out", str(tmp_path / name)],
+                              env=env, capture_output=True, text=True, timeout=600)
+
+    cold, warm = run("a.mcap"), run("b.mcap")
+    assert cold.returncode == 0 and warm.returncode == 0
+    assert COMPILE_NOTICE in cold.stderr
+    assert COMPILE_NOTICE not in warm.stderr
+
+
+def test_a_failure_during_the_jit_warm_up_is_no_traceback(tmp_path, capsys, monkeypatch):
+    """The warm-up integration (1 ms, before the clock starts) may fail where the run itself
+    fails; the run then reports it (here the run succeeds: only the warm-up is made to fail)."""
+    from rod_sim.core.integrators import IntegrationError
+    from rod_sim.core.simulator import Simulator
+
+    def fail(self, dt):
+        raise IntegrationError("step size fell below the minimum", 0.0)
+
+    monkeypatch.setattr(Simulator, "advance", fail)
+    assert simulate(tmp_path, PAPER, "--t-end", "0.2") == 0
+    assert "Traceback" not in capsys.readouterr().err
+    t, _, _ = read_rod_states(tmp_path / "run.mcap")
+    assert t.size == 21
