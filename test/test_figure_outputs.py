@@ -130,4 +130,6 @@ def test_a_yaml_bomb_in_the_log_metadata_is_quoted_briefly(tmp_path, capsys, com
     assert cli.main([command, *map(str, args)]) == 2
     line = error_line(capsys)
     assert time.perf_counter() - started < 10.0
-    assert "rods.length" in line and len(line) < 400, line
+    # refused either by the metadata guard (expansion counted before anything walks it) or
+    # by the scene validation naming the key; never a repr() of the whole value
+    assert ("YAML nodes" in line or "rods.length" in line) and len(line) < 400, line
