@@ -5,6 +5,13 @@ Run it as ``sim_node`` / ``rod-sim node`` / ``python -m rod_sim.ros.node``, e.g.
     python -m rod_sim.ros.node --ros-args --params-file config/sim_node.params.yaml \\
         -p scene_file:=config/paper_example.yaml -p sync_mode:=true
 
+This module holds the node class: its interfaces, timers, pacing, stepping and publishing. The
+rest lives in :mod:`rod_sim.ros.parameters` (declarations, settings and their checks),
+:mod:`rod_sim.ros.commands` (command intake: length check, decoding, validation, rejection
+counts, zero-order hold and timeout), :mod:`rod_sim.ros.recording` (the log and its rolling after
+``~/reset``), :mod:`rod_sim.ros.qos` (QoS profiles) and :mod:`rod_sim.ros.node_main` (the
+process: arguments, signals, exit codes); the names they export are re-exported here.
+
 How time advances
 -----------------
 The node owns a :class:`~rod_sim.core.simulator.Simulator` and advances it only in whole
@@ -70,6 +77,7 @@ from pathlib import Path
 import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
+from rclpy.qos import QoSProfile
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import SetBool, Trigger
 
@@ -257,18 +265,16 @@ class RodSimNode(Node):
 
     def _create_interfaces(self) -> None:
         state_qos = LOCKSTEP_STATE_QOS if self.settings.sync_mode else STATE_QOS
-        self._pubs = {name: self.create_publisher(
-            message_class(topics.TOPIC_TYPES[name]), self._topic_names[name],
+        self._pubs = {name: self._publisher(
+            topics.TOPIC_TYPES[name], self._topic_names[name],
             APPLIED_QOS if name == "applied_forces" else
             STATE_QOS if name == "diagnostics" else state_qos)
             for name in STATE_TOPICS + ("applied_forces", "diagnostics")}
-        self._clock_pub = (self.create_publisher(message_class(topics.TOPIC_TYPES["clock"]),
-                                                 "/clock",
-                                                 clock_qos(self.settings.clock_reliability))
+        self._clock_pub = (self._publisher(topics.TOPIC_TYPES["clock"], "/clock",
+                                           clock_qos(self.settings.clock_reliability))
                            if self.settings.publish_clock else None)
-        self._events_pub = (self.create_publisher(message_class(HINGE_EVENTS_TYPE),
-                                                  self._topic_names[HINGE_EVENTS_TOPIC],
-                                                  EVENTS_QOS)
+        self._events_pub = (self._publisher(HINGE_EVENTS_TYPE,
+                                            self._topic_names[HINGE_EVENTS_TOPIC], EVENTS_QOS)
                             if has_hinge_events(self.scene) else None)
         self._events_sent = 0
         # raw: the length of a command is checked before it is deserialized
@@ -287,6 +293,10 @@ class RodSimNode(Node):
         self._name_timer = self.create_timer(NAME_CHECK_DELAY_S, self._check_name_unique,
                                              clock=self._steady)
         self._configure_pacing()
+
+    def _publisher(self, type_name: str, topic: str, qos: QoSProfile):
+        """A publisher of messages of ``type_name`` (e.g. 'sensor_msgs/msg/JointState')."""
+        return self.create_publisher(message_class(type_name), topic, qos)
 
     def _warn_unknown_parameters(self) -> None:
         """Warn about overrides (-p, params files) that name no parameter of this node."""
@@ -452,7 +462,7 @@ class RodSimNode(Node):
                 f"{self._commands.timeout_ns / NS_PER_S:g} s: command force set to zero")
         return forces
 
-    # the command state, read by tests and diagnostics under its former names
+    # the command state under the names it had before it moved to CommandIntake (tests)
     @property
     def _latest(self) -> Command | None:
         return self._commands.latest
