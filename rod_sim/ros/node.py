@@ -106,7 +106,8 @@ from rod_sim.ros.parameters import (NODE_NAME, PARAMETERS, NodeSettings,  # noqa
                                     validate_change)
 from rod_sim.ros.qos import (APPLIED_QOS, CLOCK_QOS, CLOCK_RELIABILITY,  # noqa: F401
                              COMMAND_QOS, EVENTS_QOS, LOCKSTEP_STATE_QOS, STATE_QOS, clock_qos)
-from rod_sim.ros.recording import MAX_LOG_ROLLS, NodeRecording, create_log, offered_qos  # noqa: F401
+from rod_sim.ros.recording import (MAX_LOG_ROLLS, NodeRecording, create_log,  # noqa: F401
+                                   offered_qos)
 
 COMMAND_TOPIC = "nodal_forces"
 COMMAND_TYPE = "std_msgs/msg/Float64MultiArray"
@@ -575,7 +576,7 @@ class RodSimNode(Node):
         for event in self.sim.events[self._events_sent:]:
             data = event_message(event.to_dict())
             self._recording.record(self._topic_names[HINGE_EVENTS_TOPIC], HINGE_EVENTS_TYPE,
-                         event_time_ns(event.to_dict()), data)
+                                   event_time_ns(event.to_dict()), data)
             if self._events_pub is not None:
                 self._events_pub.publish(to_message(HINGE_EVENTS_TYPE, data))
         self._events_sent = len(self.sim.events)
@@ -627,8 +628,8 @@ class RodSimNode(Node):
         when they change (and the first time)."""
         applied = self.model.forces(t_ns / NS_PER_S, self.sim.held)
         data = topics.force_array(applied)
-        self._recording.record(self._topic_names["applied_forces"], topics.TOPIC_TYPES["applied_forces"],
-                     t_ns, data)
+        self._recording.record(self._topic_names["applied_forces"],
+                               topics.TOPIC_TYPES["applied_forces"], t_ns, data)
         if self._applied_last is None or not np.array_equal(applied, self._applied_last):
             self._applied_last = applied
             self._pubs["applied_forces"].publish(
