@@ -5,6 +5,13 @@ Run it as ``sim_node`` / ``rod-sim node`` / ``python -m rod_sim.ros.node``, e.g.
     python -m rod_sim.ros.node --ros-args --params-file config/sim_node.params.yaml \\
         -p scene_file:=config/paper_example.yaml -p sync_mode:=true
 
+This module holds the node class: its interfaces, timers, pacing, stepping and publishing. The
+rest lives in :mod:`rod_sim.ros.parameters` (declarations, settings and their checks),
+:mod:`rod_sim.ros.commands` (command intake: length check, decoding, validation, rejection
+counts, zero-order hold and timeout), :mod:`rod_sim.ros.recording` (the log and its rolling after
+``~/reset``), :mod:`rod_sim.ros.qos` (QoS profiles) and :mod:`rod_sim.ros.node_main` (the
+process: arguments, signals, exit codes); the names they export are re-exported here.
+
 How time advances
 -----------------
 The node owns a :class:`~rod_sim.core.simulator.Simulator` and advances it only in whole
@@ -62,51 +69,46 @@ Integration failures pause the simulation, are logged and reported with level ER
 """
 from __future__ import annotations
 
-import argparse
-import functools
-import signal
 import sys
-import threading
 import time
 from collections import deque
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
 
 import numpy as np
-import rclpy
-from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
-                                ParameterType, SetParametersResult)
 from rclpy.clock import Clock, ClockType
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.serialization import deserialize_message
-from rclpy.signals import SignalHandlerOptions
-from rclpy.utilities import remove_ros_args
+from rclpy.qos import QoSProfile
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import SetBool, Trigger
 
 from rod_sim import __version__
-from rod_sim.core.integrators import INTEGRATORS, IntegrationError, make_integrator
-from rod_sim.core.models import MODELS, ModelError, make_model
+from rod_sim.core.integrators import IntegrationError, make_integrator
+from rod_sim.core.models import ModelError, make_model
 from rod_sim.core.scene import SceneError
 from rod_sim.core.simulator import Simulator
+from rod_sim.core.validity import ValidityMonitor
 from rod_sim.io import topics
 from rod_sim.io.hinge_events import (HINGE_EVENTS_TOPIC, HINGE_EVENTS_TYPE, event_message,
                                      event_time_ns)
-from rod_sim.io.mcap_log import LogWriteError, LogWriter, offered_qos_yaml
+from rod_sim.io.mcap_log import LogWriter
 from rod_sim.io.scene_yaml import load_scene, scene_to_yaml
-from rod_sim.ros.conversions import (CommandError, command_forces, message_class,
-                                     message_to_dict, to_message)
-from rod_sim.core.validity import ValidityMonitor
 from rod_sim.ros import budget
+from rod_sim.ros.commands import COMMAND_SLACK_BYTES, Command, CommandIntake  # noqa: F401
+from rod_sim.ros.conversions import message_class, message_to_dict, to_message
+from rod_sim.ros.errors import NodeConfigError, one_line
 from rod_sim.ros.monitor import DiagnosticReport, EnergyLedger
+from rod_sim.ros.node_main import (ROS_ARGS_HINT, StopRequest, build_parser,  # noqa: F401
+                                   main, params_files, parse_cli, run_node, spin_until)
 from rod_sim.ros.pacing import (NS_PER_S, RateMeter, RealTimePacer, period_ns,
                                 tick_period_s)
+from rod_sim.ros.parameters import (NODE_NAME, PARAMETERS, NodeSettings,  # noqa: F401
+                                    ParameterSpec, declare_settings, unknown_overrides,
+                                    validate_change)
+from rod_sim.ros.qos import (APPLIED_QOS, CLOCK_QOS, CLOCK_RELIABILITY,  # noqa: F401
+                             COMMAND_QOS, EVENTS_QOS, LOCKSTEP_STATE_QOS, STATE_QOS, clock_qos)
+from rod_sim.ros.recording import (MAX_LOG_ROLLS, NodeRecording, create_log,  # noqa: F401
+                                   offered_qos)
 
-NODE_NAME = "rod_sim"
 COMMAND_TOPIC = "nodal_forces"
 COMMAND_TYPE = "std_msgs/msg/Float64MultiArray"
 STATE_TOPICS = ("joint_states", "rod_states", "bending", "node_poses", "markers")
@@ -123,161 +125,12 @@ WAITING_LOG_PERIOD_S = 3.0
 """[s] wall period of the "waiting for ..." log line at t = 0."""
 NAME_CHECK_DELAY_S = 2.0
 """[s] after start at which the graph is checked for another node of the same name."""
-COMMAND_SLACK_BYTES = 4096
-"""Bytes a serialized command may carry beyond its 2 n doubles (header, layout, labels)."""
 FAST_TICK_BUDGET_NS = 20_000_000
 """[ns] wall time one tick may spend stepping when running as fast as possible."""
-MAX_LOG_ROLLS = 10_000
-"""Names ``<stem>_<k>`` tried after a reset before giving up (existing files are skipped)."""
 SYNC_BATCH = 16
 """Lockstep commands processed per executor callback before yielding to other callbacks."""
 THROTTLE_S = 2.0
 """[s] minimum interval between repeated warnings of one kind."""
-
-STATE_QOS = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
-                       reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
-APPLIED_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
-                         reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-"""``applied_forces`` is published only when it changes: late subscribers get the latest one."""
-CLOCK_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
-                       reliability=ReliabilityPolicy.BEST_EFFORT,
-                       durability=DurabilityPolicy.VOLATILE)
-"""rclcpp's ClockQoS, which rclpy's TimeSource and rosbag2's player also use."""
-CLOCK_RELIABILITY = {"reliable": ReliabilityPolicy.RELIABLE,
-                     "best_effort": ReliabilityPolicy.BEST_EFFORT}
-"""Values of the ``clock_reliability`` parameter. A reliable publisher reaches both reliable
-(default QoS) and best-effort (ClockQoS) subscribers; a best-effort one only the latter."""
-LOCKSTEP_STATE_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
-                                reliability=ReliabilityPolicy.RELIABLE,
-                                durability=DurabilityPolicy.TRANSIENT_LOCAL)
-"""Lockstep state topics: a client that subscribes transient local gets the latest state
-(the t = 0 state before the first command) and can answer it."""
-COMMAND_QOS = STATE_QOS
-EVENTS_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
-                        reliability=ReliabilityPolicy.RELIABLE,
-                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
-"""``hinge_events`` are rare and matter: kept for late subscribers (docs/hinges.md)."""
-
-
-class NodeConfigError(ValueError):
-    """A parameter or the scene it names is unusable; ``str(err)`` is one line."""
-
-
-# ----- parameters -----
-
-@dataclass(frozen=True)
-class ParameterSpec:
-    """One node parameter: default (its type sets the ROS type), description with units,
-    whether it can change at run time, an optional closed range and a constraint text."""
-
-    name: str
-    default: Any
-    description: str
-    read_only: bool = True
-    range: tuple[float, float] | None = None
-    constraints: str = ""
-
-    def descriptor(self) -> ParameterDescriptor:
-        kinds = {bool: ParameterType.PARAMETER_BOOL, float: ParameterType.PARAMETER_DOUBLE,
-                 str: ParameterType.PARAMETER_STRING, int: ParameterType.PARAMETER_INTEGER}
-        d = ParameterDescriptor(name=self.name, type=kinds[type(self.default)],
-                                description=self.description, read_only=self.read_only,
-                                additional_constraints=self.constraints)
-        if self.range is not None and isinstance(self.default, int):
-            d.integer_range = [IntegerRange(
-                from_value=int(self.range[0]), to_value=int(self.range[1]), step=1)]
-        elif self.range is not None:
-            d.floating_point_range = [FloatingPointRange(
-                from_value=float(self.range[0]), to_value=float(self.range[1]), step=0.0)]
-        return d
-
-
-PARAMETERS = (
-    ParameterSpec("scene_file", "", "scene YAML file (SPEC section 2), relative to the working "
-                  "directory; required", constraints="an existing, valid scene file"),
-    ParameterSpec("model", "reduced", "fidelity level of the chain model",
-                  constraints="one of: " + ", ".join(MODELS)),
-    ParameterSpec("rate_hz", 100.0, "control and publish rate [Hz]; every control period "
-                  "1/rate_hz [s] of simulated time holds one command", range=(0.1, 10000.0)),
-    ParameterSpec("real_time_factor", 1.0, "simulated seconds per wall second [1]: 1.0 = "
-                  "wall-clock pace, 0 = as fast as possible; ignored in sync_mode",
-                  read_only=False, range=(0.0, 1000.0)),
-    ParameterSpec("sync_mode", False, "lockstep: advance exactly one control period per "
-                  "received valid nodal_forces command, nothing before the first"),
-    ParameterSpec("record_path", "", "MCAP log to write (SPEC section 5); '' = no recording; "
-                  "an existing file is refused"),
-    ParameterSpec("command_timeout", 0.5, "[s] after the last valid command at which the "
-                  "command force falls back to zero: wall time at a real-time pace, simulated "
-                  "time when as fast as possible or stepped by ~/step; 0 = hold forever",
-                  read_only=False, range=(0.0, 3600.0)),
-    ParameterSpec("integrator", "dop853-jit", "time stepper",
-                  constraints="one of: " + ", ".join(INTEGRATORS)),
-    ParameterSpec("rtol", 1e-8, "relative and absolute tolerance of adaptive integrators [1]",
-                  range=(1e-14, 1e-2)),
-    ParameterSpec("publish_clock", True, "publish simulated time on /clock (also while "
-                  "paused or waiting: the frozen time, every 0.1 s of wall time)"),
-    ParameterSpec("clock_reliability", "reliable", "QoS reliability of /clock (depth 1, "
-                  "volatile): reliable reaches both default-QoS and ClockQoS (best effort) "
-                  "subscribers", constraints="one of: " + ", ".join(CLOCK_RELIABILITY)),
-    ParameterSpec("start_paused", False, "start paused at t = 0 until ~/pause false or the "
-                  "first valid nodal_forces command"),
-    ParameterSpec("step_count", 1, "control periods one ~/step call advances",
-                  read_only=False, range=(1, 10000)),
-    ParameterSpec("max_period_cost", 0.5, "[s] wall time one control period may cost: the "
-                  "integrator's work per period is capped accordingly (steps or derivative "
-                  "evaluations, cost measured at start); a period that needs more pauses the "
-                  "simulation with 'work budget exceeded' (ERROR on diagnostics)",
-                  range=(0.01, 3600.0)),
-    ParameterSpec("frame_id", "world", "frame_id of the published headers", read_only=False),
-    ParameterSpec("markers_rate_hz", 50.0, "rate of the markers topic [Hz of simulated time], "
-                  "for display (RViz, Foxglove): published and recorded with the states of "
-                  "every k-th control period, k = max(1, round(rate_hz / markers_rate_hz)), "
-                  "counted from t = 0; 0 = every control period", range=(0.0, 10000.0)),
-)
-
-
-@dataclass(frozen=True)
-class NodeSettings:
-    """The node's parameters, read once at start (see :data:`PARAMETERS` for units)."""
-
-    scene_file: str
-    model: str
-    rate_hz: float
-    real_time_factor: float
-    sync_mode: bool
-    record_path: str
-    command_timeout: float
-    integrator: str
-    rtol: float
-    publish_clock: bool
-    frame_id: str
-    markers_rate_hz: float
-    clock_reliability: str
-    start_paused: bool
-    step_count: int
-    max_period_cost: float
-
-    def check(self, full_name: str = NODE_NAME, params_files: tuple[str, ...] = ()) -> None:
-        """Raise NodeConfigError for values the descriptors' ranges do not cover. The node's
-        ``full_name`` and the ``params_files`` given explain a missing scene_file."""
-        if not self.scene_file:
-            hint = (f"; {', '.join(params_files)} has no entry for this node: a params file "
-                    f"applies under its full name {full_name}: or under /**:"
-                    if params_files else "")
-            raise NodeConfigError("scene_file: parameter is required (e.g. -p scene_file:="
-                                  "config/paper_example.yaml)" + hint)
-        if self.clock_reliability not in CLOCK_RELIABILITY:
-            raise NodeConfigError(f"clock_reliability: unknown value {self.clock_reliability!r}"
-                                  f" (choose from {', '.join(CLOCK_RELIABILITY)})")
-        if self.model not in MODELS:
-            raise NodeConfigError(f"model: unknown model {self.model!r} "
-                                  f"(choose from {', '.join(MODELS)})")
-        if self.integrator not in INTEGRATORS:
-            raise NodeConfigError(f"integrator: unknown integrator {self.integrator!r} "
-                                  f"(choose from {', '.join(INTEGRATORS)})")
-        if not self.frame_id:
-            raise NodeConfigError("frame_id: must not be empty")
 
 
 def has_hinge_events(scene) -> bool:
@@ -286,30 +139,6 @@ def has_hinge_events(scene) -> bool:
         return values is not None and bool(np.any(default_test(np.asarray(values, float))))
     return (given(scene.latch_angle, lambda v: ~np.isnan(v))
             or given(scene.stop_lower, np.isfinite) or given(scene.stop_upper, np.isfinite))
-
-
-def _one_line(text: Any) -> str:
-    return " ".join(str(text).split())
-
-
-def _parameter_error(spec: ParameterSpec, exc: ParameterException) -> str:
-    """One line for a rejected parameter value (rclpy appends the name; we lead with it)."""
-    text = _one_line(exc)
-    if text.endswith(f": {spec.name}"):
-        text = text[:-len(spec.name) - 2]
-    if isinstance(spec.default, float) and "of type 'INTEGER'" in text:
-        text += " (write a double, e.g. 100.0)"
-    return f"{spec.name}: {text}"
-
-
-@dataclass(frozen=True)
-class Command:
-    """A valid command: forces (n, 2) [N], received at wall ``wall_ns`` (monotonic) and at
-    simulated time ``sim_ns``."""
-
-    forces: np.ndarray
-    wall_ns: int
-    sim_ns: int
 
 
 # ----- the node -----
@@ -321,8 +150,7 @@ class RodSimNode(Node):
 
     def __init__(self, params_files: tuple[str, ...] = (), **node_kwargs):
         super().__init__(NODE_NAME, **node_kwargs)
-        self._log: LogWriter | None = None
-        self._recording_error: str | None = None
+        self._recording = NodeRecording(lambda path: self._open_log(path), self.get_logger())
         self._throttle_until: dict[str, int] = {}
         self._params_files = tuple(params_files)
         self.name_conflict = False
@@ -333,9 +161,7 @@ class RodSimNode(Node):
             self._start_checked()
             self._topic_names = self._resolve_topic_names()
             self._log_path = Path(self.settings.record_path) if self.settings.record_path else None
-            self._log_count = 0
-            if self._log_path is not None:
-                self._log = self._open_log(self._log_path)
+            self._recording.start(self._log_path)
             self._create_interfaces()
         except BaseException:
             self.destroy_node()
@@ -354,16 +180,8 @@ class RodSimNode(Node):
     # ----- construction -----
 
     def _declare_parameters(self) -> NodeSettings:
-        values = {}
-        for spec in PARAMETERS:
-            try:
-                values[spec.name] = self.declare_parameter(
-                    spec.name, spec.default, spec.descriptor()).value
-            except ParameterException as exc:
-                raise NodeConfigError(_parameter_error(spec, exc)) from None
-        settings = NodeSettings(**values)
-        settings.check(self.get_fully_qualified_name(), self._params_files)
-        self.add_on_set_parameters_callback(self._validate_parameters)
+        settings = declare_settings(self, self._params_files)
+        self.add_on_set_parameters_callback(validate_change)
         self.add_post_set_parameters_callback(self._apply_parameters)
         return settings
 
@@ -375,9 +193,9 @@ class RodSimNode(Node):
             integrator = make_integrator(s.integrator, rtol=s.rtol)
             self.period_ns = period_ns(s.rate_hz)
         except SceneError as exc:
-            raise NodeConfigError(f"scene_file {s.scene_file}: {_one_line(exc)}") from None
+            raise NodeConfigError(f"scene_file {s.scene_file}: {one_line(exc)}") from None
         except (ModelError, ValueError) as exc:
-            raise NodeConfigError(_one_line(exc)) from None
+            raise NodeConfigError(one_line(exc)) from None
         self.sim = Simulator(self.model, integrator)
 
     def _start_checked(self) -> None:
@@ -392,7 +210,7 @@ class RodSimNode(Node):
         except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
             raise NodeConfigError(
                 f"scene_file {self.settings.scene_file}: the scene cannot be simulated from its "
-                f"initial state ({type(exc).__name__}: {_one_line(exc)[:200]})") from None
+                f"initial state ({type(exc).__name__}: {one_line(exc)[:200]})") from None
 
     def _warm_up(self) -> None:
         """Load the compiled kernels and message types once, before the clock starts, so that
@@ -416,20 +234,14 @@ class RodSimNode(Node):
 
     def _init_state(self) -> None:
         n = self.scene.n
-        self._zero = np.zeros((n, 2))
         self._paused = self.settings.start_paused
         self._start_hold = self.settings.start_paused
         """Paused by start_paused only: the first valid command resumes."""
         self._step_count = self.settings.step_count
         self._clock_wall_ns = 0
-        self._max_command_bytes = 16 * 2 * n + COMMAND_SLACK_BYTES
         self._error: str | None = None
-        self._latest: Command | None = None
         self._sync_queue: deque[Command] = deque()
-        self._command_active = False
-        self._received = 0
-        self._rejected = 0
-        self._last_rejection = ""
+        self._commands = CommandIntake(n, self.settings.command_timeout)
         self._dropped = 0
         self._applied_last: np.ndarray | None = None
         self._ledger = EnergyLedger(self._energy(self.sim.held))
@@ -441,7 +253,6 @@ class RodSimNode(Node):
         self._tick_timer = None
         self._frame_id = self.settings.frame_id
         self._rtf = self.settings.real_time_factor
-        self._timeout_ns = int(round(self.settings.command_timeout * NS_PER_S))
         rate = self.settings.markers_rate_hz
         self._markers_every = max(1, round(self.settings.rate_hz / rate)) if rate > 0 else 1
 
@@ -455,20 +266,16 @@ class RodSimNode(Node):
 
     def _create_interfaces(self) -> None:
         state_qos = LOCKSTEP_STATE_QOS if self.settings.sync_mode else STATE_QOS
-        self._pubs = {name: self.create_publisher(
-            message_class(topics.TOPIC_TYPES[name]), self._topic_names[name],
+        self._pubs = {name: self._publisher(
+            topics.TOPIC_TYPES[name], self._topic_names[name],
             APPLIED_QOS if name == "applied_forces" else
             STATE_QOS if name == "diagnostics" else state_qos)
             for name in STATE_TOPICS + ("applied_forces", "diagnostics")}
-        clock_qos = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
-                               reliability=CLOCK_RELIABILITY[self.settings.clock_reliability],
-                               durability=DurabilityPolicy.VOLATILE)
-        self._clock_pub = (self.create_publisher(message_class(topics.TOPIC_TYPES["clock"]),
-                                                 "/clock", clock_qos)
+        self._clock_pub = (self._publisher(topics.TOPIC_TYPES["clock"], "/clock",
+                                           clock_qos(self.settings.clock_reliability))
                            if self.settings.publish_clock else None)
-        self._events_pub = (self.create_publisher(message_class(HINGE_EVENTS_TYPE),
-                                                  self._topic_names[HINGE_EVENTS_TOPIC],
-                                                  EVENTS_QOS)
+        self._events_pub = (self._publisher(HINGE_EVENTS_TYPE,
+                                            self._topic_names[HINGE_EVENTS_TOPIC], EVENTS_QOS)
                             if has_hinge_events(self.scene) else None)
         self._events_sent = 0
         # raw: the length of a command is checked before it is deserialized
@@ -488,10 +295,13 @@ class RodSimNode(Node):
                                              clock=self._steady)
         self._configure_pacing()
 
+    def _publisher(self, type_name: str, topic: str, qos: QoSProfile):
+        """A publisher of messages of ``type_name`` (e.g. 'sensor_msgs/msg/JointState')."""
+        return self.create_publisher(message_class(type_name), topic, qos)
+
     def _warn_unknown_parameters(self) -> None:
         """Warn about overrides (-p, params files) that name no parameter of this node."""
-        known = {spec.name for spec in PARAMETERS} | {"use_sim_time"}
-        unknown = sorted(set(getattr(self, "_parameter_overrides", {})) - known)
+        unknown = unknown_overrides(self)
         self.unknown_parameters = unknown
         if unknown:
             self.get_logger().warning(
@@ -519,7 +329,7 @@ class RodSimNode(Node):
             self.get_logger().info(
                 f"paused at t = {self.sim.t:g} s (start_paused): waiting for ~/pause false or "
                 f"the first {self._topic_names[COMMAND_TOPIC]} command")
-        elif self.settings.sync_mode and self._latest is None and self._running():
+        elif self.settings.sync_mode and self._commands.latest is None and self._running():
             self.get_logger().info(
                 f"lockstep: waiting for the first nodal_forces command on "
                 f"{self._topic_names[COMMAND_TOPIC]} (the t = {self.sim.t:g} s state is "
@@ -547,12 +357,6 @@ class RodSimNode(Node):
 
     # ----- parameters at run time -----
 
-    def _validate_parameters(self, params) -> SetParametersResult:
-        for p in params:
-            if p.name == "frame_id" and not p.value:
-                return SetParametersResult(successful=False, reason="frame_id: must not be empty")
-        return SetParametersResult(successful=True)
-
     def _apply_parameters(self, params) -> None:
         for p in params:
             if p.name == "real_time_factor":
@@ -560,7 +364,7 @@ class RodSimNode(Node):
                 self._configure_pacing()
                 self._meter.restart(time.monotonic_ns())
             elif p.name == "command_timeout":
-                self._timeout_ns = int(round(float(p.value) * NS_PER_S))
+                self._commands.set_timeout(float(p.value))
             elif p.name == "frame_id":
                 self._frame_id = str(p.value)
             elif p.name == "step_count":
@@ -584,12 +388,12 @@ class RodSimNode(Node):
 
     @property
     def commands_rejected(self) -> int:
-        return self._rejected
+        return self._commands.rejected
 
     @property
     def log_path(self) -> Path | None:
         """The log being written (None when not recording)."""
-        return self._log.path if self._log is not None else None
+        return self._recording.path
 
     def matched_subscribers(self, topic: str) -> int:
         """Subscriptions matched to our publisher of ``topic`` (a name of STATE_TOPICS,
@@ -608,7 +412,7 @@ class RodSimNode(Node):
             return "paused at start (start_paused): waiting for ~/pause false or a command"
         if self._paused:
             return "paused"
-        if self.settings.sync_mode and self._latest is None:
+        if self.settings.sync_mode and self._commands.latest is None:
             return "waiting for the first command"
         return "running"
 
@@ -617,40 +421,27 @@ class RodSimNode(Node):
     def _on_command_bytes(self, data: bytes) -> None:
         """A serialized command: refuse it by its length before any decoding (an 80 MB
         message must not stall the node), else decode and handle it."""
-        if len(data) > self._max_command_bytes:
-            self._received += 1
-            self._reject(f"{len(data)} bytes, more than the {self._max_command_bytes} a command "
-                         f"of {2 * self.scene.n} values may take (not recorded)")
-            return
-        try:
-            msg = deserialize_message(data, Float64MultiArray)
-        except Exception as exc:  # noqa: BLE001 -- any undecodable payload is one rejection
-            self._received += 1
-            self._reject(f"cannot be decoded ({type(exc).__name__}; not recorded)")
+        msg = self._commands.decode(data)
+        if msg is None:
+            self._warn_rejected()
             return
         self._on_command(msg)
 
-    def _reject(self, reason: str) -> None:
-        self._rejected += 1
-        self._last_rejection = reason
+    def _warn_rejected(self) -> None:
         self._log_throttled(
             "rejected", "warning",
-            f"rejected a nodal_forces command: {reason} ({self._rejected} rejected so far); "
-            "keeping the last valid command")
+            f"rejected a nodal_forces command: {self._commands.last_rejection} "
+            f"({self._commands.rejected} rejected so far); keeping the last valid command")
 
     def _on_command(self, msg: Float64MultiArray) -> None:
         """Validate and store a command (never integrates)."""
-        self._received += 1
-        if self._log is not None:
-            self._record(self._topic_names[COMMAND_TOPIC], COMMAND_TYPE, self.sim.t_ns,
-                         message_to_dict(msg))
-        try:
-            forces = command_forces(msg, self.scene.n)
-        except CommandError as exc:
-            self._reject(str(exc))
+        if self._recording.writer is not None:
+            self._recording.record(self._topic_names[COMMAND_TOPIC], COMMAND_TYPE, self.sim.t_ns,
+                                   message_to_dict(msg))
+        command = self._commands.accept(msg, self.sim.t_ns)
+        if command is None:
+            self._warn_rejected()
             return
-        command = Command(forces, time.monotonic_ns(), self.sim.t_ns)
-        self._latest = command
         if self._start_hold:
             self._start_hold = self._paused = False
             if self._pacer is not None:
@@ -663,18 +454,27 @@ class RodSimNode(Node):
     def _held_command(self, wall_age: bool) -> np.ndarray:
         """The command force to hold over the next period: the latest valid command, or zero
         once it is older than ``command_timeout`` (wall age if ``wall_age``, else simulated)."""
-        cmd = self._latest
-        active = cmd is not None
-        if active and self._timeout_ns > 0:
-            age = (time.monotonic_ns() - cmd.wall_ns) if wall_age else (self.sim.t_ns - cmd.sim_ns)
-            active = age <= self._timeout_ns
-        if self._command_active and not active:
+        was_active = self._commands.active
+        forces = self._commands.held(self.sim.t_ns, wall_age)
+        if was_active and not self._commands.active:
             self._log_throttled(
                 "timeout", "info",
-                f"no valid {COMMAND_TOPIC} command for {self._timeout_ns / NS_PER_S:g} s: "
-                "command force set to zero")
-        self._command_active = active
-        return cmd.forces if active else self._zero
+                f"no valid {COMMAND_TOPIC} command for "
+                f"{self._commands.timeout_ns / NS_PER_S:g} s: command force set to zero")
+        return forces
+
+    # the command state under the names it had before it moved to CommandIntake (tests)
+    @property
+    def _latest(self) -> Command | None:
+        return self._commands.latest
+
+    @property
+    def _last_rejection(self) -> str:
+        return self._commands.last_rejection
+
+    @property
+    def _command_active(self) -> bool:
+        return self._commands.active
 
     def _log_throttled(self, key: str, level: str, text: str) -> None:
         """Log ``text`` at ``level`` ('info', 'warning' or 'error') at most once per
@@ -732,7 +532,7 @@ class RodSimNode(Node):
         for _ in range(SYNC_BATCH):
             if not self._sync_queue or not self._running() or time.monotonic_ns() > deadline:
                 break
-            self._command_active = True
+            self._commands.active = True
             self._step_period(self._sync_queue.popleft().forces)
         if self._sync_queue and self._running():
             self._sync_trigger.trigger()
@@ -756,7 +556,7 @@ class RodSimNode(Node):
                     f"work budget exceeded: the period needs more than {self._budget.limit} "
                     f"{self._budget.unit} (~{self._budget.seconds:g} s of wall time, "
                     f"max_period_cost; took {(time.perf_counter_ns() - start) / 1e9:.3g} s); "
-                    + (exc.reason if isinstance(exc, IntegrationError) else _one_line(exc)),
+                    + (exc.reason if isinstance(exc, IntegrationError) else one_line(exc)),
                     exc.t if isinstance(exc, IntegrationError) else sim.t)
             self._fail(exc)
             return False
@@ -775,8 +575,8 @@ class RodSimNode(Node):
         at their simulated times: recorded and published."""
         for event in self.sim.events[self._events_sent:]:
             data = event_message(event.to_dict())
-            self._record(self._topic_names[HINGE_EVENTS_TOPIC], HINGE_EVENTS_TYPE,
-                         event_time_ns(event.to_dict()), data)
+            self._recording.record(self._topic_names[HINGE_EVENTS_TOPIC], HINGE_EVENTS_TYPE,
+                                   event_time_ns(event.to_dict()), data)
             if self._events_pub is not None:
                 self._events_pub.publish(to_message(HINGE_EVENTS_TYPE, data))
         self._events_sent = len(self.sim.events)
@@ -794,7 +594,7 @@ class RodSimNode(Node):
         if isinstance(exc, IntegrationError):
             reason, t = exc.reason, exc.t
         else:  # an arithmetic failure inside the stepper, e.g. a division by zero
-            reason, t = f"{type(exc).__name__}: {_one_line(exc)}", self.sim.t
+            reason, t = f"{type(exc).__name__}: {one_line(exc)}", self.sim.t
         self._paused = True
         self._error = (f"{reason} at t = {t:.6g} s "
                        f"({self.model.name} model, {self.sim.integrator.describe()})")
@@ -807,7 +607,7 @@ class RodSimNode(Node):
     # ----- publishing -----
 
     def _wants(self, name: str) -> bool:
-        return self._log is not None or self._listened(name)
+        return self._recording.writer is not None or self._listened(name)
 
     def _listened(self, name: str) -> bool:
         """Publish ``name``: someone listens, or lockstep (its transient-local state topics
@@ -819,7 +619,7 @@ class RodSimNode(Node):
         """Record ``data`` on the resolved topic ``name`` at ``t_ns`` and publish it if anyone
         listens (or ``force``)."""
         type_name = topics.TOPIC_TYPES[name]
-        self._record(self._topic_names[name], type_name, t_ns, data)
+        self._recording.record(self._topic_names[name], type_name, t_ns, data)
         if force or self._listened(name):
             self._pubs[name].publish(to_message(type_name, data))
 
@@ -828,8 +628,8 @@ class RodSimNode(Node):
         when they change (and the first time)."""
         applied = self.model.forces(t_ns / NS_PER_S, self.sim.held)
         data = topics.force_array(applied)
-        self._record(self._topic_names["applied_forces"], topics.TOPIC_TYPES["applied_forces"],
-                     t_ns, data)
+        self._recording.record(self._topic_names["applied_forces"],
+                               topics.TOPIC_TYPES["applied_forces"], t_ns, data)
         if self._applied_last is None or not np.array_equal(applied, self._applied_last):
             self._applied_last = applied
             self._pubs["applied_forces"].publish(
@@ -873,11 +673,11 @@ class RodSimNode(Node):
             step_cost_mean=mean_ms, step_cost_max=max_ms, step_budget=budget,
             steps=self._meter.steps, dropped_periods=self._dropped,
             energy=self._ledger.energy, energy_residual=self._ledger.residual,
-            commands_received=self._received, commands_rejected=self._rejected,
-            last_rejection=self._last_rejection, command_active=self._command_active,
+            commands_received=self._commands.received, commands_rejected=self._commands.rejected,
+            last_rejection=self._commands.last_rejection, command_active=self._commands.active,
             max_abs_alpha=self._max_alpha, max_abs_beta=self._max_beta,
             model=self.model.name, integrator=self.sim.integrator.describe(), error=self._error,
-            recording_error=self._recording_error,
+            recording_error=self._recording.error,
             validity=[f.message for f in self._validity.findings() if f.kind != "bending"],
             extra={"scene": self.scene.name, "rate_hz": f"{self.settings.rate_hz:g}",
                    "recording": str(self.log_path) if self.log_path else "off",
@@ -898,9 +698,8 @@ class RodSimNode(Node):
         """Back to the scene's initial state at t = 0 (commands and errors cleared)."""
         self.sim.reset()
         self._events_sent = 0
-        self._latest = None
+        self._commands.clear()
         self._sync_queue.clear()
-        self._command_active = False
         self._error = None
         self._applied_last = None
         self._ledger.start(self._energy(self.sim.held))
@@ -908,7 +707,7 @@ class RodSimNode(Node):
         self._meter.restart(time.monotonic_ns())
         if self._pacer is not None:
             self._pacer.unanchor()
-        note = self._roll_log()
+        note = self._recording.roll()
         self._publish_state(self.sim.snapshot())
         response.success = True
         response.message = "reset to the initial state at t = 0 s" + note
@@ -954,183 +753,26 @@ class RodSimNode(Node):
     # ----- recording -----
 
     def _open_log(self, path: Path) -> LogWriter:
+        """A new log at ``path`` with this run's metadata (raises NodeConfigError)."""
         s = self.settings
         metadata = {"scene": scene_to_yaml(self.scene), "model": self.model.name,
                     "integrator": self.sim.integrator.describe(), "version": __version__,
                     "rtol": repr(s.rtol), "rate_hz": repr(s.rate_hz),
                     "source": "rod_sim node", "mode": self._mode(),
                     "node": self.get_fully_qualified_name()}
-        names = self._topic_names
-        qos = {names["applied_forces"]: offered_qos_yaml(depth=1, durability="transient_local"),
-               names[HINGE_EVENTS_TOPIC]: offered_qos_yaml(depth=100,
-                                                           durability="transient_local")}
-        if s.sync_mode:
-            qos.update({names[t]: offered_qos_yaml(depth=1, durability="transient_local")
-                        for t in STATE_TOPICS})
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            return LogWriter(path, metadata=metadata, qos=qos)
-        except FileExistsError:
-            raise NodeConfigError(f"record_path: {path} exists; remove it or choose another "
-                                  "record_path") from None
-        except (OSError, ValueError) as exc:
-            raise NodeConfigError(f"record_path: {_one_line(exc)}") from None
+        latched = ("applied_forces", HINGE_EVENTS_TOPIC) + (STATE_TOPICS if s.sync_mode else ())
+        return create_log(path, metadata, offered_qos(self._topic_names, latched))
 
-    def _roll_log(self) -> str:
-        """After a reset: close the log and continue in the next free ``<stem>_<k><suffix>``
-        (existing files are skipped, never overwritten). A log that cannot be opened is an
-        ERROR on diagnostics, never a silent stop."""
-        if self._log is None:
-            return ""
-        self._close_log()
-        base = self._log_path
-        for _ in range(MAX_LOG_ROLLS):
-            self._log_count += 1
-            path = base.with_name(f"{base.stem}_{self._log_count}{base.suffix}")
-            if not path.exists():
-                break
-        try:
-            self._log = self._open_log(path)
-        except NodeConfigError as exc:
-            self._recording_stopped(str(exc))
-            return f"; recording stopped: {exc}"
-        return f"; recording continues in {path}"
-
-    def _recording_stopped(self, reason: str) -> None:
-        self._recording_error = reason
-        self.get_logger().error(f"recording stopped: {reason}")
-
-    def _record(self, topic: str, type_name: str, t_ns: int, data: dict) -> None:
-        if self._log is None:
-            return
-        try:
-            self._log.write(topic, type_name, t_ns, data)
-        except (LogWriteError, OSError) as exc:
-            self._recording_stopped(_one_line(exc))
-            self._close_log()
-
-    def _close_log(self) -> None:
-        log, self._log = self._log, None
-        if log is None:
-            return
-        try:
-            log.close()
-            self.get_logger().info(f"log closed: {log.path}")
-        except OSError as exc:
-            self.get_logger().error(f"cannot close the log {log.path}: {_one_line(exc)}")
+    @property
+    def _log(self) -> LogWriter | None:
+        """The log being written (None when not recording)."""
+        return self._recording.writer
 
     def destroy_node(self) -> None:
         """Close the log (with its summary), then destroy the node."""
-        self._close_log()
+        self._recording.close()
         super().destroy_node()
 
-
-# ----- entry point -----
-
-def build_parser(prog: str = "sim_node") -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog=prog, description="rod_sim ROS 2 node: a chain of elastic rods driven by "
-        "nodal forces (SPEC section 4). Configure it with ROS arguments, e.g. "
-        "--ros-args --params-file config/sim_node.params.yaml -p scene_file:=SCENE.yaml",
-        epilog="parameters: " + "; ".join(f"{p.name} (default {p.default!r}): {p.description}"
-                                          for p in PARAMETERS))
-    return parser
-
-
-ROS_ARGS_HINT = "ROS arguments go after --ros-args, e.g. --ros-args -p scene_file:=SCENE.yaml"
-
-
-def parse_cli(parser: argparse.ArgumentParser, args: list[str]) -> argparse.Namespace:
-    """Parse the non-ROS arguments of ``args`` with ``parser`` (--help, typos). Malformed ROS
-    arguments (e.g. a dangling ``--ros-args -p``) and ROS arguments given without
-    ``--ros-args`` are usage errors (exit 2, one line)."""
-    try:
-        rest = remove_ros_args([parser.prog, *args])[1:]
-    except RuntimeError as exc:    # rclpy's RCLInvalidROSArgsError
-        text = _one_line(exc).split(", at ")[0]
-        parser.exit(2, f"{parser.prog}: error: invalid ROS arguments: {text}\n")
-    namespace, unknown = parser.parse_known_args(rest)
-    if unknown:
-        ros_like = any(a in ("-p", "-r", "--param", "--remap", "--params-file") or ":=" in a
-                       for a in unknown)
-        parser.exit(2, f"{parser.prog}: error: unrecognized arguments: {' '.join(unknown)}"
-                    + (f" ({ROS_ARGS_HINT})" if ros_like else "") + "\n")
-    return namespace
-
-
-def params_files(args: list[str]) -> tuple[str, ...]:
-    """The files given with ``--params-file`` among ROS arguments ``args``."""
-    return tuple(b for a, b in zip(args, args[1:]) if a == "--params-file")
-
-
-class StopRequest:
-    """SIGINT/SIGTERM handler: the first signal asks the spin loop to stop (so that the log is
-    closed between callbacks, never in the middle of a write); a second one interrupts."""
-
-    SIGNALS = (signal.SIGINT, signal.SIGTERM)
-
-    def __init__(self):
-        self.event = threading.Event()
-        self._previous: dict[int, Any] = {}
-
-    def __enter__(self) -> "StopRequest":
-        for sig in self.SIGNALS:
-            self._previous[sig] = signal.signal(sig, self._handle)
-        return self
-
-    def __exit__(self, *exc) -> None:
-        for sig, handler in self._previous.items():
-            signal.signal(sig, handler)
-
-    def _handle(self, signum, frame) -> None:
-        if self.event.is_set():
-            raise KeyboardInterrupt
-        self.event.set()
-
-    @property
-    def requested(self) -> bool:
-        return self.event.is_set()
-
-
-def spin_until(executor, stop: StopRequest, done: Callable[[], bool] = lambda: False,
-               timeout_sec: float = 0.1) -> None:
-    """Spin ``executor`` until a stop is requested, ``done()`` is true or its context ends."""
-    context = executor.context
-    while not stop.requested and not done() and context.ok():
-        executor.spin_once(timeout_sec=timeout_sec)
-
-
-def main(argv: list[str] | None = None, prog: str = "sim_node") -> int:
-    """Run the node until SIGINT/SIGTERM. Returns 0, or 2 (with a one-line reason on stderr)
-    for bad arguments, parameters or scenes. ``prog`` names the command in messages."""
-    args = list(sys.argv[1:] if argv is None else argv)
-    parse_cli(build_parser(prog), args)
-    return run_node(prog, functools.partial(RodSimNode, params_files=params_files(args)),
-                    args, NodeConfigError)
-
-
-def run_node(prog: str, make_node, args: list[str], config_errors) -> int:
-    """Create ``make_node()`` under rclpy and spin it until SIGINT/SIGTERM, then destroy it
-    and shut rclpy down. Returns 0, or 2 with a one-line reason on stderr when creating the
-    node raises one of ``config_errors``."""
-    rclpy.init(args=[prog, *args], signal_handler_options=SignalHandlerOptions.NO)
-    node = None
-    with StopRequest() as stop:
-        try:
-            node = make_node()
-            executor = SingleThreadedExecutor()
-            executor.add_node(node)
-            spin_until(executor, stop)
-        except config_errors as exc:
-            print(f"{prog}: error: {exc}", file=sys.stderr)
-            return 2
-        except (KeyboardInterrupt, ExternalShutdownException):
-            pass
-        finally:
-            if node is not None:
-                node.destroy_node()
-            rclpy.try_shutdown()
-    return 0
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -116,7 +116,7 @@ def measure(args) -> dict:
     from rclpy.executors import SingleThreadedExecutor
     from sensor_msgs.msg import JointState
 
-    from rod_sim.ros.node import STATE_QOS
+    from rod_sim.ros.qos import STATE_QOS
 
     with tempfile.TemporaryDirectory() as tmpdir:
         tmp = Path(tmpdir)

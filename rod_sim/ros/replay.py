@@ -29,7 +29,8 @@ from std_srvs.srv import SetBool, Trigger
 
 from rod_sim.io.playback import NS_PER_S, PlaybackSource, QosSpec, Timeline
 from rod_sim.ros.conversions import message_class
-from rod_sim.ros.node import CLOCK_QOS, StopRequest, spin_until
+from rod_sim.ros.node_main import StopRequest, spin_until
+from rod_sim.ros.qos import CLOCK_QOS
 
 NODE_NAME = "rod_sim_replay"
 MAX_WAIT_S = 0.05

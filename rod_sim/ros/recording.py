@@ -1,0 +1,106 @@
+"""The rod_sim node's log (SPEC section 5, ``record_path``): creating it, writing to it until
+the first write error, rolling it after ``~/reset`` into the next free ``<stem>_<k><suffix>``
+(existing files are skipped, never overwritten) and closing it. A log that cannot be opened or
+written stops the recording with an ERROR line and :attr:`NodeRecording.error` (which the node
+reports on diagnostics), never silently."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable, Iterable
+
+from rod_sim.io.hinge_events import HINGE_EVENTS_TOPIC
+from rod_sim.io.mcap_log import LogWriteError, LogWriter, offered_qos_yaml
+from rod_sim.ros.errors import NodeConfigError, one_line
+
+MAX_LOG_ROLLS = 10_000
+"""Names ``<stem>_<k>`` tried after a reset before giving up (existing files are skipped)."""
+
+
+def offered_qos(names: dict[str, str], latched: Iterable[str]) -> dict[str, str]:
+    """``offered_qos_profiles`` of the resolved topics ``names[t]`` for the transient-local
+    topics ``latched`` (``applied_forces``, ``hinge_events``, lockstep's state topics): depth 100
+    for ``hinge_events``, else 1. Other topics get the writer's default."""
+    return {names[t]: offered_qos_yaml(depth=100 if t == HINGE_EVENTS_TOPIC else 1,
+                                       durability="transient_local") for t in latched}
+
+
+def create_log(path: Path, metadata: dict[str, str], qos: dict[str, str]) -> LogWriter:
+    """A new log at ``path`` (its folder is created). Raises NodeConfigError naming the cause
+    (an existing file is refused)."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        return LogWriter(path, metadata=metadata, qos=qos)
+    except FileExistsError:
+        raise NodeConfigError(f"record_path: {path} exists; remove it or choose another "
+                              "record_path") from None
+    except (OSError, ValueError) as exc:
+        raise NodeConfigError(f"record_path: {one_line(exc)}") from None
+
+
+class NodeRecording:
+    """The log being written (``writer``, None when not recording) and the reason it stopped
+    (``error``). ``open_log(path)`` creates a log or raises NodeConfigError; ``logger`` is the
+    node's rclpy logger."""
+
+    def __init__(self, open_log: Callable[[Path], LogWriter], logger):
+        self.writer: LogWriter | None = None
+        self.error: str | None = None
+        self._open_log = open_log
+        self._logger = logger
+        self._base: Path | None = None
+        self._count = 0
+
+    def start(self, base: Path | None) -> None:
+        """Record to ``base`` (None: no recording). Raises NodeConfigError."""
+        self._base = base
+        if base is not None:
+            self.writer = self._open_log(base)
+
+    @property
+    def path(self) -> Path | None:
+        """The log being written (None when not recording)."""
+        return self.writer.path if self.writer is not None else None
+
+    def roll(self) -> str:
+        """After a reset: close the log and continue in the next free ``<stem>_<k><suffix>``.
+        Returns a note for the reset's answer ('' when not recording)."""
+        if self.writer is None:
+            return ""
+        self.close()
+        base = self._base
+        for _ in range(MAX_LOG_ROLLS):
+            self._count += 1
+            path = base.with_name(f"{base.stem}_{self._count}{base.suffix}")
+            if not path.exists():
+                break
+        try:
+            self.writer = self._open_log(path)
+        except NodeConfigError as exc:
+            self._stopped(str(exc))
+            return f"; recording stopped: {exc}"
+        return f"; recording continues in {path}"
+
+    def _stopped(self, reason: str) -> None:
+        self.error = reason
+        self._logger.error(f"recording stopped: {reason}")
+
+    def record(self, topic: str, type_name: str, t_ns: int, data: dict) -> None:
+        """Write ``data`` on ``topic`` at ``t_ns`` [ns]; a write error stops the recording."""
+        if self.writer is None:
+            return
+        try:
+            self.writer.write(topic, type_name, t_ns, data)
+        except (LogWriteError, OSError) as exc:
+            self._stopped(one_line(exc))
+            self.close()
+
+    def close(self) -> None:
+        """Close the log with its summary (idempotent)."""
+        log, self.writer = self.writer, None
+        if log is None:
+            return
+        try:
+            log.close()
+            self._logger.info(f"log closed: {log.path}")
+        except OSError as exc:
+            self._logger.error(f"cannot close the log {log.path}: {one_line(exc)}")
