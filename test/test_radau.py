@@ -264,3 +264,19 @@ def test_node_runs_radau_jit(monkeypatch):
     finally:
         node.destroy_node()
         context.try_shutdown()
+
+
+def test_bench_times_radau_jit_for_every_model_and_filters_by_integrator():
+    from rod_sim.tools import bench
+
+    for model_name in bench.MODELS:
+        for quick in (True, False):
+            assert any(i == "radau-jit" for i, _ in bench.settings_grid(model_name, quick))
+    cfg = bench.BenchConfig(quick=True, repeats=1, cap_s=10.0, models=("rigid",),
+                            integrators=("radau-jit",), mujoco=False)
+    rows, refs = bench.bench_scene("paper_example", cfg)
+    assert list(refs) == ["rigid"] and refs["rigid"]["ok"]
+    assert [r.setting for r in rows] == [f"rtol={r:g}" for r in bench.RADAU_RTOLS_QUICK]
+    assert all(r.integrator == "radau-jit" and r.status == "ok" and r.njev >= 1 for r in rows)
+    errors = [r.max_phi_error for r in rows]
+    assert errors == sorted(errors, reverse=True) and errors[-1] < 1e-6, errors
