@@ -280,3 +280,19 @@ def test_bench_times_radau_jit_for_every_model_and_filters_by_integrator():
     assert all(r.integrator == "radau-jit" and r.status == "ok" and r.njev >= 1 for r in rows)
     errors = [r.max_phi_error for r in rows]
     assert errors == sorted(errors, reverse=True) and errors[-1] < 1e-6, errors
+
+
+@pytest.mark.slow
+def test_cost_split_accounts_for_every_rhs_and_the_run_time():
+    from rod_sim.tools import radau_cost
+
+    r = radau_cost.measure(load_scene(PAPER), "reduced", rtol=1e-6, t_end=0.5)
+    split = list(r["split"].values())
+    n_state = 16
+    assert split[0]["count"] + split[1]["count"] * n_state == r["nfev"]
+    assert split[1]["count"] == r["njev"] >= 1 and split[3]["count"] == r["newton_iterations"]
+    assert all(v["unit_us"] > 0 for v in split)
+    # the parts, timed separately, explain the run's CPU time to within a factor 3
+    total = sum(v["total_ms"] for v in split)
+    assert r["cpu_ms"] / 3 < total < 3 * r["cpu_ms"], (total, r["cpu_ms"])
+    assert "Newton iterations" in radau_cost.format_report(r)
