@@ -3,7 +3,8 @@ cost of each operation (rhs, finite-difference Jacobian, LU factorisation pair, 
 pair), against the measured CPU time of the whole run.
 
 ``python -m rod_sim.tools.radau_cost [SCENE] [--model full] [--rtol 3e-6] [--t-end 2]``
-(docs/bench.md, section "radau-jit"). Unit costs are the minimum over 5 batches of a compiled
+(docs/bench.md, section "radau-jit"); ``--hard-cases`` instead times dop853-jit against
+radau-jit on the full-model hard cases of ``rod_sim.tools.hard_cases``. Unit costs are the minimum over 5 batches of a compiled
 loop (one core); the run's CPU time is the median of 5 runs after a warm-up.
 """
 from __future__ import annotations
@@ -113,6 +114,47 @@ def format_report(r: dict) -> str:
     return "\n".join(lines)
 
 
+HARD_CASES = ("n = 64 full", "EI = 1e8 full", "locked hinges full", "whipping tip full",
+              "heavy tip full", "nearly massless rods full")
+SETTINGS = (("dop853-jit", 1e-8), ("radau-jit", 1e-8), ("radau-jit", 1e-6))
+
+
+def hard_case_rows(names=HARD_CASES, settings=SETTINGS) -> list[dict]:
+    """The full-model hard cases of ``rod_sim.tools.hard_cases`` (those without commanded
+    forces) with each (integrator, rtol): CPU time [s] of one run after a warm-up, work
+    counters, max phi error against dop853-jit at rtol 1e-11."""
+    from . import hard_cases
+
+    rows = []
+    for case in hard_cases.cases():
+        if case.name not in names or case.forces_at:
+            continue
+        model = make_model(case.model, case.scene)
+        ref = Simulator(model, make_integrator("dop853-jit", rtol=1e-11)).run(case.t_end,
+                                                                               100.0).phi
+        for name, rtol in settings:
+            Simulator(model, make_integrator(name, rtol=rtol)).advance(1e-4)     # compile
+            integ = make_integrator(name, rtol=rtol)
+            started = time.process_time()
+            phi = Simulator(model, integ).run(case.t_end, 100.0).phi
+            s = integ.stats
+            rows.append({"case": case.name, "t_end": case.t_end, "integrator": name,
+                         "rtol": rtol, "cpu_s": time.process_time() - started,
+                         "nfev": s.nfev, "steps": s.steps, "rejected": s.rejected,
+                         "njev": s.njev, "max_phi_error": float(np.max(np.abs(phi - ref)))})
+    return rows
+
+
+def format_hard_cases(rows) -> str:
+    lines = ["| case | t_end [s] | integrator | rtol | CPU [s] | rhs | steps (rejected) | "
+             "Jacobians | phi error [rad] |", "|---" * 9 + "|"]
+    for r in rows:
+        lines.append(f"| {r['case']} | {r['t_end']:g} | {r['integrator']} | {r['rtol']:g} | "
+                     f"{r['cpu_s']:.3g} | {r['nfev']} | {r['steps']} ({r['rejected']}) | "
+                     f"{r['njev']} | {r['max_phi_error']:.2g} |")
+    return "\n".join(lines)
+
+
 def main(argv=None) -> int:
     from ..io.scene_yaml import load_scene
 
@@ -121,7 +163,12 @@ def main(argv=None) -> int:
     parser.add_argument("--model", default="full", choices=("full", "reduced", "rigid"))
     parser.add_argument("--rtol", type=float, default=3e-6)
     parser.add_argument("--t-end", type=float, default=2.0)
+    parser.add_argument("--hard-cases", action="store_true",
+                        help="instead: dop853-jit against radau-jit on the full-model hard cases")
     args = parser.parse_args(argv)
+    if args.hard_cases:
+        print(format_hard_cases(hard_case_rows()))
+        return 0
     print(format_report(measure(load_scene(args.scene), args.model, args.rtol, args.t_end)))
     return 0
 
