@@ -195,12 +195,29 @@ def test_step_size_is_carried_between_calls_and_reset():
     assert sim.integrator._h == 0.0
 
 
+def test_period_by_period_keeps_the_jacobian_and_the_accuracy():
+    """Stepping 1 ms periods (the node's way) reuses the Jacobian across calls instead of
+    building one per call, and stays on the one-call solution."""
+    model = make_model("full", load_scene(STIFF))
+    sim = Simulator(model, make_integrator("radau-jit", rtol=1e-8))
+    for _ in range(100):
+        sim.advance(0.001)
+    assert sim.integrator.stats.njev < 20, sim.integrator.stats     # not one per call (100)
+    ref = Simulator(model, make_integrator("dop853-jit", rtol=1e-11)).run(0.1, 10.0).y[-1]
+    assert np.max(np.abs(sim.y[:8] - ref[:8])) < 1e-7
+    other = make_model("full", load_scene(STIFF))       # a new model gets a new workspace
+    y = sim.integrator.integrate(other, other.initial_state(), 0.0, [0.001])
+    assert sim.integrator._work_model is other and np.all(np.isfinite(y))
+    sim.reset()
+    assert sim.integrator._work is None
+
+
 @pytest.mark.skipif(not jit.HAVE_NUMBA, reason="numba not installed")
 def test_radau_is_cached_under_the_core_stamp():
     if not jit.CORE_LOCATORS:
         pytest.skip("this numba has no cache locator API")
     assert (jit.CORE_DIR / "radau.py").exists()
-    for dispatcher in radau.RADAU.values():
+    for dispatcher in (*radau.RADAU.values(), *radau.RADAU_WORK.values()):
         locator = dispatcher._cache._impl.locator
         assert isinstance(locator, jit.CORE_LOCATORS), type(locator)
         assert locator.get_source_stamp() == jit.sources_stamp()

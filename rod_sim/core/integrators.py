@@ -186,13 +186,31 @@ class JitDop853(Integrator):
 @dataclass
 class JitRadau(JitDop853):
     """Compiled implicit Radau IIA (order 5) for stiff problems (:mod:`rod_sim.core.radau`);
-    carries its step size from one call to the next (the Jacobian is recomputed per call)."""
+    carries its step size and, for the same model, its workspace (Jacobian) from one call to
+    the next, so that stepping period by period does not rebuild the Jacobian every period."""
 
     name: str = "radau-jit"
     order: int = 5
+    _work: tuple | None = field(default=None, repr=False)
+    _work_model: object = field(default=None, repr=False)
 
     def _driver(self, model):
-        return radau.RADAU[model.name]
+        if self._work is None or self._work_model is not model:
+            self._work = radau.radau_workspace(model.state_size)
+            self._work_model = model
+        work, run = self._work, radau.RADAU_WORK[model.name]
+        return lambda *args: run(*args, work)
+
+    def integrate(self, model, y0, t0, t_out, held=None):
+        try:
+            return super().integrate(model, y0, t0, t_out, held)
+        except BaseException:
+            self._work = self._work_model = None        # no half-updated history kept
+            raise
+
+    def reset(self) -> None:
+        super().reset()
+        self._work = self._work_model = None
 
 
 @dataclass

@@ -453,6 +453,17 @@ def radau_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol,
     Steps end exactly at ``breaks`` (sorted times where the forcing jumps), where the step
     history is forgotten (:func:`radau_restart`). Writes y(t_out[i]) into Y_out[i] by dense
     output. Returns (y_end, t_end, h_next, status)."""
+    return radau_run_work(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol,
+                          h_init, max_step, max_steps, Y_out, stats,
+                          radau_workspace(y0.shape[0]))
+
+
+@njit
+def radau_run_work(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
+                   max_step, max_steps, Y_out, stats, work):
+    """:func:`radau_run` with the workspace ``work`` (:func:`radau_workspace`) given, so that
+    a caller stepping one model period by period keeps its Jacobian between calls (it is
+    kept stale: slow Newton convergence still renews it)."""
     n = y0.shape[0]
     n_out = t_out.shape[0]
     t_final = t_out[n_out - 1]
@@ -464,7 +475,6 @@ def radau_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol,
         i_out += 1
     if i_out == n_out:
         return y, t, h_init, STATUS_OK
-    work = radau_workspace(n)
     Q = work[8]
     f = np.empty(n)
     y_new = np.empty(n)
@@ -534,4 +544,27 @@ def _radau_full(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_
                      atol, h_init, max_step, max_steps, Y_out, stats)
 
 
+@njit
+def _radau_work_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
+                      max_step, max_steps, Y_out, stats, work):
+    return radau_run_work(_k.rigid_rhs, chain, extra, loads, held, y0, t0, t_out, breaks,
+                          rtol, atol, h_init, max_step, max_steps, Y_out, stats, work)
+
+
+@njit
+def _radau_work_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
+                        max_step, max_steps, Y_out, stats, work):
+    return radau_run_work(_k.reduced_rhs, chain, extra, loads, held, y0, t0, t_out, breaks,
+                          rtol, atol, h_init, max_step, max_steps, Y_out, stats, work)
+
+
+@njit
+def _radau_work_full(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
+                     max_step, max_steps, Y_out, stats, work):
+    return radau_run_work(_k.full_rhs, chain, extra, loads, held, y0, t0, t_out, breaks,
+                          rtol, atol, h_init, max_step, max_steps, Y_out, stats, work)
+
+
 RADAU = {"rigid": _radau_rigid, "reduced": _radau_reduced, "full": _radau_full}
+RADAU_WORK = {"rigid": _radau_work_rigid, "reduced": _radau_work_reduced,
+              "full": _radau_work_full}
