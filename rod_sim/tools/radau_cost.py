@@ -4,7 +4,8 @@ pair), against the measured CPU time of the whole run.
 
 ``python -m rod_sim.tools.radau_cost [SCENE] [--model full] [--rtol 3e-6] [--t-end 2]``
 (docs/bench.md, section "radau-jit"); ``--hard-cases`` instead times dop853-jit against
-radau-jit on the full-model hard cases of ``rod_sim.tools.hard_cases``. Unit costs are the minimum over 5 batches of a compiled
+radau-jit on the full-model hard cases of ``rod_sim.tools.hard_cases``; ``--periods`` advances
+the full model in control periods as the node does. Unit costs are the minimum over 5 batches of a compiled
 loop (one core); the run's CPU time is the median of 5 runs after a warm-up.
 """
 from __future__ import annotations
@@ -155,6 +156,29 @@ def format_hard_cases(rows) -> str:
     return "\n".join(lines)
 
 
+def period_rows(scene_files, periods=(0.01, 0.001), span=0.5, rtol=1e-8,
+                integrators=("dop853-jit", "radau-jit")) -> list[dict]:
+    """CPU time [s] of advancing the full model ``span`` s in control periods (as the node
+    does) with each integrator, second of two runs, and its counters."""
+    from ..io.scene_yaml import load_scene
+
+    rows = []
+    for path in scene_files:
+        model = make_model("full", load_scene(path))
+        for name, period in ((i, p) for i in integrators for p in periods):
+            for _ in range(2):
+                sim = Simulator(model, make_integrator(name, rtol=rtol))
+                started = time.process_time()
+                for _ in range(int(round(span / period))):
+                    sim.advance(period)
+                cpu = time.process_time() - started
+            s = sim.integrator.stats
+            rows.append({"scene": str(path), "integrator": name, "period_s": period,
+                         "cpu_s": cpu, "nfev": s.nfev,
+                         "njev": s.njev, "steps": s.steps})
+    return rows
+
+
 def main(argv=None) -> int:
     from ..io.scene_yaml import load_scene
 
@@ -165,7 +189,15 @@ def main(argv=None) -> int:
     parser.add_argument("--t-end", type=float, default=2.0)
     parser.add_argument("--hard-cases", action="store_true",
                         help="instead: dop853-jit against radau-jit on the full-model hard cases")
+    parser.add_argument("--periods", action="store_true",
+                        help="instead: the full model advanced in 10 ms and 1 ms periods")
     args = parser.parse_args(argv)
+    if args.periods:
+        for r in period_rows([args.scene, PAPER_EXAMPLE.parent / "bench" / "paper_stiff.yaml"]):
+            print(f"{r['scene']}: {r['integrator']}, periods of {r['period_s'] * 1e3:g} ms: "
+                  f"{r['cpu_s']:.3g} s CPU "
+                  f"for 0.5 s, {r['nfev']} rhs, {r['njev']} Jacobians, {r['steps']} steps")
+        return 0
     if args.hard_cases:
         print(format_hard_cases(hard_case_rows()))
         return 0
