@@ -115,8 +115,9 @@ def format_report(r: dict) -> str:
     return "\n".join(lines)
 
 
-HARD_CASES = ("n = 64 full", "EI = 1e8 full", "locked hinges full", "whipping tip full",
-              "heavy tip full", "nearly massless rods full")
+HARD_CASES = ("n = 64 full", "EI = 1e8 full", "EI = 1e8 full, n = 16", "EI = 1e8 full, n = 32",
+              "locked hinges full", "whipping tip full", "heavy tip full",
+              "nearly massless rods full")
 SETTINGS = (("dop853-jit", 1e-8), ("radau-jit", 1e-8), ("radau-jit", 1e-6))
 
 
@@ -126,8 +127,11 @@ def hard_case_rows(names=HARD_CASES, settings=SETTINGS) -> list[dict]:
     counters, max phi error against dop853-jit at rtol 1e-11."""
     from . import hard_cases
 
+    larger = [hard_cases.Case(f"EI = 1e8 full, n = {n}", hard_cases.chain(n=n, EI=1e8), "full",
+                              t_end, "stiff bending, more rods")
+              for n, t_end in ((16, 1.0), (32, 0.5))]
     rows = []
-    for case in hard_cases.cases():
+    for case in hard_cases.cases() + larger:
         if case.name not in names or case.forces_at:
             continue
         model = make_model(case.model, case.scene)
