@@ -232,6 +232,7 @@ def test_step_changes_of_commanded_forces(model):
 
 @pytest.mark.parametrize("integrator, kw, force", [
     ("euler", {"step": 0.05}, 0.0), ("rk4", {"step": 0.05}, 0.0), ("dop853-jit", {}, 1e200),
+    ("radau-jit", {}, 1e200),
     ("RK45", {}, 1e200), ("DOP853", {}, 1e200), ("Radau", {}, 1e200), ("BDF", {}, 1e200),
     ("LSODA", {}, 1e200)])
 def test_every_integrator_raises_instead_of_returning_nan(integrator, kw, force):

@@ -154,7 +154,7 @@ def test_held_forces_enter_like_scripted_constant_loads():
         assert np.max(np.abs(s1.y - make_model(name, scene).initial_state())) > 1e-3
 
 
-@pytest.mark.parametrize("method", ["RK45", "DOP853", "Radau", "BDF", "LSODA"])
+@pytest.mark.parametrize("method", ["RK45", "DOP853", "Radau", "BDF", "LSODA", "radau-jit"])
 def test_scipy_methods_agree_with_compiled_dop853(method):
     model = make_model("reduced", chain())
     ref = Simulator(model, make_integrator("dop853-jit", rtol=1e-12)).run(1.0, 20.0).phi

@@ -4,6 +4,8 @@ Every integrator maps (model, y0, t0, output times, held forces) to the states a
 times, restarting at the scene's load breakpoints:
 
 - ``dop853-jit`` (default): compiled adaptive Dormand-Prince 8(5,3) with dense output.
+- ``radau-jit``: compiled implicit Radau IIA of order 5 (stiff scenes: the full model,
+  stiff rods, stops), finite-difference Jacobian, collocation dense output.
 - ``rk4``, ``rk2``, ``euler``: compiled fixed-step explicit Runge-Kutta (order 4, 2, 1);
   the step is ``step`` [s] at most, intervals are split into equal substeps.
 - ``RK45``, ``DOP853``, ``Radau``, ``BDF``, ``LSODA``: scipy's ``solve_ivp`` methods.
@@ -15,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from . import erk
+from . import erk, radau
 
 DEFAULT_RTOL = 1e-8
 DEFAULT_STEP = 1e-3
@@ -90,16 +92,24 @@ def _failure(model, status_text: str, t: float, y, held) -> IntegrationError:
 
 @dataclass
 class Stats:
-    """Work counters: right-hand side evaluations, accepted and rejected steps."""
+    """Work counters: right-hand side evaluations, accepted and rejected steps; implicit
+    integrators also count Jacobians, LU factorisations and Newton iterations."""
 
     nfev: int = 0
     steps: int = 0
     rejected: int = 0
+    njev: int = 0
+    nlu: int = 0
+    newton_iters: int = 0
 
     def add(self, arr) -> None:
         self.nfev += int(arr[0])
         self.steps += int(arr[1])
         self.rejected += int(arr[2])
+        if len(arr) > 5:
+            self.njev += int(arr[3])
+            self.nlu += int(arr[4])
+            self.newton_iters += int(arr[5])
 
 
 @dataclass
@@ -153,11 +163,14 @@ class JitDop853(Integrator):
     max_steps: int = 10_000_000
     _h: float = 0.0
 
+    def _driver(self, model):
+        return erk.DOP853[model.name]
+
     def integrate(self, model, y0, t0, t_out, held=None):
         y0, t_out, held = self._prepare(model, y0, t_out, held)
         Y = np.empty((t_out.size, y0.size))
-        stats = np.zeros(3, dtype=np.int64)
-        y, t, h, status = erk.DOP853[model.name](
+        stats = np.zeros(6, dtype=np.int64)
+        y, t, h, status = self._driver(model)(
             model.chain, model.extra, model.loads, held, y0, float(t0), t_out,
             self._breaks(model, t0, t_out[-1]), self.rtol, self.abs_tol, self._h,
             self.max_step, self.max_steps, Y, stats)
@@ -169,6 +182,36 @@ class JitDop853(Integrator):
 
     def reset(self) -> None:
         self._h = 0.0
+
+
+@dataclass
+class JitRadau(JitDop853):
+    """Compiled implicit Radau IIA (order 5) for stiff problems (:mod:`rod_sim.core.radau`);
+    carries its step size and, for the same model, its workspace (Jacobian) from one call to
+    the next, so that stepping period by period does not rebuild the Jacobian every period."""
+
+    name: str = "radau-jit"
+    order: int = 5
+    _work: tuple | None = field(default=None, repr=False)
+    _work_model: object = field(default=None, repr=False)
+
+    def _driver(self, model):
+        if self._work is None or self._work_model is not model:
+            self._work = radau.radau_workspace(model.state_size)
+            self._work_model = model
+        work, run = self._work, radau.RADAU_WORK[model.name]
+        return lambda *args: run(*args, work)
+
+    def integrate(self, model, y0, t0, t_out, held=None):
+        try:
+            return super().integrate(model, y0, t0, t_out, held)
+        except BaseException:
+            self._work = self._work_model = None        # no half-updated history kept
+            raise
+
+    def reset(self) -> None:
+        super().reset()
+        self._work = self._work_model = None
 
 
 @dataclass
@@ -297,6 +340,8 @@ def make_integrator(name: str = "dop853-jit", *, rtol: float | None = None,
         return JitDop853(rtol=rtol, atol=atol)
     if step is not None and not (np.isfinite(step) and step >= MIN_STEP):
         raise ValueError(f"step: must be a number >= {MIN_STEP:g} s (got {step!r})")
+    if name == "radau-jit":
+        return JitRadau(rtol=rtol, atol=atol)
     if name in _TABLEAUX:
         return JitFixedStep(name=name, step=DEFAULT_STEP if step is None else float(step))
     if name in SCIPY_METHODS:

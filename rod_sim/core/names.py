@@ -3,4 +3,4 @@ choices and parameter descriptors); the registries in models.py and integrators.
 
 MODEL_NAMES = ("full", "reduced", "rigid")
 SCIPY_METHODS = ("RK45", "DOP853", "Radau", "BDF", "LSODA")
-INTEGRATOR_NAMES = ("dop853-jit", "rk4", "rk2", "euler") + SCIPY_METHODS
+INTEGRATOR_NAMES = ("dop853-jit", "radau-jit", "rk4", "rk2", "euler") + SCIPY_METHODS

@@ -1,0 +1,570 @@
+"""Compiled implicit Runge-Kutta: Radau IIA of order 5 (3 stages) for stiff scenes.
+
+The method, its constants and its control follow Hairer & Wanner's RADAU5 as transcribed in
+scipy's ``scipy/integrate/_ivp/radau.py``: simplified Newton iterations on the collocation
+system in the transformed variables (one real and one complex linear system per iteration),
+Jacobian reuse (recomputed only when Newton converges slowly or fails), Gustafsson's
+predictive step-size controller, the error estimate filtered through (mu_real/h I - J)^-1,
+and the cubic collocation polynomial as dense output and as Newton's starting guess.
+
+Every model of :mod:`rod_sim.core.kernels` is second order: the state is y = [q, v]
+(size N = 2m) with dq/dt = v exactly, so the Jacobian is [[0, I], [K, D]] with
+K = da/dq, D = da/dv (m, m each). Only the lower half J = [K, D] (m, 2m) is formed, by
+compiled forward differences of the rhs kernel (2m kernel calls), and every linear system
+(gamma I - J_full) z = r is reduced to the m x m system
+(gamma^2 I - gamma D - K) x = r_v + gamma r_q - D r_q,  z = [x, gamma x - r_q],
+which makes each LU factorisation 8x cheaper than on the N x N matrix.
+
+Interfaces:
+
+- :func:`radau_step`: one accepted step (the building block for drivers with event
+  location); :func:`radau_dense` evaluates its dense output.
+- :func:`radau_run`: the whole output grid in one call, with exactly the arguments and the
+  return of :func:`rod_sim.core.erk.dop853_run` (status codes of :mod:`rod_sim.core.erk`).
+- ``RADAU``: per-model cached wrappers, like ``erk.DOP853``.
+
+``stats`` = [rhs evaluations (Jacobian columns included), accepted steps, rejected steps];
+when it has 6 entries, also [Jacobian evaluations, LU factorisation pairs, Newton iterations].
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .erk import (STATUS_NONFINITE, STATUS_MAX_STEPS, STATUS_OK, STATUS_STEP_UNDERFLOW,
+                  _all_finite, _initial_step)
+from .jit import njit
+
+# ----------------------------------------------------------------- constants (scipy's radau.py)
+S6 = 6.0 ** 0.5
+C = np.array([(4.0 - S6) / 10.0, (4.0 + S6) / 10.0, 1.0])
+E = np.array([-13.0 - 7.0 * S6, -13.0 + 7.0 * S6, -1.0]) / 3.0
+MU_REAL = 3.0 + 3.0 ** (2.0 / 3.0) - 3.0 ** (1.0 / 3.0)
+MU_C_RE = 3.0 + 0.5 * (3.0 ** (1.0 / 3.0) - 3.0 ** (2.0 / 3.0))
+MU_C_IM = -0.5 * (3.0 ** (5.0 / 6.0) + 3.0 ** (7.0 / 6.0))
+T = np.array([[0.09443876248897524, -0.14125529502095421, 0.03002919410514742],
+              [0.25021312296533332, 0.20412935229379994, -0.38294211275726192],
+              [1.0, 1.0, 0.0]])
+TI = np.array([[4.17871859155190428, 0.32768282076106237, 0.52337644549944951],
+               [-4.17871859155190428, -0.32768282076106237, 0.47662355450055044],
+               [0.50287263494578682, -2.57192694985560522, 0.59603920482822492]])
+P = np.array([[13.0 / 3.0 + 7.0 * S6 / 3.0, -23.0 / 3.0 - 22.0 * S6 / 3.0, 10.0 / 3.0 + 5.0 * S6],
+              [13.0 / 3.0 - 7.0 * S6 / 3.0, -23.0 / 3.0 + 22.0 * S6 / 3.0, 10.0 / 3.0 - 5.0 * S6],
+              [1.0 / 3.0, -8.0 / 3.0, 10.0 / 3.0]])
+NEWTON_MAXITER = 6
+MIN_FACTOR = 0.2
+MAX_FACTOR = 10.0
+EPS = np.finfo(float).eps
+
+# controller memory ``ctl`` (float64 array) of the workspace
+H_OLD, ERR_OLD, HAVE_JAC, CURRENT_JAC, LU_H, HAVE_DENSE, H_DENSE, FACCON = 0, 1, 2, 3, 4, 5, 6, 7
+N_CTL = 8
+JAC_RATE = 0.1      # recompute the Jacobian after a step whose Newton rate exceeded this
+
+
+# ----------------------------------------------------------------- dense linear algebra
+@njit
+def lu_factor(A, piv):
+    """In-place LU with partial pivoting of A (n, n), float64 or complex128 (LAPACK's getrf
+    layout: unit-lower L below the diagonal, U on and above; row swaps in ``piv`` (n,)
+    int64). Returns False when a pivot is exactly zero."""
+    n = A.shape[0]
+    for col in range(n):
+        p = col
+        best = abs(A[col, col])
+        for r in range(col + 1, n):
+            v = abs(A[r, col])
+            if v > best:
+                best = v
+                p = r
+        piv[col] = p
+        if best == 0.0:
+            return False
+        if p != col:
+            for c2 in range(n):
+                tmp = A[col, c2]
+                A[col, c2] = A[p, c2]
+                A[p, c2] = tmp
+        inv = 1.0 / A[col, col]
+        pivot_row = A[col, col + 1:]
+        for r in range(col + 1, n):
+            fct = A[r, col] * inv
+            A[r, col] = fct
+            row = A[r, col + 1:]
+            for c2 in range(pivot_row.shape[0]):
+                row[c2] -= fct * pivot_row[c2]
+    return True
+
+
+@njit
+def lu_solve(LU, piv, b):
+    """Solve A x = b in place (b (n,)) with the factors of :func:`lu_factor`."""
+    n = b.shape[0]
+    for i in range(n):
+        p = piv[i]
+        if p != i:
+            tmp = b[i]
+            b[i] = b[p]
+            b[p] = tmp
+    for i in range(n):
+        acc = b[i]
+        for j in range(i):
+            acc -= LU[i, j] * b[j]
+        b[i] = acc
+    for i in range(n - 1, -1, -1):
+        acc = b[i]
+        for j in range(i + 1, n):
+            acc -= LU[i, j] * b[j]
+        b[i] = acc / LU[i, i]
+
+
+@njit
+def _form(J, gamma, M):
+    """M = gamma^2 I - gamma D - K (m, m) from J = [K, D] (m, 2m)."""
+    m = M.shape[0]
+    g2 = gamma * gamma
+    for i in range(m):
+        for j in range(m):
+            M[i, j] = -gamma * J[i, m + j] - J[i, j]
+        M[i, i] += g2
+
+
+@njit
+def _solve_reduced(LU, piv, J, gamma, r, out):
+    """out (N,) = (gamma I - [[0, I], [K, D]])^-1 r (N,) through the m x m factors LU of
+    gamma^2 I - gamma D - K. ``out`` must not alias ``r``."""
+    m = LU.shape[0]
+    for i in range(m):
+        acc = r[m + i] + gamma * r[i]
+        for j in range(m):
+            acc -= J[i, m + j] * r[j]
+        out[i] = acc
+    lu_solve(LU, piv, out[:m])
+    for i in range(m):
+        out[m + i] = gamma * out[i] - r[i]
+
+
+@njit
+def _factor(work, h, stats):
+    """Factorise the real and complex iteration matrices for step h [s]; False if singular."""
+    J, LUr, pivr, LUc, pivc = work[0], work[1], work[2], work[3], work[4]
+    ctl = work[11]
+    _form(J, MU_REAL / h, LUr)
+    _form(J, complex(MU_C_RE, MU_C_IM) / h, LUc)
+    if stats.shape[0] > 4:
+        stats[4] += 1
+    ok = lu_factor(LUr, pivr) and lu_factor(LUc, pivc)
+    ctl[LU_H] = h if ok else 0.0
+    return ok
+
+
+@njit
+def _jacobian(rhs, chain, extra, loads, held, t_side, t, y, f, work, stats):
+    """J = [da/dq, da/dv] (m, 2m) at (t, y) by forward differences (f = rhs(t, y))."""
+    J = work[0]
+    yy = work[9][0]
+    fd = work[9][1]
+    ctl = work[11]
+    N = y.shape[0]
+    m = N // 2
+    yy[:] = y
+    for j in range(N):
+        delta = math.sqrt(EPS * max(1e-5, abs(y[j])))
+        yy[j] = y[j] + delta
+        delta = yy[j] - y[j]
+        rhs(t, yy, chain, extra, loads, held, t_side, fd)
+        for i in range(m):
+            J[i, j] = (fd[m + i] - f[m + i]) / delta
+        yy[j] = y[j]
+    stats[0] += N
+    if stats.shape[0] > 3:
+        stats[3] += 1
+    ctl[HAVE_JAC] = 1.0
+    ctl[CURRENT_JAC] = 1.0
+    ctl[LU_H] = 0.0
+
+
+# ----------------------------------------------------------------- workspace
+@njit
+def radau_workspace(size):
+    """Scratch arrays and controller memory of the stepper for a state of ``size`` = 2m:
+    (J (m, 2m), LU_real (m, m), piv_real (m,), LU_complex (m, m) complex, piv_complex (m,),
+    Z (3, size) stage increments, W (3, size), F (3, size) stage derivatives, Q (size, 3)
+    dense-output coefficients, V (8, size) real scratch, CV (2, size) complex scratch,
+    ctl (N_CTL,) controller memory). Allocated once per run; nothing is allocated per step."""
+    m = size // 2
+    ctl = np.zeros(N_CTL)
+    ctl[FACCON] = 1.0
+    return (np.zeros((m, 2 * m)), np.zeros((m, m)), np.zeros(m, dtype=np.int64),
+            np.zeros((m, m), dtype=np.complex128), np.zeros(m, dtype=np.int64),
+            np.zeros((3, size)), np.zeros((3, size)), np.zeros((3, size)), np.zeros((size, 3)),
+            np.zeros((8, size)), np.zeros((2, size), dtype=np.complex128), ctl)
+
+
+@njit
+def radau_restart(work):
+    """Forget the step history (after a jump of the forcing or of the state: event, latch):
+    no predictor from the last polynomial, no controller memory. The Jacobian is kept but
+    marked stale, so that slow Newton convergence recomputes it."""
+    ctl = work[11]
+    ctl[H_OLD] = 0.0
+    ctl[ERR_OLD] = 0.0
+    ctl[HAVE_DENSE] = 0.0
+    ctl[CURRENT_JAC] = 0.0
+
+
+# ----------------------------------------------------------------- one step
+@njit
+def _newton(rhs, chain, extra, loads, held, t_side, t, y, h, scale, tol, work, stats):
+    """Simplified Newton on the collocation system (scipy's solve_collocation_system, with
+    RADAU5's convergence test: |dW| rate / (1 - rate) < tol, the rate of the previous step
+    standing in until one is measured, so that one iteration can suffice).
+
+    Z (work[5], (3, N)) holds the starting guess on entry and the stage increments on exit.
+    Returns (converged, iterations, convergence rate; -1 when unknown)."""
+    J, LUr, pivr, LUc, pivc, Z, W, F = (work[0], work[1], work[2], work[3], work[4], work[5],
+                                        work[6], work[7])
+    V = work[9]
+    CV = work[10]
+    N = y.shape[0]
+    yy = V[0]
+    fr = V[2]
+    xr = V[3]
+    fc = CV[0]
+    xc = CV[1]
+    m_real = MU_REAL / h
+    m_cplx = complex(MU_C_RE, MU_C_IM) / h
+    for i in range(3):
+        for j in range(N):
+            W[i, j] = TI[i, 0] * Z[0, j] + TI[i, 1] * Z[1, j] + TI[i, 2] * Z[2, j]
+    ctl = work[11]
+    faccon = max(ctl[FACCON], EPS) ** 0.8
+    dw_old = -1.0
+    rate = -1.0
+    converged = False
+    k = 0
+    for k in range(NEWTON_MAXITER):
+        for i in range(3):
+            for j in range(N):
+                yy[j] = y[j] + Z[i, j]
+            rhs(t + C[i] * h, yy, chain, extra, loads, held, t_side, F[i])
+        stats[0] += 3
+        if stats.shape[0] > 5:
+            stats[5] += 1
+        if not (_all_finite(F[0]) and _all_finite(F[1]) and _all_finite(F[2])):
+            break
+        for j in range(N):
+            f0 = F[0, j]
+            f1 = F[1, j]
+            f2 = F[2, j]
+            fr[j] = TI[0, 0] * f0 + TI[0, 1] * f1 + TI[0, 2] * f2 - m_real * W[0, j]
+            fc[j] = (complex(TI[1, 0] * f0 + TI[1, 1] * f1 + TI[1, 2] * f2,
+                             TI[2, 0] * f0 + TI[2, 1] * f1 + TI[2, 2] * f2)
+                     - m_cplx * complex(W[1, j], W[2, j]))
+        _solve_reduced(LUr, pivr, J, m_real, fr, xr)
+        _solve_reduced(LUc, pivc, J, m_cplx, fc, xc)
+        acc = 0.0
+        for j in range(N):
+            a = xr[j] / scale[j]
+            b = xc[j].real / scale[j]
+            c = xc[j].imag / scale[j]
+            acc += a * a + b * b + c * c
+        dw = math.sqrt(acc / (3 * N))
+        if not math.isfinite(dw):
+            break
+        if dw_old >= 0.0:
+            rate = dw / dw_old
+            if rate >= 1.0 or rate ** (NEWTON_MAXITER - k) / (1.0 - rate) * dw > tol:
+                break
+            faccon = rate / (1.0 - rate)
+        for j in range(N):
+            W[0, j] += xr[j]
+            W[1, j] += xc[j].real
+            W[2, j] += xc[j].imag
+        for i in range(3):
+            for j in range(N):
+                Z[i, j] = T[i, 0] * W[0, j] + T[i, 1] * W[1, j] + T[i, 2] * W[2, j]
+        if dw == 0.0 or faccon * dw < tol:
+            converged = True
+            break
+        dw_old = dw
+    ctl[FACCON] = faccon
+    return converged, k + 1, rate
+
+
+@njit
+def _predict_factor(h, h_old, err, err_old):
+    """Gustafsson's predictive controller (scipy's predict_factor); 0 = no history."""
+    if err_old <= 0.0 or h_old <= 0.0 or err == 0.0:
+        multiplier = 1.0
+    else:
+        multiplier = h / h_old * (err_old / err) ** 0.25
+    if err == 0.0:
+        return np.inf
+    return min(1.0, multiplier) * err ** -0.25
+
+
+@njit
+def _rms_scaled(x, y, y_new, rtol, atol):
+    acc = 0.0
+    for j in range(x.shape[0]):
+        v = x[j] / (atol + max(abs(y[j]), abs(y_new[j])) * rtol)
+        acc += v * v
+    return math.sqrt(acc / x.shape[0])
+
+
+@njit
+def radau_step(rhs, chain, extra, loads, held, t_side, t, y, f, h, t_bound, rtol, atol, work,
+               y_new, f_new, stats):
+    """One accepted Radau IIA step from time t [s], state y (N,), f = rhs(t, y) (N,).
+
+    ``h`` [s] > 0 is the proposed step; the step ends at ``t_bound`` if it would reach it
+    (within 1e-14 relative). ``work`` is :func:`radau_workspace` (N), kept between steps:
+    it carries the Jacobian, the factorisations, the controller memory and the predictor.
+    ``t_side`` is passed to the kernel (a time inside the current smooth segment).
+
+    On success writes y_new = y(t_new) (N,), f_new = rhs(t_new, y_new) (N,) and the dense
+    output coefficients Q = work[8] (N, 3): for x in [0, 1],
+    y(t + x (t_new - t)) = y + Q[:, 0] x + Q[:, 1] x^2 + Q[:, 2] x^3 (:func:`radau_dense`).
+    Returns (status, t_new, h_next): STATUS_OK, or STATUS_STEP_UNDERFLOW (t_new = t) when
+    the step fell below 10 ulp of t, or STATUS_NONFINITE when y_new is not finite."""
+    Z, Q, V, ctl = work[5], work[8], work[9], work[11]
+    LUr, pivr, J = work[1], work[2], work[0]
+    N = y.shape[0]
+    scale = V[4]
+    rhs_err = V[5]
+    err = V[6]
+    yy = V[0]
+    newton_tol = max(10.0 * EPS / rtol, min(0.03, math.sqrt(rtol)))
+    min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
+    if ctl[HAVE_JAC] == 0.0:
+        _jacobian(rhs, chain, extra, loads, held, t_side, t, y, f, work, stats)
+    h_abs = h
+    h_old = ctl[H_OLD]
+    err_old = ctl[ERR_OLD]
+    rejected = False
+    n_iter = 0
+    rate = -1.0
+    error_norm = 0.0
+    safety = 0.9
+    t_new = t
+    hs = h
+    while True:
+        if not h_abs >= min_step:
+            return STATUS_STEP_UNDERFLOW, t, h_abs
+        t_new = t + h_abs
+        if t_new >= t_bound - 1e-14 * max(1.0, abs(t_bound)):
+            t_new = t_bound
+        hs = t_new - t
+        # starting guess: the previous step's collocation polynomial, extrapolated
+        if ctl[HAVE_DENSE] != 0.0:
+            for i in range(3):
+                x = 1.0 + C[i] * hs / ctl[H_DENSE]
+                for j in range(N):
+                    Z[i, j] = Q[j, 0] * (x - 1.0) + Q[j, 1] * (x * x - 1.0) \
+                        + Q[j, 2] * (x * x * x - 1.0)
+        else:
+            Z[:, :] = 0.0
+        for j in range(N):
+            scale[j] = atol + abs(y[j]) * rtol
+        converged = False
+        while True:
+            ok = True
+            if abs(ctl[LU_H] - hs) > 1e-9 * hs:
+                ok = _factor(work, hs, stats)
+            if ok:
+                converged, n_iter, rate = _newton(rhs, chain, extra, loads, held, t_side, t, y,
+                                                  hs, scale, newton_tol, work, stats)
+            if converged or ctl[CURRENT_JAC] != 0.0:
+                break
+            _jacobian(rhs, chain, extra, loads, held, t_side, t, y, f, work, stats)
+        if not converged:
+            h_abs = 0.5 * hs
+            stats[2] += 1
+            rejected = True
+            continue
+        hl = ctl[LU_H]
+        for j in range(N):
+            y_new[j] = y[j] + Z[2, j]
+            rhs_err[j] = f[j] + (Z[0, j] * E[0] + Z[1, j] * E[1] + Z[2, j] * E[2]) / hs
+        _solve_reduced(LUr, pivr, J, MU_REAL / hl, rhs_err, err)
+        error_norm = _rms_scaled(err, y, y_new, rtol, atol)
+        safety = 0.9 * (2 * NEWTON_MAXITER + 1) / (2 * NEWTON_MAXITER + n_iter)
+        if rejected and error_norm > 1.0:
+            for j in range(N):
+                yy[j] = y[j] + err[j]
+            rhs(t, yy, chain, extra, loads, held, t_side, err)
+            stats[0] += 1
+            for j in range(N):
+                rhs_err[j] += err[j] - f[j]
+            _solve_reduced(LUr, pivr, J, MU_REAL / hl, rhs_err, err)
+            error_norm = _rms_scaled(err, y, y_new, rtol, atol)
+        if not error_norm <= 1.0:
+            if math.isfinite(error_norm):
+                factor = _predict_factor(hs, h_old, error_norm, err_old)
+                h_abs = hs * max(MIN_FACTOR, safety * factor)
+            else:
+                h_abs = hs * MIN_FACTOR
+            stats[2] += 1
+            rejected = True
+            continue
+        break
+    stats[1] += 1
+    if not _all_finite(y_new):
+        return STATUS_NONFINITE, t, hs
+    recompute_jac = n_iter > 1 and rate > JAC_RATE
+    factor = min(MAX_FACTOR, safety * _predict_factor(hs, h_old, error_norm, err_old))
+    if not recompute_jac and factor < 1.2:
+        factor = 1.0                      # keep h, and with it the factorisations
+    else:
+        ctl[LU_H] = 0.0
+    rhs(t_new, y_new, chain, extra, loads, held, t_side, f_new)
+    stats[0] += 1
+    if recompute_jac:
+        _jacobian(rhs, chain, extra, loads, held, t_side, t_new, y_new, f_new, work, stats)
+    else:
+        ctl[CURRENT_JAC] = 0.0
+    for j in range(N):
+        for k in range(3):
+            Q[j, k] = Z[0, j] * P[0, k] + Z[1, j] * P[1, k] + Z[2, j] * P[2, k]
+    ctl[HAVE_DENSE] = 1.0
+    ctl[H_DENSE] = hs
+    ctl[H_OLD] = hs
+    ctl[ERR_OLD] = error_norm
+    return STATUS_OK, t_new, hs * factor
+
+
+@njit
+def radau_dense(y_old, Q, x, out):
+    """Dense output of the last step at x = (t - t_old) / (t_new - t_old) in [0, 1]:
+    out (N,) = y_old + Q[:, 0] x + Q[:, 1] x^2 + Q[:, 2] x^3."""
+    for j in range(y_old.shape[0]):
+        out[j] = y_old[j] + x * (Q[j, 0] + x * (Q[j, 1] + x * Q[j, 2]))
+
+
+# ----------------------------------------------------------------- the driver
+@njit
+def radau_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
+              max_step, max_steps, Y_out, stats):
+    """Integrate from (t0, y0) through every time of ``t_out`` (sorted, >= t0): the same
+    arguments, return and status codes as :func:`rod_sim.core.erk.dop853_run`.
+
+    Steps end exactly at ``breaks`` (sorted times where the forcing jumps), where the step
+    history is forgotten (:func:`radau_restart`). Writes y(t_out[i]) into Y_out[i] by dense
+    output. Returns (y_end, t_end, h_next, status)."""
+    return radau_run_work(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol,
+                          h_init, max_step, max_steps, Y_out, stats,
+                          radau_workspace(y0.shape[0]))
+
+
+@njit
+def radau_run_work(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
+                   max_step, max_steps, Y_out, stats, work):
+    """:func:`radau_run` with the workspace ``work`` (:func:`radau_workspace`) given, so that
+    a caller stepping one model period by period keeps its Jacobian between calls (it is
+    kept stale: slow Newton convergence still renews it)."""
+    n = y0.shape[0]
+    n_out = t_out.shape[0]
+    t_final = t_out[n_out - 1]
+    y = y0.copy()
+    t = t0
+    i_out = 0
+    while i_out < n_out and t_out[i_out] <= t0:
+        Y_out[i_out, :] = y0
+        i_out += 1
+    if i_out == n_out:
+        return y, t, h_init, STATUS_OK
+    Q = work[8]
+    f = np.empty(n)
+    y_new = np.empty(n)
+    f_new = np.empty(n)
+    h = h_init
+    n_steps = 0
+    while t < t_final:
+        seg_end = t_final
+        for b in breaks:
+            if b > t + 1e-12 * max(1.0, abs(t)):
+                if b < seg_end:
+                    seg_end = b
+                break
+        t_side = 0.5 * (t + seg_end)
+        rhs(t, y, chain, extra, loads, held, t_side, f)
+        stats[0] += 1
+        if h <= 0.0:
+            h = _initial_step(rhs, chain, extra, loads, held, t_side, t, y, f, seg_end,
+                              rtol, atol, stats)
+        radau_restart(work)
+        while t < seg_end:
+            h = min(h, max_step)
+            status, t_new, h_next = radau_step(rhs, chain, extra, loads, held, t_side, t, y, f,
+                                               h, seg_end, rtol, atol, work, y_new, f_new,
+                                               stats)
+            if status != STATUS_OK:
+                return y, t, h_next, status
+            hs = t_new - t
+            while i_out < n_out and t_out[i_out] <= t_new:
+                if t_out[i_out] == t_new:
+                    Y_out[i_out, :] = y_new
+                else:
+                    radau_dense(y, Q, (t_out[i_out] - t) / hs, Y_out[i_out])
+                i_out += 1
+            t = t_new
+            y[:] = y_new
+            f[:] = f_new
+            h = h_next
+            n_steps += 1
+            if n_steps >= max_steps:
+                return y, t, h, STATUS_MAX_STEPS
+    return y, t, h, STATUS_OK
+
+
+# Module-level entry points, one per model kernel (see erk.py: cached on disk).
+from . import kernels as _k  # noqa: E402
+
+
+@njit
+def _radau_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
+                 max_step, max_steps, Y_out, stats):
+    return radau_run(_k.rigid_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
+                     atol, h_init, max_step, max_steps, Y_out, stats)
+
+
+@njit
+def _radau_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
+                   max_step, max_steps, Y_out, stats):
+    return radau_run(_k.reduced_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
+                     atol, h_init, max_step, max_steps, Y_out, stats)
+
+
+@njit
+def _radau_full(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
+                max_step, max_steps, Y_out, stats):
+    return radau_run(_k.full_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
+                     atol, h_init, max_step, max_steps, Y_out, stats)
+
+
+@njit
+def _radau_work_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
+                      max_step, max_steps, Y_out, stats, work):
+    return radau_run_work(_k.rigid_rhs, chain, extra, loads, held, y0, t0, t_out, breaks,
+                          rtol, atol, h_init, max_step, max_steps, Y_out, stats, work)
+
+
+@njit
+def _radau_work_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
+                        max_step, max_steps, Y_out, stats, work):
+    return radau_run_work(_k.reduced_rhs, chain, extra, loads, held, y0, t0, t_out, breaks,
+                          rtol, atol, h_init, max_step, max_steps, Y_out, stats, work)
+
+
+@njit
+def _radau_work_full(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
+                     max_step, max_steps, Y_out, stats, work):
+    return radau_run_work(_k.full_rhs, chain, extra, loads, held, y0, t0, t_out, breaks,
+                          rtol, atol, h_init, max_step, max_steps, Y_out, stats, work)
+
+
+RADAU = {"rigid": _radau_rigid, "reduced": _radau_reduced, "full": _radau_full}
+RADAU_WORK = {"rigid": _radau_work_rigid, "reduced": _radau_work_reduced,
+              "full": _radau_work_full}
