@@ -2,7 +2,7 @@
 
     python -m rod_sim.ros.demo --out out/demo.mcap --duration 3
 
-Both nodes share one executor; the simulator records the SPEC section 5 log. After
+Both nodes share one executor; the simulator records the log of docs/interface.md section 4. After
 ``--duration`` seconds of simulated time (or on Ctrl-C/SIGTERM) both nodes are shut down, the
 log is closed with its summary and its path is printed. The ROS graph stays on this machine:
 ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is set to LOCALHOST and, unless already set,

@@ -1,4 +1,4 @@
-"""The rod_sim ROS 2 node (SPEC section 4): a chain of elastic rods driven by nodal forces.
+"""The rod_sim ROS 2 node (docs/interface.md section 3): a chain of elastic rods driven by nodal forces.
 
 Run it as ``sim_node`` / ``rod-sim node`` / ``python -m rod_sim.ros.node``, e.g.::
 
@@ -55,7 +55,7 @@ Work per period is bounded (:mod:`rod_sim.ros.budget`): the integrator's steps p
 a period that would take seconds (a 1e12 N command) fails fast with a named cause. Commands
 are taken as serialized bytes and refused by their length before they are decoded.
 
-Recording (``record_path``): the SPEC section 5 log with the commands as received (``/nodal_forces``
+Recording (``record_path``): the log of docs/interface.md section 4 with the commands as received (``/nodal_forces``
 at the simulated time of reception, rejected ones included), ``/applied_forces``, every output
 topic and ``/diagnostics`` (which carries wall-clock measurements and so differs between
 otherwise identical runs), under their resolved names (namespace and remappings applied, as

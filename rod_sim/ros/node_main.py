@@ -24,7 +24,7 @@ from rod_sim.ros.parameters import PARAMETERS
 def build_parser(prog: str = "sim_node") -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog=prog, description="rod_sim ROS 2 node: a chain of elastic rods driven by "
-        "nodal forces (SPEC section 4). Configure it with ROS arguments, e.g. "
+        "nodal forces (docs/interface.md section 3). Configure it with ROS arguments, e.g. "
         "--ros-args --params-file config/sim_node.params.yaml -p scene_file:=SCENE.yaml",
         epilog="parameters: " + "; ".join(f"{p.name} (default {p.default!r}): {p.description}"
                                           for p in PARAMETERS))

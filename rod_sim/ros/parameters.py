@@ -1,4 +1,4 @@
-"""The rod_sim node's parameters (SPEC section 4): their declarations with descriptors (type,
+"""The rod_sim node's parameters (docs/interface.md section 3): their declarations with descriptors (type,
 units, range, read-only), the settings read once at start and their checks, the texts of
 rejected values, and the run-time check of a parameter change."""
 from __future__ import annotations
@@ -47,7 +47,7 @@ class ParameterSpec:
 
 
 PARAMETERS = (
-    ParameterSpec("scene_file", "", "scene YAML file (SPEC section 2), relative to the working "
+    ParameterSpec("scene_file", "", "scene YAML file (docs/interface.md section 1), relative to the working "
                   "directory; required", constraints="an existing, valid scene file"),
     ParameterSpec("model", "reduced", "fidelity level of the chain model",
                   constraints="one of: " + ", ".join(MODELS)),
@@ -58,7 +58,7 @@ PARAMETERS = (
                   read_only=False, range=(0.0, 1000.0)),
     ParameterSpec("sync_mode", False, "lockstep: advance exactly one control period per "
                   "received valid nodal_forces command, nothing before the first"),
-    ParameterSpec("record_path", "", "MCAP log to write (SPEC section 5); '' = no recording; "
+    ParameterSpec("record_path", "", "MCAP log to write (docs/interface.md section 4); '' = no recording; "
                   "an existing file is refused"),
     ParameterSpec("command_timeout", 0.5, "[s] after the last valid command at which the "
                   "command force falls back to zero: wall time at a real-time pace, simulated "

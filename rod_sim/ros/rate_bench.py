@@ -38,7 +38,7 @@ DEFAULT_SCENE = REPO / "config" / "paper_example.yaml"
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m rod_sim.ros.rate_bench", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--scene", default=str(DEFAULT_SCENE), help="scene YAML (default: the seed's)")
+    p.add_argument("--scene", default=str(DEFAULT_SCENE), help="scene YAML (default: the paper's example)")
     p.add_argument("--rods", type=int, default=None,
                    help="override the number of rods (same per-rod properties and loads)")
     p.add_argument("--model", default="reduced", choices=("reduced", "full", "rigid"))

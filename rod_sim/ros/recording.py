@@ -1,4 +1,4 @@
-"""The rod_sim node's log (SPEC section 5, ``record_path``): creating it, writing to it until
+"""The rod_sim node's log (docs/interface.md section 4, ``record_path``): creating it, writing to it until
 the first write error, rolling it after ``~/reset`` into the next free ``<stem>_<k><suffix>``
 (existing files are skipped, never overwritten) and closing it. A log that cannot be opened or
 written stops the recording with an ERROR line and :attr:`NodeRecording.error` (which the node
