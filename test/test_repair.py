@@ -77,7 +77,7 @@ def check_repaired(tmp_path: Path, log: Path, capsys) -> Path:
 def test_repair_a_sigkilled_simulate_log(tmp_path, capsys):
     log = tmp_path / "killed.mcap"
     proc = subprocess.Popen([sys.executable, "-m", "rod_sim.tools.cli", "simulate", str(PAPER),
-                             "--model", "reduced", "--t-end", "100000", "--rate", "1000",
+                             "--model", "reduced", "--t-end", "500", "--rate", "1000",
                              "--out", str(log)], stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL)
     kill_when_larger(proc, log, 600_000)

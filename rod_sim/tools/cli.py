@@ -77,8 +77,10 @@ def build_parser() -> argparse.ArgumentParser:
                      help="sampling rate of the log [Hz of simulated time], at most "
                           f"{limits.MAX_RATE:g} (default 100)")
     sim.add_argument("--integrator", choices=INTEGRATORS, default="dop853-jit",
-                     help="dop853-jit (default; compiled adaptive, --rtol/--atol), rk4, rk2, "
-                          "euler (compiled fixed step, --step) or a scipy method")
+                     help="dop853-jit (default; compiled adaptive Dormand-Prince 8(5,3), "
+                          "--rtol/--atol), radau-jit (compiled implicit Radau IIA order 5, for "
+                          "stiff scenes, --rtol/--atol), rk4, rk2, euler (compiled fixed step, "
+                          "--step) or scipy's RK45, DOP853, Radau, BDF, LSODA")
     sim.add_argument("--rtol", type=_positive_float, default=None,
                      help="relative tolerance of adaptive integrators, "
                           f"{limits.RTOL_RANGE[0]:g} .. {limits.RTOL_RANGE[1]:g} (default 1e-8)")
