@@ -94,6 +94,20 @@ class Simulator:
         self.y = Y[-1].copy()
         self.t_ns = t1_ns
 
+    def sample(self, t_out_ns) -> np.ndarray:
+        """Advance to the last of the sorted integer-ns times ``t_out_ns`` (all >= now) holding
+        the current forces; returns the states there (len(t_out_ns), state_size). Hinge
+        events on the way are handled and recorded as by ``run``."""
+        t_out_ns = np.asarray(t_out_ns, dtype=np.int64)
+        if t_out_ns.size == 0 or t_out_ns[0] < self.t_ns or np.any(np.diff(t_out_ns) < 0):
+            raise ValueError("t_out_ns: sorted times from the current time on are needed")
+        t = t_out_ns / NS_PER_S
+        Y = self._integrate(t)
+        self._check_finite(t, Y)
+        self.y = Y[-1].copy()
+        self.t_ns = int(t_out_ns[-1])
+        return Y
+
     def _integrate(self, t_out) -> np.ndarray:
         """States at t_out from now; models with hinge events integrate themselves. When the
         integration raises, the simulator is left as it was (latches and events included)."""

@@ -24,8 +24,9 @@ import numpy as np
 
 from rod_sim.core.integrators import IntegrationError, make_integrator
 from rod_sim.core.kinematics import node_positions
-from rod_sim.core.models import FullModel
+from rod_sim.core.models import FullModel, make_model
 from rod_sim.core.scene import Scene
+from rod_sim.core.simulator import Simulator
 
 NS_PER_S = 1_000_000_000
 
@@ -130,15 +131,14 @@ def reference_run(scene: Scene, history: ForceHistory, t_out_ns: np.ndarray,
     """Integrate the full model from the scene's initial state at t = 0 through ``history``
     (integrator restarted at every change of the held command) and sample it at the sorted,
     unique times ``t_out_ns`` [ns] (all >= 0). Raises IntegrationError."""
-    model = FullModel(scene)
     integ = make_integrator("dop853-jit", rtol=rtol, atol=rtol * 1e-2)
-    y = model.initial_state()
-    out = np.empty((t_out_ns.size, y.size))
+    sim = Simulator(make_model("full", scene), integ)    # the logged scene, hinge features included
+    out = np.empty((t_out_ns.size, sim.model.state_size))
     starts = history.t_ns
     t_end = int(t_out_ns[-1])
     done = 0
     while done < t_out_ns.size and t_out_ns[done] == 0:
-        out[done] = y
+        out[done] = sim.y
         done += 1
     segments = 0
     for i, a in enumerate(starts):
@@ -149,10 +149,9 @@ def reference_run(scene: Scene, history: ForceHistory, t_out_ns: np.ndarray,
         stop = done
         while stop < t_out_ns.size and t_out_ns[stop] <= b:
             stop += 1
-        times = np.concatenate([t_out_ns[done:stop], [b]]) / NS_PER_S
-        Y = integ.integrate(model, y, a / NS_PER_S, times, history.held[i])
+        sim.set_forces(history.held[i])
+        Y = sim.sample(np.concatenate([t_out_ns[done:stop], [b]]))
         out[done:stop] = Y[:-1]
-        y = Y[-1].copy()
         done = stop
         segments += 1
     return Reference(t_out_ns, out, integ.describe(), integ.stats.nfev, segments)
