@@ -1,7 +1,11 @@
-"""Time steppers behind one protocol, chosen by name.
+"""Time steppers behind one protocol, chosen by name, and the one integration driver.
 
-Every integrator maps (model, y0, t0, output times, held forces) to the states at the output
-times, restarting at the scene's load breakpoints:
+:func:`drive` is the only integration path (``Simulator``, and through it simulate, the node,
+compare, bench, advise and sweep): it asks an integrator to ``advance`` the model in the
+current mode through the output times until a terminal hinge event (a latch), applies the
+latch (mode change + impulsive velocity projection, :mod:`rod_sim.core.hinges`) and goes on.
+Every integrator restarts at the scene's load breakpoints (computed once, in :func:`drive`)
+and locates hinge events (latches, stop contact begin/end):
 
 - ``dop853-jit`` (default): compiled adaptive Dormand-Prince 8(5,3) with dense output.
 - ``rk4``, ``rk2``, ``euler``: compiled fixed-step explicit Runge-Kutta (order 4, 2, 1);
@@ -15,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from . import erk
+from . import erk, hinges
 
 DEFAULT_RTOL = 1e-8
 DEFAULT_STEP = 1e-3
@@ -102,8 +106,39 @@ class Stats:
 
 
 @dataclass
+class Stretch:
+    """What one ``Integrator.advance`` call did: states ``Y`` at the first ``written`` output
+    times, the state ``y`` reached at ``t`` [s], whether it stopped at a terminal event
+    (``latch``: the hinge), and the located crossings (t (k,), code (k,) = 2 e + rising for
+    event e of the plan's table, states (k, size))."""
+
+    Y: np.ndarray
+    written: int
+    y: np.ndarray
+    t: float
+    latch: int | None
+    crossings: tuple
+
+
+def _event_buffers(plan, size: int):
+    cap = 64 + 2 * plan.events[0].size
+    return (*plan.events, np.empty(cap), np.empty(cap, dtype=np.int64), np.empty((cap, size)),
+            np.zeros(1, dtype=np.int64))
+
+
+def _stretch(model, plan, Y, written, y, t, status, ev) -> Stretch:
+    k = int(ev[6][0])
+    crossings = (ev[3][:k].copy(), ev[4][:k].copy(), ev[5][:k].copy())
+    latch = None
+    if status == erk.STATUS_EVENT:
+        e = int(ev[4][k - 1]) // 2
+        latch = int(plan.events[0][e])
+    return Stretch(Y, int(written), np.array(y), float(t), latch, crossings)
+
+
+@dataclass
 class Integrator:
-    """Base class: ``integrate(model, y0, t0, t_out, held)`` -> states (len(t_out), size)."""
+    """Base class: ``advance(model, plan, y0, t0, t_out, held, breaks)`` -> :class:`Stretch`."""
 
     name: str = ""
     rtol: float = DEFAULT_RTOL
@@ -123,23 +158,18 @@ class Integrator:
             return f"{self.name} rtol={self.rtol:g} atol={self.abs_tol:g}"
         return f"{self.name} step={self.step:g}"
 
-    def integrate(self, model, y0, t0, t_out, held=None):
+    def advance(self, model, plan, y0, t0, t_out, held, breaks) -> Stretch:
+        """Integrate from (t0, y0) in the mode of ``plan`` through the sorted ``t_out`` until
+        the end or a terminal event. Raises IntegrationError."""
         raise NotImplementedError
 
-    @staticmethod
-    def _breaks(model, t0, t_end) -> np.ndarray:
-        b = [x for x in model.scene.load_breakpoints() if t0 < x < t_end]
-        return np.array(sorted(b), dtype=float)
+    def integrate(self, model, y0, t0, t_out, held=None, mode=None, events=None):
+        """States (len(t_out), state_size) at the sorted times t_out [s] from (t0, y0) in
+        ``mode`` (see :func:`drive`; events go to ``events`` if given)."""
+        return drive(model, self, y0, t0, t_out, held, mode, [] if events is None else events)[0]
 
-    @staticmethod
-    def _prepare(model, y0, t_out, held):
-        t_out = np.atleast_1d(np.asarray(t_out, dtype=float))
-        if t_out.size == 0:
-            raise ValueError("t_out: at least one output time is needed")
-        if np.any(np.diff(t_out) < 0):
-            raise ValueError("t_out: output times must be sorted")
-        held = model._held(held)
-        return np.ascontiguousarray(y0, dtype=float), t_out, held
+    def reset(self) -> None:
+        """Forget carried step sizes (a new run)."""
 
 
 @dataclass
@@ -152,19 +182,18 @@ class JitDop853(Integrator):
     max_steps: int = 10_000_000
     _h: float = 0.0
 
-    def integrate(self, model, y0, t0, t_out, held=None):
-        y0, t_out, held = self._prepare(model, y0, t_out, held)
+    def advance(self, model, plan, y0, t0, t_out, held, breaks) -> Stretch:
         Y = np.empty((t_out.size, y0.size))
         stats = np.zeros(3, dtype=np.int64)
-        y, t, h, status = erk.DOP853[model.name](
-            model.chain, model.extra, model.loads, held, y0, float(t0), t_out,
-            self._breaks(model, t0, t_out[-1]), self.rtol, self.abs_tol, self._h,
-            self.max_step, self.max_steps, Y, stats)
+        ev = _event_buffers(plan, y0.size)
+        y, t, h, status, written = erk.DOP853[model.name](
+            model.chain, plan.extra, model.loads, held, y0, float(t0), t_out, breaks,
+            self.rtol, self.abs_tol, self._h, self.max_step, self.max_steps, Y, stats, ev)
         self.stats.add(stats)
-        if status != erk.STATUS_OK:
+        if status not in (erk.STATUS_OK, erk.STATUS_EVENT, erk.STATUS_EVENTS_FULL):
             raise _failure(model, erk.STATUS_TEXT[status], t, y, held)
-        self._h = h
-        return Y
+        self._h = 0.0 if status == erk.STATUS_EVENT else h   # a fresh start after a latch
+        return _stretch(model, plan, Y, written, y, t, status, ev)
 
     def reset(self) -> None:
         self._h = 0.0
@@ -172,7 +201,8 @@ class JitDop853(Integrator):
 
 @dataclass
 class JitFixedStep(Integrator):
-    """Compiled fixed-step explicit Runge-Kutta (euler, rk2 = Heun, rk4)."""
+    """Compiled fixed-step explicit Runge-Kutta (euler, rk2 = Heun, rk4); hinge events are
+    located on each step's cubic Hermite interpolant (erk.fixed_run)."""
 
     adaptive: bool = False
 
@@ -183,18 +213,18 @@ class JitFixedStep(Integrator):
         if not self.step > 0:
             raise ValueError(f"step: must be > 0 (got {self.step!r})")
 
-    def integrate(self, model, y0, t0, t_out, held=None):
-        y0, t_out, held = self._prepare(model, y0, t_out, held)
+    def advance(self, model, plan, y0, t0, t_out, held, breaks) -> Stretch:
         Y = np.empty((t_out.size, y0.size))
         stats = np.zeros(3, dtype=np.int64)
         A, b, c = self._tableau
-        y, t, status = erk.FIXED[model.name](model.chain, model.extra, model.loads, held,
-                                     y0, float(t0), t_out, self._breaks(model, t0, t_out[-1]),
-                                     float(self.step), A, b, c, Y, stats)
+        ev = _event_buffers(plan, y0.size)
+        y, t, status, written = erk.FIXED[model.name](
+            model.chain, plan.extra, model.loads, held, y0, float(t0), t_out, breaks,
+            float(self.step), A, b, c, Y, stats, ev)
         self.stats.add(stats)
-        if status != erk.STATUS_OK:
+        if status not in (erk.STATUS_OK, erk.STATUS_EVENT, erk.STATUS_EVENTS_FULL):
             raise _failure(model, erk.STATUS_TEXT[status], t, y, held)
-        return Y
+        return _stretch(model, plan, Y, written, y, t, status, ev)
 
 
 STALL_CALLS = 20_000
@@ -210,18 +240,34 @@ class _NonFinite(Exception):
         self.t, self.y, self.reason = float(t), y, reason
 
 
+def _scipy_events(plan):
+    """solve_ivp event functions for the plan's table (latches terminal)."""
+    fns = []
+    for h, angle, kind in zip(*plan.events):
+        h = int(h)
+        if h == 0:
+            f = (lambda t, y, a=angle: y[0] - a)
+        else:
+            f = (lambda t, y, h=h, a=angle: y[h] - y[h - 1] - a)
+        f.terminal = bool(kind == hinges.EV_LATCH)
+        fns.append(f)
+    return fns
+
+
 @dataclass
 class ScipyIntegrator(Integrator):
-    """scipy.integrate.solve_ivp with one of its methods, restarted at load breakpoints."""
+    """scipy.integrate.solve_ivp with one of its methods on the compiled right-hand side,
+    restarted at load breakpoints; hinge events through solve_ivp's event location."""
 
     def __post_init__(self):
         self.order = {"RK45": 5, "DOP853": 8, "Radau": 5, "BDF": 5, "LSODA": 12}[self.name]
 
-    def integrate(self, model, y0, t0, t_out, held=None):
-        y0, t_out, held = self._prepare(model, y0, t_out, held)
+    def advance(self, model, plan, y0, t0, t_out, held, breaks) -> Stretch:
         Y = np.empty((t_out.size, y0.size))
-        edges = [float(t0), *self._breaks(model, t0, t_out[-1]), float(t_out[-1])]
-        kernel, chain, extra, loads = model.kernel, model.chain, model.extra, model.loads
+        edges = [float(t0), *[b for b in breaks if t0 < b < t_out[-1]], float(t_out[-1])]
+        kernel, chain, extra, loads = model.kernel, model.chain, plan.extra, model.loads
+        fns = _scipy_events(plan) or None
+        found_t, found_code, found_y = [], [], []
         y = y0
         done = 0
         while done < t_out.size and t_out[done] <= t0:
@@ -248,13 +294,10 @@ class ScipyIntegrator(Integrator):
                                          f"{STALL_CALLS} derivative evaluations (it diverges)")
                 return out
 
-            stop = done
-            while stop < t_out.size and t_out[stop] <= b:
-                stop += 1
             try:
                 with np.errstate(all="ignore"):
                     sol = solve_ivp(fun, (a, b), y, method=self.name, rtol=self.rtol,
-                                    atol=self.abs_tol, dense_output=stop > done)
+                                    atol=self.abs_tol, dense_output=True, events=fns)
             except _NonFinite as exc:
                 raise _failure(model, exc.reason, exc.t, exc.y, held) from None
             except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
@@ -262,18 +305,124 @@ class ScipyIntegrator(Integrator):
                                a, y, held) from None
             self.stats.nfev += sol.nfev
             self.stats.steps += max(sol.t.size - 1, 0)
-            if sol.status != 0 or not np.all(np.isfinite(sol.y)):
+            if sol.status == -1 or not np.all(np.isfinite(sol.y)):
                 t_fail = float(sol.t[-1]) if sol.t.size else a
                 y_fail = sol.y[:, -1] if sol.t.size else y
-                raise _failure(model, sol.message if sol.status != 0 else
+                raise _failure(model, sol.message if sol.status == -1 else
                                erk.STATUS_TEXT[erk.STATUS_NONFINITE], t_fail, y_fail, held)
+            t_end = float(sol.t[-1])
+            stop = done
+            while stop < t_out.size and t_out[stop] <= t_end:
+                stop += 1
             if stop > done:
                 Y[done:stop] = sol.sol(t_out[done:stop]).T
-            y = sol.y[:, -1]
             done = stop
-        return Y
+            y = sol.y[:, -1].copy()
+            latch = None
+            for e, (ts, ys) in enumerate(zip(sol.t_events or [], sol.y_events or [])):
+                h = int(plan.events[0][e])
+                for te, ye in zip(ts, ys):
+                    rising = hinges.hinge_angles(model.phi_rate(ye))[h] > 0.0
+                    found_t.append(float(te))
+                    found_code.append(2 * e + int(rising))
+                    found_y.append(ye)
+                    if sol.status == 1 and plan.events[2][e] == hinges.EV_LATCH and te == t_end:
+                        latch = h
+            if sol.status == 1:
+                return Stretch(Y, done, y, t_end, latch if latch is not None else -1,
+                               self._found(found_t, found_code, found_y, y0.size))
+        return Stretch(Y, done, y, float(t_out[-1]), None,
+                       self._found(found_t, found_code, found_y, y0.size))
+
+    @staticmethod
+    def _found(ts, codes, ys, size):
+        return (np.array(ts, dtype=float), np.array(codes, dtype=np.int64),
+                np.array(ys, dtype=float).reshape(len(ys), size))
 
 
+def drive(model, integrator: Integrator, y0, t0: float, t_out, held=None, mode=None,
+          events: list | None = None):
+    """The integration driver: states at the sorted times ``t_out`` [s] from (t0, y0) with
+    held nodal forces (n, 2) [N], the latches ``mode`` (n,) bool already fired (None: none),
+    appending :class:`~rod_sim.core.hinges.HingeEvent` s to ``events`` at their simulated
+    times. A latch crossing ends the integrator's stretch at the located time; there the
+    hinge joins the mode and the velocity is projected (outputs at exactly that time are the
+    state before the impact). Returns (states (N, size), modes (N, n) of the samples, mode at
+    the end, state at the end: after the impact when a latch fell on the last time). Raises IntegrationError, ValueError (bad output times)."""
+    t_out = np.atleast_1d(np.asarray(t_out, dtype=float))
+    if t_out.size == 0:
+        raise ValueError("t_out: at least one output time is needed")
+    if np.any(np.diff(t_out) < 0):
+        raise ValueError("t_out: output times must be sorted")
+    held = model._held(held)
+    events = [] if events is None else events
+    mode = np.zeros(model.n, dtype=bool) if mode is None else np.array(mode, dtype=bool)
+    y = np.ascontiguousarray(y0, dtype=float).copy()
+    t = float(t0)
+    Y = np.empty((t_out.size, y.size))
+    modes = np.empty((t_out.size, model.n), dtype=bool)
+    done = 0
+    while done < t_out.size and t_out[done] <= t:
+        Y[done], modes[done] = y, mode
+        done += 1
+    mode, y = _latch(model, mode, t, y, None, events)
+    breaks = np.array(sorted(b for b in model.scene.load_breakpoints() if t < b < t_out[-1]),
+                      dtype=float)
+    while done < t_out.size:
+        plan = model.plan(mode)
+        s = integrator.advance(model, plan, y, t, t_out[done:], held, breaks)
+        Y[done:done + s.written] = s.Y[:s.written]
+        modes[done:done + s.written] = mode
+        done += s.written
+        events.extend(_crossing_events(model, plan, s.crossings))
+        y, t = np.ascontiguousarray(s.y, dtype=float), s.t
+        if s.latch is not None:
+            mode, y = _latch(model, mode, t, y, s.latch, events)
+    return Y, modes, mode, y
+
+
+def _crossing_events(model, plan, crossings) -> list:
+    """Stop contact begin/end events (sorted by time) of located crossings."""
+    out = []
+    for t, code, y in zip(*crossings):
+        e = int(code) // 2
+        h, kind = int(plan.events[0][e]), int(plan.events[2][e])
+        name, stop = hinges.crossing_kind(kind, bool(code % 2))
+        if kind == hinges.EV_LATCH:
+            continue
+        out.append(hinges.HingeEvent(float(t), name, h, {
+            "stop": stop, "angle": float(hinges.hinge_angles(model.phi(y))[h]),
+            "rate": float(hinges.hinge_angles(model.phi_rate(y))[h])}))
+    return sorted(out, key=lambda e: e.t)
+
+
+def _latch(model, mode, t: float, y, located: int | None, events: list):
+    """Lock the unlocked hinges whose latch angle is reached at (t, y): the located one
+    (``located``; -1: the closest) and any other within 1e-9 rad; at the start of a drive
+    (``located`` None) only exact hits. Returns (mode, y with the velocity projected)."""
+    s = model.scene
+    theta = hinges.hinge_angles(model.phi(y))
+    gap = np.abs(theta - s.latch_angle)
+    free = ~hinges.locked_hinges(s, mode) & np.isfinite(s.latch_angle)
+    if located is None:
+        hit = free & (gap == 0.0)
+    else:
+        hit = free & (gap <= max(1e-9, 1e-9 * float(np.max(np.abs(theta)))))
+        if located >= 0 and free[located]:
+            hit[located] = True
+        elif free.any() and not hit.any():
+            hit[np.flatnonzero(free)[np.argmin(np.where(free, gap, np.inf)[free])]] = True
+    if not hit.any():
+        return mode, y
+    rate = hinges.hinge_angles(model.phi_rate(y))
+    new_mode = mode | hit
+    y1 = model.project_velocity(y, new_mode)
+    loss = model.kinetic_energy(t, y) - model.kinetic_energy(t, y1)
+    for h in np.flatnonzero(hit):
+        events.append(hinges.HingeEvent(t, "latch", int(h), {
+            "angle": float(theta[h]), "rate": float(rate[h]),
+            "kinetic_energy_loss": float(loss)}))
+    return new_mode, y1
 
 
 def make_integrator(name: str = "dop853-jit", *, rtol: float | None = None,

@@ -6,11 +6,13 @@ them: ``rhs(t, y, chain, extra, loads, held, t_side, out)`` writes dy/dt into ``
 - ``chain`` = (l, m, mu, Kt, kappa, nu, Mt, C): arrays (n,) of rod length [m], mass per
   length [kg/m], node mass [kg], 4 EI / l [N m/rad], hinge stiffness [N m/rad], hinge damping
   [N m s/rad], tail mass M_k [kg] and m l^2 / 12 [kg m].
-- ``extra`` = (P_alpha, P_beta, B_inv, work): reduced-model constants P = [kappa^{gamma phi}]^T
-  [b^{gamma gamma}]^{-1} split into its alpha and beta halves (n, n) each and
-  B_inv = [b^{gamma gamma}]^{-1} (2n, 2n) (other models: zeros, unused), and ``work``, a
+- ``extra`` = (P_alpha, P_beta, B_inv, work, hinge): reduced-model constants P =
+  [kappa^{gamma phi}]^T [b^{gamma gamma}]^{-1} split into its alpha and beta halves (n, n)
+  each and B_inv = [b^{gamma gamma}]^{-1} (2n, 2n) (other models: zeros, unused), ``work``, a
   scratch array of ``workspace_size(n)`` floats so that a call allocates nothing (the
-  kernels are therefore not re-entrant: one model instance per thread).
+  kernels are therefore not re-entrant: one model instance per thread), and ``hinge``, the
+  hinge features in the current mode (see :data:`HINGE_FIELDS`; all zeros/infinite for a
+  plain chain, which then runs exactly the paper's equations).
 - ``loads`` = (node, axis, shape, amplitude, start, duration) arrays describing scripted loads;
   ``held`` (n, 2) the held (commanded) nodal forces [N]; ``t_side`` a time strictly inside the
   current segment between load breakpoints, which decides which side of a jump applies.
@@ -29,6 +31,15 @@ import numpy as np
 from .jit import njit
 
 SHAPE_PULSE, SHAPE_CONSTANT, SHAPE_STEP = 0, 1, 2
+
+HINGE_FIELDS = ("rest_phi", "rest_alpha", "rest_beta", "stop_lower", "stop_upper",
+                "stop_stiffness", "stop_damping", "flags", "T_row", "T_col", "T_val", "scratch")
+"""``extra[4]``: rest-angle generalized forces on phi, alpha, beta (n,) each [N m]
+(kappa theta_rest dDelta/dq: kr_h - kr_{h+1}, kr_h, -kr_{h+1}); stop angles [rad] (n,)
+(+-inf: none, also for locked hinges), contact stiffness [N m/rad] and damping [N m s/rad]
+(n,); ``flags`` int64 (3,) = [any stop, constrained, r]; the constraint basis T (dof, r) as
+coordinate lists (row, col int64, value float); ``scratch`` floats for the projected solve
+(3 dof^2 + 2 dof)."""
 
 
 @njit(inline="always")
@@ -174,6 +185,76 @@ def solve_inplace(A, b):
 
 
 @njit(inline="always")
+def hinge_forces(phi, dphi, hinge, out):
+    """Add the rest-angle and stop-contact generalized forces on phi (n,) [N m] to out."""
+    rest = hinge[0]
+    lo = hinge[3]
+    hi = hinge[4]
+    ks = hinge[5]
+    cs = hinge[6]
+    n = phi.shape[0]
+    for k in range(n):
+        out[k] += rest[k]
+    if hinge[7][0] == 0:
+        return
+    for h in range(n):
+        if h == 0:
+            th = phi[0]
+            dth = dphi[0]
+        else:
+            th = phi[h] - phi[h - 1]
+            dth = dphi[h] - dphi[h - 1]
+        m = 0.0
+        if th > hi[h]:
+            m = -max(0.0, ks[h] * (th - hi[h]) + cs[h] * dth)
+        elif th < lo[h]:
+            m = max(0.0, ks[h] * (lo[h] - th) - cs[h] * dth)
+        out[h] += m
+        if h > 0:
+            out[h - 1] -= m
+
+
+@njit(inline="always")
+def projected_solve(M, f, hinge, out):
+    """out = T (T^T M T)^{-1} T^T f for the constraint basis T of ``hinge`` (M (d, d) and
+    f (d,) are kept). Returns False when T^T M T is singular."""
+    d = f.shape[0]
+    r = hinge[7][2]
+    rows = hinge[8]
+    cols = hinge[9]
+    vals = hinge[10]
+    ws = hinge[11]
+    for i in range(d):
+        out[i] = 0.0
+    if r == 0:
+        return True
+    MT = ws[0:d * r].reshape((d, r))
+    R = ws[d * r:d * r + r * r].reshape((r, r))
+    q = ws[d * r + r * r:d * r + r * r + r]
+    MT[:, :] = 0.0
+    R[:, :] = 0.0
+    q[:] = 0.0
+    for e in range(rows.shape[0]):
+        i = rows[e]
+        c = cols[e]
+        v = vals[e]
+        for a in range(d):
+            MT[a, c] += M[a, i] * v
+    for e in range(rows.shape[0]):
+        i = rows[e]
+        c = cols[e]
+        v = vals[e]
+        q[c] += v * f[i]
+        for c2 in range(r):
+            R[c, c2] += v * MT[i, c2]
+    if not solve_inplace(R, q):
+        return False
+    for e in range(rows.shape[0]):
+        out[rows[e]] += vals[e] * q[cols[e]]
+    return True
+
+
+@njit(inline="always")
 def _fill_nan(out):
     for i in range(out.shape[0]):
         out[i] = np.nan
@@ -231,11 +312,23 @@ def rigid_rhs(t, y, chain, extra, loads, held, t_side, out):
         rhs[k] -= gp[k] + tau[k]
         if k + 1 < n:
             rhs[k] += tau[k + 1]
+    _finish(phi, dphi, A, rhs, extra[4], out)
+
+
+@njit(inline="always")
+def _finish(phi, dphi, A, rhs, hinge, out):
+    """Rigid and reduced models: add the hinge features' forces, solve A phi_dd = rhs (on
+    the constraint set when hinges are locked), write [phi_dot, phi_dd] into out."""
+    n = phi.shape[0]
+    hinge_forces(phi, dphi, hinge, rhs)
     out[:n] = dphi
-    if not solve_inplace(A, rhs):
+    if hinge[7][1]:
+        ok = projected_solve(A, rhs, hinge, out[n:])
+    else:
+        ok = solve_inplace(A, rhs)
+        out[n:] = rhs
+    if not ok:
         _fill_nan(out)
-        return
-    out[n:] = rhs
 
 
 @njit
@@ -251,10 +344,13 @@ def reduced_rhs(t, y, chain, extra, loads, held, t_side, out):
                                                              held, t_side)
     a_al = v1
     a_be = v2
+    hinge = extra[4]
+    rest_al = hinge[1]
+    rest_be = hinge[2]
     for k in range(n):
         nxt = tau[k + 1] if k + 1 < n else 0.0
-        a_al[k] = ga[k] + tau[k]
-        a_be[k] = -ga[k] - nxt
+        a_al[k] = ga[k] + tau[k] - rest_al[k]
+        a_be[k] = -ga[k] - nxt - rest_be[k]
         rhs[k] -= gp[k] + tau[k] - nxt
     # M_r = A - P_alpha m^{alpha phi} - P_beta m^{beta phi} with m^{alpha phi} = Ma^T.
     # Off the diagonal Ma[i, j] = C_j l_i cos(phi_i - phi_j) = -Mb[i, j] (j > i), so
@@ -273,11 +369,7 @@ def reduced_rhs(t, y, chain, extra, loads, held, t_side, out):
             r = (Pa[k, i] - Pb[k, i]) * C[i]
             su += r * c[i]
             sv += r * s[i]
-    out[:n] = dphi
-    if not solve_inplace(A, rhs):
-        _fill_nan(out)
-        return
-    out[n:] = rhs
+    _finish(phi, dphi, A, rhs, hinge, out)
 
 
 @njit
@@ -295,6 +387,7 @@ def full_rhs(t, y, chain, extra, loads, held, t_side, out):
     dal = y[4 * n:5 * n]
     dbe = y[5 * n:6 * n]
     A, Ma, Mb, Wa, Wb, c, s, gp, ga, Fp, Fa, Fb, ia, ib, f, tau = _carve(extra[3], n)
+    hinge = extra[4]
     for k in range(n):
         c[k] = math.cos(phi[k])
         s[k] = math.sin(phi[k])
@@ -317,8 +410,13 @@ def full_rhs(t, y, chain, extra, loads, held, t_side, out):
             skj = s[k] * c[j] - c[k] * s[j]
             cor += C[j] * l[k] * skj * dphi[j] * (dal[j] - dbe[j])
         Fp[k] -= gp[k] + 2.0 * cor + tau[k] - tau[k + 1]
-        Fa[k] = -ga[k] - tau[k] - Kt[k] * (al[k] + 0.5 * be[k])
-        Fb[k] = ga[k] + tau[k + 1] - Kt[k] * (0.5 * al[k] + be[k])
+        Fa[k] = -ga[k] - tau[k] - Kt[k] * (al[k] + 0.5 * be[k]) + hinge[1][k]
+        Fb[k] = ga[k] + tau[k + 1] - Kt[k] * (0.5 * al[k] + be[k]) + hinge[2][k]
+    hinge_forces(phi, dphi, hinge, Fp)
+    out[:3 * n] = y[3 * n:]
+    if hinge[7][1]:
+        _full_constrained(A, Ma, Mb, Fp, Fa, Fb, chain, hinge, out[3 * n:])
+        return
     # bending block per rod: [[a, b], [b, a]], a = m l^3/105, b = -m l^3/140
     for j in range(n):
         ml3 = m[j] * l[j] ** 3
@@ -342,7 +440,6 @@ def full_rhs(t, y, chain, extra, loads, held, t_side, out):
             for j in range(max(k, i), n):
                 acc += Wa[k, j] * Ma[i, j] + Wb[k, j] * Mb[i, j]
             A[k, i] -= acc
-    out[:3 * n] = y[3 * n:]
     if not solve_inplace(A, x):
         _fill_nan(out)
         return
@@ -355,3 +452,37 @@ def full_rhs(t, y, chain, extra, loads, held, t_side, out):
         out[3 * n + j] = x[j]
         out[4 * n + j] = ia[j] * ra + ib[j] * rb
         out[5 * n + j] = ib[j] * ra + ia[j] * rb
+
+
+@njit(inline="always")
+def _full_constrained(A, Ma, Mb, Fp, Fa, Fb, chain, hinge, acc):
+    """Full model on the constraint set: the 3n x 3n mass matrix [[A, Ma, Mb], [Ma^T, Da,
+    Db], [Mb^T, Db, Da]] and forces [Fp, Fa, Fb] assembled in the hinge scratch, then the
+    projected solve into acc (3n,)."""
+    l = chain[0]
+    m = chain[1]
+    n = l.shape[0]
+    d = 3 * n
+    ws = hinge[11]
+    o = ws.shape[0] - d * d - d
+    M = ws[o:o + d * d].reshape((d, d))
+    f = ws[o + d * d:o + d * d + d]
+    M[:, :] = 0.0
+    for k in range(n):
+        f[k] = Fp[k]
+        f[n + k] = Fa[k]
+        f[2 * n + k] = Fb[k]
+        ml3 = m[k] * l[k] ** 3
+        M[n + k, n + k] = ml3 / 105.0
+        M[2 * n + k, 2 * n + k] = ml3 / 105.0
+        M[n + k, 2 * n + k] = -ml3 / 140.0
+        M[2 * n + k, n + k] = -ml3 / 140.0
+        for j in range(n):
+            M[k, j] = A[k, j]
+            M[k, n + j] = Ma[k, j]
+            M[k, 2 * n + j] = Mb[k, j]
+            M[n + j, k] = Ma[k, j]
+            M[2 * n + j, k] = Mb[k, j]
+    if not projected_solve(M, f, hinge, acc):
+        for i in range(d):
+            acc[i] = np.nan
