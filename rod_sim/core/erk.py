@@ -11,11 +11,12 @@ count (1,)). After every accepted step the event functions g_e = theta_{hinge_e}
 are compared at the step's ends; a sign change is bracketed on the step and its root found
 on the step's interpolant (DOP853: its 7th-order dense output; fixed-step methods: the cubic
 Hermite interpolant of the step's end values and slopes) by the Illinois method to
-|dt| <= 4 eps max(1, |t|) (a few 1e-16 s). Every root is recorded (t, code = 2 e + rising,
-interpolated state); a latch (kind EV_LATCH) is terminal: the driver stops exactly there with
-status STATUS_EVENT and the caller changes the mode and restarts. A function that crosses
-twice within one step is not seen, and a recorded crossing at or after a latch in the same
-step is dropped (both as in scipy's solve_ivp).
+|dt| <= 4 eps max(1, |t|) (a few 1e-16 s). Every event changes the mode (a latch locks the
+hinge, a stop crossing switches its contact law on or off, so that no step straddles the
+contact's jump in acceleration): the driver stops exactly at the earliest root (a latch
+first among equal roots), records it (t, code = 2 e + rising, interpolated state) and returns
+STATUS_EVENT; the caller changes the mode and restarts. A function that crosses twice within
+one step is not seen (as in scipy's solve_ivp).
 
 Status codes returned: 0 success, 1 step size underflow, 2 too many steps, 3 non-finite state,
 4 a terminal event (stopped at it), 5 the event buffer is full (stopped after a step; drain it
@@ -135,35 +136,31 @@ def _illinois(F, y, h, a, g_hi, tol_x):
 
 @njit
 def _locate(F, y, t, hs, g0, g1, events):
-    """Find and record the roots of the event functions that change sign over the step
-    (t, t + hs] with interpolant F; returns x of the earliest terminal root, or -1."""
+    """Locate the earliest root of the event functions that change sign over the step
+    (t, t + hs] with interpolant F (a latch first among equal roots) and record it; returns
+    its x in (0, 1], or -1 when nothing crossed."""
     ev_h, ev_a, ev_k, ev_t, ev_i, ev_y, ev_n = events
-    m = ev_h.shape[0]
     tol_x = 4.0 * 2.220446049250313e-16 * max(1.0, abs(t) + abs(hs)) / hs
     x_stop = 2.0
-    for e in range(m):
-        if (g0[e] < 0.0 and g1[e] >= 0.0) or (g0[e] > 0.0 and g1[e] <= 0.0):
-            if ev_k[e] == EV_LATCH:
+    first = -1
+    for latch_pass in (True, False):
+        for e in range(ev_h.shape[0]):
+            if (ev_k[e] == EV_LATCH) != latch_pass:
+                continue
+            if (g0[e] < 0.0 and g1[e] >= 0.0) or (g0[e] > 0.0 and g1[e] <= 0.0):
                 x = _illinois(F, y, ev_h[e], ev_a[e], g1[e], tol_x)
                 if x < x_stop:
                     x_stop = x
-    for e in range(m):
-        if (g0[e] < 0.0 and g1[e] >= 0.0) or (g0[e] > 0.0 and g1[e] <= 0.0):
-            if ev_k[e] == EV_LATCH:
-                x = _illinois(F, y, ev_h[e], ev_a[e], g1[e], tol_x)
-                if x != x_stop:
-                    continue        # a later latch: it is re-detected after the restart
-            else:
-                x = _illinois(F, y, ev_h[e], ev_a[e], g1[e], tol_x)
-                if x >= x_stop and x_stop <= 1.0:
-                    continue        # at or after the terminal event (as solve_ivp)
-            k = ev_n[0]
-            ev_t[k] = t + x * hs
-            ev_i[k] = 2 * e + (1 if g1[e] > g0[e] else 0)
-            for i in range(y.shape[0]):
-                ev_y[k, i] = _dense(F, y, x, i)
-            ev_n[0] = k + 1
-    return x_stop if x_stop <= 1.0 else -1.0
+                    first = e
+    if first < 0:
+        return -1.0
+    k = ev_n[0]
+    ev_t[k] = t + x_stop * hs
+    ev_i[k] = 2 * first + (1 if g1[first] > g0[first] else 0)
+    for i in range(y.shape[0]):
+        ev_y[k, i] = _dense(F, y, x_stop, i)
+    ev_n[0] = k + 1
+    return x_stop
 
 
 @njit

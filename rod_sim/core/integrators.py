@@ -108,15 +108,15 @@ class Stats:
 @dataclass
 class Stretch:
     """What one ``Integrator.advance`` call did: states ``Y`` at the first ``written`` output
-    times, the state ``y`` reached at ``t`` [s], whether it stopped at a terminal event
-    (``latch``: the hinge), and the located crossings (t (k,), code (k,) = 2 e + rising for
-    event e of the plan's table, states (k, size))."""
+    times, the state ``y`` reached at ``t`` [s], the event it stopped at (``event``: its
+    index in the plan's table, None: none) and the located crossing (t (k,), code (k,) =
+    2 e + rising for event e, states (k, size); k = 1 at an event, else 0)."""
 
     Y: np.ndarray
     written: int
     y: np.ndarray
     t: float
-    latch: int | None
+    event: int | None
     crossings: tuple
 
 
@@ -129,11 +129,8 @@ def _event_buffers(plan, size: int):
 def _stretch(model, plan, Y, written, y, t, status, ev) -> Stretch:
     k = int(ev[6][0])
     crossings = (ev[3][:k].copy(), ev[4][:k].copy(), ev[5][:k].copy())
-    latch = None
-    if status == erk.STATUS_EVENT:
-        e = int(ev[4][k - 1]) // 2
-        latch = int(plan.events[0][e])
-    return Stretch(Y, int(written), np.array(y), float(t), latch, crossings)
+    event = int(ev[4][k - 1]) // 2 if status == erk.STATUS_EVENT else None
+    return Stretch(Y, int(written), np.array(y), float(t), event, crossings)
 
 
 @dataclass
@@ -192,7 +189,9 @@ class JitDop853(Integrator):
         self.stats.add(stats)
         if status not in (erk.STATUS_OK, erk.STATUS_EVENT, erk.STATUS_EVENTS_FULL):
             raise _failure(model, erk.STATUS_TEXT[status], t, y, held)
-        self._h = 0.0 if status == erk.STATUS_EVENT else h   # a fresh start after a latch
+        latch = status == erk.STATUS_EVENT and plan.events[2][int(ev[4][0]) // 2] == \
+            hinges.EV_LATCH
+        self._h = 0.0 if latch else h          # a fresh start after an impact
         return _stretch(model, plan, Y, written, y, t, status, ev)
 
     def reset(self) -> None:
@@ -241,7 +240,7 @@ class _NonFinite(Exception):
 
 
 def _scipy_events(plan):
-    """solve_ivp event functions for the plan's table (latches terminal)."""
+    """solve_ivp event functions for the plan's table."""
     fns = []
     for h, angle, kind in zip(*plan.events):
         h = int(h)
@@ -249,7 +248,7 @@ def _scipy_events(plan):
             f = (lambda t, y, a=angle: y[0] - a)
         else:
             f = (lambda t, y, h=h, a=angle: y[h] - y[h - 1] - a)
-        f.terminal = bool(kind == hinges.EV_LATCH)
+        f.terminal = True           # every crossing changes the mode (latch or contact law)
         fns.append(f)
     return fns
 
@@ -267,7 +266,6 @@ class ScipyIntegrator(Integrator):
         edges = [float(t0), *[b for b in breaks if t0 < b < t_out[-1]], float(t_out[-1])]
         kernel, chain, extra, loads = model.kernel, model.chain, plan.extra, model.loads
         fns = _scipy_events(plan) or None
-        found_t, found_code, found_y = [], [], []
         y = y0
         done = 0
         while done < t_out.size and t_out[done] <= t0:
@@ -318,37 +316,35 @@ class ScipyIntegrator(Integrator):
                 Y[done:stop] = sol.sol(t_out[done:stop]).T
             done = stop
             y = sol.y[:, -1].copy()
-            latch = None
-            for e, (ts, ys) in enumerate(zip(sol.t_events or [], sol.y_events or [])):
-                h = int(plan.events[0][e])
-                for te, ye in zip(ts, ys):
-                    rising = hinges.hinge_angles(model.phi_rate(ye))[h] > 0.0
-                    found_t.append(float(te))
-                    found_code.append(2 * e + int(rising))
-                    found_y.append(ye)
-                    if sol.status == 1 and plan.events[2][e] == hinges.EV_LATCH and te == t_end:
-                        latch = h
             if sol.status == 1:
-                return Stretch(Y, done, y, t_end, latch if latch is not None else -1,
-                               self._found(found_t, found_code, found_y, y0.size))
-        return Stretch(Y, done, y, float(t_out[-1]), None,
-                       self._found(found_t, found_code, found_y, y0.size))
+                first = None
+                for e, ts in enumerate(sol.t_events):
+                    if ts.size and ts[-1] == t_end and (
+                            first is None or plan.events[2][e] == hinges.EV_LATCH):
+                        first = e
+                h = int(plan.events[0][first])
+                rising = hinges.hinge_angles(model.phi_rate(y))[h] > 0.0
+                crossing = (np.array([t_end]), np.array([2 * first + int(rising)]), y[None, :])
+                return Stretch(Y, done, y, t_end, first, crossing)
+        return Stretch(Y, done, y, float(t_out[-1]), None, self._found())
 
     @staticmethod
-    def _found(ts, codes, ys, size):
-        return (np.array(ts, dtype=float), np.array(codes, dtype=np.int64),
-                np.array(ys, dtype=float).reshape(len(ys), size))
+    def _found():
+        return (np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros((0, 0)))
 
 
 def drive(model, integrator: Integrator, y0, t0: float, t_out, held=None, mode=None,
-          events: list | None = None):
+          events: list | None = None, contact=None):
     """The integration driver: states at the sorted times ``t_out`` [s] from (t0, y0) with
-    held nodal forces (n, 2) [N], the latches ``mode`` (n,) bool already fired (None: none),
-    appending :class:`~rod_sim.core.hinges.HingeEvent` s to ``events`` at their simulated
-    times. A latch crossing ends the integrator's stretch at the located time; there the
-    hinge joins the mode and the velocity is projected (outputs at exactly that time are the
-    state before the impact). Returns (states (N, size), modes (N, n) of the samples, mode at
-    the end, state at the end: after the impact when a latch fell on the last time). Raises IntegrationError, ValueError (bad output times)."""
+    held nodal forces (n, 2) [N], the latches ``mode`` (n,) bool already fired (None: none)
+    and the stop contacts ``contact`` (n,) int (None: as implied by y0), appending
+    :class:`~rod_sim.core.hinges.HingeEvent` s to ``events`` at their simulated times.
+    Every located event ends the integrator's stretch: a latch locks the hinge and projects
+    the velocity (outputs at exactly that time are the state before the impact), a stop
+    crossing switches the hinge's contact law; then the integration restarts there.
+    Returns (states (N, size), modes (N, n) of the samples, mode at the end, state at the
+    end (after the impact when a latch fell on the last time), contacts at the end).
+    Raises IntegrationError, ValueError (bad output times)."""
     t_out = np.atleast_1d(np.asarray(t_out, dtype=float))
     if t_out.size == 0:
         raise ValueError("t_out: at least one output time is needed")
@@ -358,6 +354,7 @@ def drive(model, integrator: Integrator, y0, t0: float, t_out, held=None, mode=N
     events = [] if events is None else events
     mode = np.zeros(model.n, dtype=bool) if mode is None else np.array(mode, dtype=bool)
     y = np.ascontiguousarray(y0, dtype=float).copy()
+    contact = model.contact_state(y) if contact is None else np.array(contact, dtype=np.int8)
     t = float(t0)
     Y = np.empty((t_out.size, y.size))
     modes = np.empty((t_out.size, model.n), dtype=bool)
@@ -369,37 +366,32 @@ def drive(model, integrator: Integrator, y0, t0: float, t_out, held=None, mode=N
     breaks = np.array(sorted(b for b in model.scene.load_breakpoints() if t < b < t_out[-1]),
                       dtype=float)
     while done < t_out.size:
-        plan = model.plan(mode)
+        plan = model.plan(mode, contact)
         s = integrator.advance(model, plan, y, t, t_out[done:], held, breaks)
         Y[done:done + s.written] = s.Y[:s.written]
         modes[done:done + s.written] = mode
         done += s.written
-        events.extend(_crossing_events(model, plan, s.crossings))
         y, t = np.ascontiguousarray(s.y, dtype=float), s.t
-        if s.latch is not None:
-            mode, y = _latch(model, mode, t, y, s.latch, events)
-    return Y, modes, mode, y
-
-
-def _crossing_events(model, plan, crossings) -> list:
-    """Stop contact begin/end events (sorted by time) of located crossings."""
-    out = []
-    for t, code, y in zip(*crossings):
-        e = int(code) // 2
-        h, kind = int(plan.events[0][e]), int(plan.events[2][e])
-        name, stop = hinges.crossing_kind(kind, bool(code % 2))
-        if kind == hinges.EV_LATCH:
+        if s.event is None:
             continue
-        out.append(hinges.HingeEvent(float(t), name, h, {
+        h, kind = int(plan.events[0][s.event]), int(plan.events[2][s.event])
+        if kind == hinges.EV_LATCH:
+            mode, y = _latch(model, mode, t, y, h, events)
+            contact[h] = 0
+            continue
+        rising = bool(s.crossings[1][-1] % 2)
+        name, stop = hinges.crossing_kind(kind, rising)
+        contact[h] = (1 if stop == "upper" else -1) if name == "stop_contact_begin" else 0
+        events.append(hinges.HingeEvent(t, name, h, {
             "stop": stop, "angle": float(hinges.hinge_angles(model.phi(y))[h]),
             "rate": float(hinges.hinge_angles(model.phi_rate(y))[h])}))
-    return sorted(out, key=lambda e: e.t)
+    return Y, modes, mode, y, contact
 
 
 def _latch(model, mode, t: float, y, located: int | None, events: list):
     """Lock the unlocked hinges whose latch angle is reached at (t, y): the located one
-    (``located``; -1: the closest) and any other within 1e-9 rad; at the start of a drive
-    (``located`` None) only exact hits. Returns (mode, y with the velocity projected)."""
+    (``located``) and any other within 1e-9 rad; at the start of a drive (``located``
+    None) only exact hits. Returns (mode, y with the velocity projected)."""
     s = model.scene
     theta = hinges.hinge_angles(model.phi(y))
     gap = np.abs(theta - s.latch_angle)
@@ -408,10 +400,7 @@ def _latch(model, mode, t: float, y, located: int | None, events: list):
         hit = free & (gap == 0.0)
     else:
         hit = free & (gap <= max(1e-9, 1e-9 * float(np.max(np.abs(theta)))))
-        if located >= 0 and free[located]:
-            hit[located] = True
-        elif free.any() and not hit.any():
-            hit[np.flatnonzero(free)[np.argmin(np.where(free, gap, np.inf)[free])]] = True
+        hit[located] = free[located]
     if not hit.any():
         return mode, y
     rate = hinges.hinge_angles(model.phi_rate(y))

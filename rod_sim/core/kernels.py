@@ -33,13 +33,16 @@ from .jit import njit
 SHAPE_PULSE, SHAPE_CONSTANT, SHAPE_STEP = 0, 1, 2
 
 HINGE_FIELDS = ("rest_phi", "rest_alpha", "rest_beta", "stop_lower", "stop_upper",
-                "stop_stiffness", "stop_damping", "flags", "T_row", "T_col", "T_val", "scratch")
+                "stop_stiffness", "stop_damping", "flags", "T_row", "T_col", "T_val", "scratch",
+                "contact")
 """``extra[4]``: rest-angle generalized forces on phi, alpha, beta (n,) each [N m]
 (kappa theta_rest dDelta/dq: kr_h - kr_{h+1}, kr_h, -kr_{h+1}); stop angles [rad] (n,)
 (+-inf: none, also for locked hinges), contact stiffness [N m/rad] and damping [N m s/rad]
 (n,); ``flags`` int64 (3,) = [any stop, constrained, r]; the constraint basis T (dof, r) as
 coordinate lists (row, col int64, value float); ``scratch`` floats for the projected solve
-(3 dof^2 + 2 dof)."""
+(3 dof^2 + 2 dof); ``contact`` (n,): +1 in contact with the upper stop, -1 the lower, 0 free
+(the contact law applies by mode, switched at located crossings, not by the sign of the
+penetration)."""
 
 
 @njit(inline="always")
@@ -192,6 +195,7 @@ def hinge_forces(phi, dphi, hinge, out):
     hi = hinge[4]
     ks = hinge[5]
     cs = hinge[6]
+    side = hinge[12]
     n = phi.shape[0]
     for k in range(n):
         out[k] += rest[k]
@@ -205,9 +209,9 @@ def hinge_forces(phi, dphi, hinge, out):
             th = phi[h] - phi[h - 1]
             dth = dphi[h] - dphi[h - 1]
         m = 0.0
-        if th > hi[h]:
+        if side[h] > 0.0:
             m = -max(0.0, ks[h] * (th - hi[h]) + cs[h] * dth)
-        elif th < lo[h]:
+        elif side[h] < 0.0:
             m = max(0.0, ks[h] * (lo[h] - th) - cs[h] * dth)
         out[h] += m
         if h > 0:

@@ -149,16 +149,20 @@ class ChainModel:
         return y[..., self.dof:self.dof + self.n]
 
     # ----- mode -----
-    def plan(self, mode: np.ndarray | None = None) -> Plan:
+    def plan(self, mode: np.ndarray | None = None, contact: np.ndarray | None = None) -> Plan:
         """The kernels' arguments and the event table with the latches ``mode`` (n,) bool
-        fired (None: none)."""
+        fired (None: none) and the stop contacts ``contact`` (n,) int (+1 upper, -1 lower,
+        0 free; None: all free)."""
         locked = hinges.locked_hinges(self.scene, mode)
-        key = locked.tobytes()
+        side = np.zeros(self.n, dtype=np.int8) if contact is None else \
+            np.asarray(contact, dtype=np.int8)
+        side = np.where(locked, 0, side).astype(np.int8)
+        key = locked.tobytes() + side.tobytes()
         if key not in self._plans:
-            self._plans[key] = self._make_plan(locked)
+            self._plans[key] = self._make_plan(locked, side)
         return self._plans[key]
 
-    def _make_plan(self, locked: np.ndarray) -> Plan:
+    def _make_plan(self, locked: np.ndarray, side: np.ndarray) -> Plan:
         s = self.scene
         C = hinges.constraint_matrix(s, self.dof_per_rod, locked)
         n, d = self.n, self.dof
@@ -167,9 +171,9 @@ class ChainModel:
             order = (list(range(n, 3 * n)) if self.dof_per_rod == 3 else []) + \
                 list(range(n - 1, -1, -1))
             T = hinges.constraint_basis(C, order)
-        lo = np.where(locked, -np.inf, s.stop_lower).astype(float)
-        hi = np.where(locked, np.inf, s.stop_upper).astype(float)
-        stops = bool(np.any(np.isfinite(lo) | np.isfinite(hi)))
+        lo = np.array(s.stop_lower, dtype=float)
+        hi = np.array(s.stop_upper, dtype=float)
+        stops = bool(np.any(side != 0))
         r = T.shape[1] if T is not None else 0
         rows, cols = np.nonzero(T) if T is not None else (np.zeros(0, int), np.zeros(0, int))
         vals = T[rows, cols] if T is not None else np.zeros(0)
@@ -177,7 +181,8 @@ class ChainModel:
         scratch = np.zeros(3 * d * d + 2 * d if T is not None else 1)
         hinge = (*self._rest, lo, hi, np.array(s.stop_stiffness, dtype=float),
                  np.array(s.stop_damping, dtype=float), flags, rows.astype(np.int64),
-                 cols.astype(np.int64), np.ascontiguousarray(vals, dtype=float), scratch)
+                 cols.astype(np.int64), np.ascontiguousarray(vals, dtype=float), scratch,
+                 side.astype(float))
         return Plan(self._base_extra + (hinge,), hinges.event_table(s, locked), locked, T)
 
     # ----- evaluation -----
@@ -192,12 +197,25 @@ class ChainModel:
             return np.zeros((self.n, 2))
         return np.ascontiguousarray(held, dtype=float).reshape(self.n, 2)
 
+    def contact_state(self, y: np.ndarray) -> np.ndarray:
+        """Stop contacts (n,) int8 implied by the state: +1 above the upper stop (or on it and
+        moving in), -1 below the lower one (or on it and moving in), 0 otherwise."""
+        s = self.scene
+        theta = hinges.hinge_angles(self.phi(y))
+        rate = hinges.hinge_angles(self.phi_rate(y))
+        up = (theta > s.stop_upper) | ((theta == s.stop_upper) & (rate > 0.0))
+        down = (theta < s.stop_lower) | ((theta == s.stop_lower) & (rate < 0.0))
+        return (up.astype(np.int8) - down.astype(np.int8)).astype(np.int8)
+
     def rhs(self, t: float, y: np.ndarray, held: np.ndarray | None = None,
-            mode: np.ndarray | None = None) -> np.ndarray:
-        """dy/dt (state_size,) at time t [s] with held nodal forces (n, 2) [N] in ``mode``."""
+            mode: np.ndarray | None = None, contact: np.ndarray | None = None) -> np.ndarray:
+        """dy/dt (state_size,) at time t [s] with held nodal forces (n, 2) [N] in ``mode``
+        with the stop contacts ``contact`` (None: as implied by y)."""
         out = np.empty(self.state_size)
-        self.kernel(t, np.ascontiguousarray(y, dtype=float), self.chain, self.plan(mode).extra,
-                    self.loads, self._held(held), t, out)
+        y = np.ascontiguousarray(y, dtype=float)
+        side = self.contact_state(y) if contact is None else contact
+        self.kernel(t, y, self.chain, self.plan(mode, side).extra, self.loads, self._held(held),
+                    t, out)
         return out
 
     def mass_blocks(self, phi: np.ndarray):

@@ -67,6 +67,7 @@ class Simulator:
         self.events = []    # hinge events (latch, stop contact), see rod_sim.core.hinges
         self.mode = np.zeros(self.model.n, dtype=bool)    # which latches have fired
         self.y = self.model.initial_state()
+        self.contact = self.model.contact_state(self.y)     # stop contacts (+1, -1, 0)
         self.held = np.zeros((self.model.n, 2))
         self.integrator.reset()
 
@@ -105,17 +106,17 @@ class Simulator:
 
     def _integrate(self, t_out):
         """(states, modes) at t_out from now through the one driver; when it raises, the
-        simulator is left as it was (mode and events included)."""
+        simulator is left as it was (mode, contacts and events included)."""
         n_events = len(self.events)
         try:
-            Y, modes, mode, y_end = drive(self.model, self.integrator, self.y, self.t, t_out,
-                                          self.held, self.mode, self.events)
+            Y, modes, mode, y_end, contact = drive(self.model, self.integrator, self.y, self.t,
+                                                   t_out, self.held, self.mode, self.events,
+                                                   self.contact)
             self._check_finite(np.asarray(t_out, dtype=float), Y)
         except BaseException:
             del self.events[n_events:]
             raise
-        self.mode = mode
-        self.y = y_end
+        self.mode, self.y, self.contact = mode, y_end, contact
         return Y, modes
 
     def _check_finite(self, t: np.ndarray, Y: np.ndarray) -> None:
