@@ -34,15 +34,17 @@ SHAPE_PULSE, SHAPE_CONSTANT, SHAPE_STEP = 0, 1, 2
 
 HINGE_FIELDS = ("rest_phi", "rest_alpha", "rest_beta", "stop_lower", "stop_upper",
                 "stop_stiffness", "stop_damping", "flags", "T_row", "T_col", "T_val", "scratch",
-                "contact")
+                "contact", "C_row", "C_col", "C_val", "pivots")
 """``extra[4]``: rest-angle generalized forces on phi, alpha, beta (n,) each [N m]
 (kappa theta_rest dDelta/dq: kr_h - kr_{h+1}, kr_h, -kr_{h+1}); stop angles [rad] (n,)
 (+-inf: none, also for locked hinges), contact stiffness [N m/rad] and damping [N m s/rad]
-(n,); ``flags`` int64 (3,) = [any stop, constrained, r]; the constraint basis T (dof, r) as
-coordinate lists (row, col int64, value float); ``scratch`` floats for the projected solve
-(3 dof^2 + 2 dof); ``contact`` (n,): +1 in contact with the upper stop, -1 the lower, 0 free
+(n,); ``flags`` int64 (4,) = [any stop in contact, constrained, r, rows of C]; the
+constraint basis T (dof, r) as coordinate lists (row, col int64, value float); ``scratch``
+floats for the constrained solves (3 dof^2 + 2 dof); ``contact`` (n,): +1 in contact with the upper stop, -1 the lower, 0 free
 (the contact law applies by mode, switched at located crossings, not by the sign of the
-penetration)."""
+penetration); the constraint matrix C (rows, dof) as coordinate lists (the full model
+solves with Lagrange multipliers through its Schur complement) and ``pivots`` int64 (n,)
+scratch."""
 
 
 @njit(inline="always")
@@ -132,16 +134,19 @@ def rigid_velocity_terms(phi, dphi, chain, g_phi, g_alpha):
 
 
 @njit(inline="always")
+def hinge_angle(phi, dphi, h):
+    """Rigid hinge angle theta_h [rad] and its rate [rad/s] (phi_1; phi_{h+1} - phi_h)."""
+    if h == 0:
+        return phi[0], dphi[0]
+    return phi[h] - phi[h - 1], dphi[h] - dphi[h - 1]
+
+
+@njit(inline="always")
 def rigid_hinge_moments(phi, dphi, kappa, nu, out):
     """Hinge moments with gamma = 0: kappa_h dphi_h + nu_h d(dphi_h)/dt [N m] into out (n,)."""
     n = phi.shape[0]
     for h in range(n):
-        if h == 0:
-            d = phi[0]
-            dd = dphi[0]
-        else:
-            d = phi[h] - phi[h - 1]
-            dd = dphi[h] - dphi[h - 1]
+        d, dd = hinge_angle(phi, dphi, h)
         out[h] = kappa[h] * d + nu[h] * dd
 
 
@@ -202,12 +207,7 @@ def hinge_forces(phi, dphi, hinge, out):
     if hinge[7][0] == 0:
         return
     for h in range(n):
-        if h == 0:
-            th = phi[0]
-            dth = dphi[0]
-        else:
-            th = phi[h] - phi[h - 1]
-            dth = dphi[h] - dphi[h - 1]
+        th, dth = hinge_angle(phi, dphi, h)
         m = 0.0
         if side[h] > 0.0:
             m = -max(0.0, ks[h] * (th - hi[h]) + cs[h] * dth)
@@ -418,9 +418,6 @@ def full_rhs(t, y, chain, extra, loads, held, t_side, out):
         Fb[k] = ga[k] + tau[k + 1] - Kt[k] * (0.5 * al[k] + be[k]) + hinge[2][k]
     hinge_forces(phi, dphi, hinge, Fp)
     out[:3 * n] = y[3 * n:]
-    if hinge[7][1]:
-        _full_constrained(A, Ma, Mb, Fp, Fa, Fb, chain, hinge, out[3 * n:])
-        return
     # bending block per rod: [[a, b], [b, a]], a = m l^3/105, b = -m l^3/140
     for j in range(n):
         ml3 = m[j] * l[j] ** 3
@@ -433,17 +430,21 @@ def full_rhs(t, y, chain, extra, loads, held, t_side, out):
         for j in range(n):
             Wa[k, j] = Ma[k, j] * ia[j] + Mb[k, j] * ib[j]
             Wb[k, j] = Ma[k, j] * ib[j] + Mb[k, j] * ia[j]
+    for k in range(n):
+        for i in range(n):
+            acc = 0.0
+            for j in range(max(k, i), n):
+                acc += Wa[k, j] * Ma[i, j] + Wb[k, j] * Mb[i, j]
+            A[k, i] -= acc
+    if hinge[7][1]:
+        _full_lagrange(A, Ma, Mb, Wa, Wb, ia, ib, Fp, Fa, Fb, hinge, out[3 * n:])
+        return
     x = gp  # g_phi is folded into Fp above; reuse its storage for the solve
     for k in range(n):
         acc = Fp[k]
         for j in range(k, n):
             acc -= Wa[k, j] * Fa[j] + Wb[k, j] * Fb[j]
         x[k] = acc
-        for i in range(n):
-            acc = 0.0
-            for j in range(max(k, i), n):
-                acc += Wa[k, j] * Ma[i, j] + Wb[k, j] * Mb[i, j]
-            A[k, i] -= acc
     if not solve_inplace(A, x):
         _fill_nan(out)
         return
@@ -459,34 +460,116 @@ def full_rhs(t, y, chain, extra, loads, held, t_side, out):
 
 
 @njit(inline="always")
-def _full_constrained(A, Ma, Mb, Fp, Fa, Fb, chain, hinge, acc):
-    """Full model on the constraint set: the 3n x 3n mass matrix [[A, Ma, Mb], [Ma^T, Da,
-    Db], [Mb^T, Db, Da]] and forces [Fp, Fa, Fb] assembled in the hinge scratch, then the
-    projected solve into acc (3n,)."""
-    l = chain[0]
-    m = chain[1]
-    n = l.shape[0]
-    d = 3 * n
-    ws = hinge[11]
-    o = ws.shape[0] - d * d - d
-    M = ws[o:o + d * d].reshape((d, d))
-    f = ws[o + d * d:o + d * d + d]
-    M[:, :] = 0.0
+def lu_inplace(A, piv):
+    """LU factorization with partial pivoting in place (rows swapped whole; piv[k] = the
+    row swapped with k at step k). Returns False for a zero pivot."""
+    n = A.shape[0]
+    for col in range(n):
+        p = col
+        best = abs(A[col, col])
+        for r in range(col + 1, n):
+            if abs(A[r, col]) > best:
+                best = abs(A[r, col])
+                p = r
+        piv[col] = p
+        if best == 0.0:
+            return False
+        if p != col:
+            for c2 in range(n):
+                tmp = A[col, c2]
+                A[col, c2] = A[p, c2]
+                A[p, c2] = tmp
+        inv = 1.0 / A[col, col]
+        for r in range(col + 1, n):
+            f = A[r, col] * inv
+            A[r, col] = f
+            for c2 in range(col + 1, n):
+                A[r, c2] -= f * A[col, c2]
+    return True
+
+
+@njit(inline="always")
+def lu_solve(LU, piv, b):
+    """Solve with the factors of :func:`lu_inplace`; x overwrites b."""
+    n = b.shape[0]
+    for col in range(n):
+        p = piv[col]
+        if p != col:
+            tmp = b[col]
+            b[col] = b[p]
+            b[p] = tmp
+        for r in range(col + 1, n):
+            b[r] -= LU[r, col] * b[col]
+    for r in range(n - 1, -1, -1):
+        acc = b[r]
+        for c2 in range(r + 1, n):
+            acc -= LU[r, c2] * b[c2]
+        b[r] = acc / LU[r, r]
+
+
+@njit(inline="always")
+def _schur_solve(LU, piv, Ma, Mb, Wa, Wb, ia, ib, gp, ga, gb, out):
+    """Full model: M z = (gp, ga, gb) through the factored Schur complement LU of the
+    bending block; z (3n,) into out (its phi part is solved in place there)."""
+    n = gp.shape[0]
+    x = out[:n]
     for k in range(n):
-        f[k] = Fp[k]
-        f[n + k] = Fa[k]
-        f[2 * n + k] = Fb[k]
-        ml3 = m[k] * l[k] ** 3
-        M[n + k, n + k] = ml3 / 105.0
-        M[2 * n + k, 2 * n + k] = ml3 / 105.0
-        M[n + k, 2 * n + k] = -ml3 / 140.0
-        M[2 * n + k, n + k] = -ml3 / 140.0
-        for j in range(n):
-            M[k, j] = A[k, j]
-            M[k, n + j] = Ma[k, j]
-            M[k, 2 * n + j] = Mb[k, j]
-            M[n + j, k] = Ma[k, j]
-            M[2 * n + j, k] = Mb[k, j]
-    if not projected_solve(M, f, hinge, acc):
+        acc = gp[k]
+        for j in range(k, n):
+            acc -= Wa[k, j] * ga[j] + Wb[k, j] * gb[j]
+        x[k] = acc
+    lu_solve(LU, piv, x)
+    for j in range(n):
+        ra = ga[j]
+        rb = gb[j]
+        for k in range(j + 1):
+            ra -= Ma[k, j] * x[k]
+            rb -= Mb[k, j] * x[k]
+        out[n + j] = ia[j] * ra + ib[j] * rb
+        out[2 * n + j] = ib[j] * ra + ia[j] * rb
+
+
+@njit(inline="always")
+def _full_lagrange(A, Ma, Mb, Wa, Wb, ia, ib, Fp, Fa, Fb, hinge, acc):
+    """Full model on the constraint set C x'' = 0 (M symmetric, so equal to the projected
+    equations): x'' = M^{-1} (f + C^T lambda) with (C M^{-1} C^T) lambda = -C M^{-1} f, every
+    solve through the Schur complement A (Schur-reduced on entry) factored once: 1 + rows(C)
+    solves of O(n^2) each instead of a dense 3n x 3n system."""
+    n = Fp.shape[0]
+    d = 3 * n
+    nc = hinge[7][3]
+    rows = hinge[13]
+    cols = hinge[14]
+    vals = hinge[15]
+    piv = hinge[16]
+    ws = hinge[11]
+    Zt = ws[0:nc * d].reshape((nc, d))
+    o = nc * d
+    g = ws[o:o + d]
+    S = ws[o + d:o + d + nc * nc].reshape((nc, nc))
+    lam = ws[o + d + nc * nc:o + d + nc * nc + nc]
+    if not lu_inplace(A, piv):
         for i in range(d):
             acc[i] = np.nan
+        return
+    _schur_solve(A, piv, Ma, Mb, Wa, Wb, ia, ib, Fp, Fa, Fb, acc)
+    for i in range(nc):
+        g[:] = 0.0
+        for e in range(rows.shape[0]):
+            if rows[e] == i:
+                g[cols[e]] = vals[e]
+        _schur_solve(A, piv, Ma, Mb, Wa, Wb, ia, ib, g[:n], g[n:2 * n], g[2 * n:], Zt[i])
+    S[:, :] = 0.0
+    lam[:] = 0.0
+    for e in range(rows.shape[0]):
+        i = rows[e]
+        lam[i] -= vals[e] * acc[cols[e]]
+        for j in range(nc):
+            S[i, j] += vals[e] * Zt[j, cols[e]]
+    if not solve_inplace(S, lam):
+        for i in range(d):
+            acc[i] = np.nan
+        return
+    for j in range(nc):
+        for i in range(d):
+            acc[i] += Zt[j, i] * lam[j]

@@ -177,12 +177,15 @@ class ChainModel:
         r = T.shape[1] if T is not None else 0
         rows, cols = np.nonzero(T) if T is not None else (np.zeros(0, int), np.zeros(0, int))
         vals = T[rows, cols] if T is not None else np.zeros(0)
-        flags = np.array([int(stops), int(T is not None), r], dtype=np.int64)
+        flags = np.array([int(stops), int(T is not None), r, C.shape[0]], dtype=np.int64)
+        c_rows, c_cols = np.nonzero(C)
         scratch = np.zeros(3 * d * d + 2 * d if T is not None else 1)
         hinge = (*self._rest, lo, hi, np.array(s.stop_stiffness, dtype=float),
                  np.array(s.stop_damping, dtype=float), flags, rows.astype(np.int64),
                  cols.astype(np.int64), np.ascontiguousarray(vals, dtype=float), scratch,
-                 side.astype(float))
+                 side.astype(float), c_rows.astype(np.int64), c_cols.astype(np.int64),
+                 np.ascontiguousarray(C[c_rows, c_cols], dtype=float),
+                 np.zeros(n, dtype=np.int64))
         return Plan(self._base_extra + (hinge,), hinges.event_table(s, locked), locked, T)
 
     # ----- evaluation -----
