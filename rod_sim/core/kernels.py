@@ -151,18 +151,25 @@ def rigid_hinge_moments(phi, dphi, kappa, nu, out):
 
 
 @njit(inline="always")
+def _pivot(A, col):
+    """(row of the largest |A[r, col]| for r >= col, that value): partial pivoting."""
+    piv = col
+    best = abs(A[col, col])
+    for r in range(col + 1, A.shape[0]):
+        if abs(A[r, col]) > best:
+            best = abs(A[r, col])
+            piv = r
+    return piv, best
+
+
+@njit(inline="always")
 def solve_inplace(A, b):
     """Solve A x = b by Gaussian elimination with partial pivoting; x overwrites b.
 
     A (n, n) is destroyed. Returns False when A is singular (a zero pivot)."""
     n = b.shape[0]
     for col in range(n):
-        piv = col
-        best = abs(A[col, col])
-        for r in range(col + 1, n):
-            if abs(A[r, col]) > best:
-                best = abs(A[r, col])
-                piv = r
+        piv, best = _pivot(A, col)
         if best == 0.0:
             return False
         if piv != col:
@@ -440,23 +447,12 @@ def full_rhs(t, y, chain, extra, loads, held, t_side, out):
         _full_lagrange(A, Ma, Mb, Wa, Wb, ia, ib, Fp, Fa, Fb, hinge, out[3 * n:])
         return
     x = gp  # g_phi is folded into Fp above; reuse its storage for the solve
-    for k in range(n):
-        acc = Fp[k]
-        for j in range(k, n):
-            acc -= Wa[k, j] * Fa[j] + Wb[k, j] * Fb[j]
-        x[k] = acc
+    _schur_rhs(Wa, Wb, Fp, Fa, Fb, x)
     if not solve_inplace(A, x):
         _fill_nan(out)
         return
-    for j in range(n):
-        ra = Fa[j]
-        rb = Fb[j]
-        for k in range(j + 1):
-            ra -= Ma[k, j] * x[k]
-            rb -= Mb[k, j] * x[k]
-        out[3 * n + j] = x[j]
-        out[4 * n + j] = ia[j] * ra + ib[j] * rb
-        out[5 * n + j] = ib[j] * ra + ia[j] * rb
+    out[3 * n:4 * n] = x
+    _bending_accelerations(Ma, Mb, ia, ib, Fa, Fb, x, out[4 * n:5 * n], out[5 * n:])
 
 
 @njit(inline="always")
@@ -465,12 +461,7 @@ def lu_inplace(A, piv):
     row swapped with k at step k). Returns False for a zero pivot."""
     n = A.shape[0]
     for col in range(n):
-        p = col
-        best = abs(A[col, col])
-        for r in range(col + 1, n):
-            if abs(A[r, col]) > best:
-                best = abs(A[r, col])
-                p = r
+        p, best = _pivot(A, col)
         piv[col] = p
         if best == 0.0:
             return False
@@ -513,20 +504,34 @@ def _schur_solve(LU, piv, Ma, Mb, Wa, Wb, ia, ib, gp, ga, gb, out):
     bending block; z (3n,) into out (its phi part is solved in place there)."""
     n = gp.shape[0]
     x = out[:n]
+    _schur_rhs(Wa, Wb, gp, ga, gb, x)
+    lu_solve(LU, piv, x)
+    _bending_accelerations(Ma, Mb, ia, ib, ga, gb, x, out[n:2 * n], out[2 * n:])
+
+
+@njit(inline="always")
+def _schur_rhs(Wa, Wb, gp, ga, gb, x):
+    """Right-hand side of the Schur-complement system for phi_dd: gp - W (ga, gb) into x."""
+    n = gp.shape[0]
     for k in range(n):
         acc = gp[k]
         for j in range(k, n):
             acc -= Wa[k, j] * ga[j] + Wb[k, j] * gb[j]
         x[k] = acc
-    lu_solve(LU, piv, x)
+
+
+@njit(inline="always")
+def _bending_accelerations(Ma, Mb, ia, ib, ga, gb, x, out_a, out_b):
+    """alpha_dd, beta_dd (n,) each from phi_dd = x: the 2 x 2 bending block per rod."""
+    n = x.shape[0]
     for j in range(n):
         ra = ga[j]
         rb = gb[j]
         for k in range(j + 1):
             ra -= Ma[k, j] * x[k]
             rb -= Mb[k, j] * x[k]
-        out[n + j] = ia[j] * ra + ib[j] * rb
-        out[2 * n + j] = ib[j] * ra + ia[j] * rb
+        out_a[j] = ia[j] * ra + ib[j] * rb
+        out_b[j] = ib[j] * ra + ia[j] * rb
 
 
 @njit(inline="always")
