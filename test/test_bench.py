@@ -144,8 +144,10 @@ def test_deployment_scene_row_has_the_hinge_angle_error():
                               ref, None, cfg)
     assert r.status == "ok" and r.sim_s == 10.0
     assert r.simulate_args[-4:] == ["--t-end", "10.0", "--rate", "100.0"]
-    # independent: hinge angles of a scipy DOP853 run against the reference's
-    sim = Simulator(make_model("reduced", scene), make_integrator("DOP853", rtol=1e-7))
+    # independent: hinge angles of a scipy DOP853 run (which refuses stops; here they sit on
+    # the latch angles and never act) against the reference's
+    free = scene.with_changes(stop_lower=-math.inf, stop_upper=math.inf)
+    sim = Simulator(make_model("reduced", free), make_integrator("DOP853", rtol=1e-7))
     phi = sim.run(10.0, bench.RATE_HZ).phi
     theta = np.diff(phi, prepend=0.0, axis=1)
     assert sorted(e.hinge for e in sim.events if e.kind == "latch") == [1, 2, 3, 4]
@@ -154,6 +156,9 @@ def test_deployment_scene_row_has_the_hinge_angle_error():
     t = bench.targets([r])
     assert t["deployment_reduced"]["setting"] == "rtol=1e-07"
     assert "deployment full >= 20x" in t["met"]
+    refused = bench.measure_setting("deployment", scene, "reduced", "RK45", {"rtol": 1e-7},
+                                    ref, None, cfg)
+    assert refused.status.startswith("refused: integrator: RK45 cannot follow hinge stop")
 
 
 def test_hinge_rhs_cost_compares_with_the_plain_chain():

@@ -73,16 +73,19 @@ def test_tampered_stop_angle_fails(tmp_path, capsys):
     assert code == 0 and rep["pass"]
 
 
-def _latch_times(model, integrator, t_end, rtol):
-    sim = Simulator(make_model(model, load_scene(DEPLOYMENT)),
-                    make_integrator(integrator, rtol=rtol, atol=rtol))
+def _latch_times(model, integrator, t_end, rtol, stops=True):
+    sc = load_scene(DEPLOYMENT)
+    if not stops:      # the stops sit on the latch angles: the latch catches each hinge first
+        sc = sc.with_changes(stop_lower=-np.inf, stop_upper=np.inf)
+    sim = Simulator(make_model(model, sc), make_integrator(integrator, rtol=rtol, atol=rtol))
     sim.run(t_end, 10.0)
     return {e.hinge: e.t for e in sim.events if e.kind == "latch"}
 
 
 def test_deployment_latch_times_agree_with_scipy_event_location():
     ours = _latch_times("reduced", "dop853-jit", 7.0, 1e-11)
-    scipy = _latch_times("reduced", "DOP853", 7.0, 1e-11)
+    # scipy's methods refuse stops; without them the latches are the same events
+    scipy = _latch_times("reduced", "DOP853", 7.0, 1e-11, stops=False)
     assert sorted(ours) == sorted(scipy) == [1, 2, 3, 4]
     for h in ours:
         assert abs(ours[h] - scipy[h]) < 1e-8, (h, ours[h], scipy[h])
@@ -114,3 +117,32 @@ def test_no_scene_specific_model_class():
     for name in ("rigid", "reduced", "full"):
         assert type(make_model(name, sc)) is type(make_model(name, load_scene(
             CONFIG / "small_chain.yaml")))
+
+
+def test_stop_contacts_agree_across_integrators_and_scipy_is_refused(tmp_path, capsys):
+    import sys
+    sys.path.insert(0, str(ROOT / "test"))
+    from test_hinge_features import _stop_scene
+
+    sc = _stop_scene(5.0)
+    runs = {}
+    for name, kw in (("dop853-jit", {"rtol": 1e-10, "atol": 1e-10}), ("rk4", {"step": 1e-4})):
+        sim = Simulator(make_model("rigid", sc), make_integrator(name, **kw))
+        traj = sim.run(2.0, 1000.0)
+        theta = traj.phi[:, 1] - traj.phi[:, 0]
+        assert theta.max() < 0.2 + 0.05                         # the stop holds (p ~ 1e-2)
+        runs[name] = [(e.t, e.kind) for e in sim.events]
+    # a hinge that leaves the stop and hits it again soon after: every contact is seen
+    assert len(runs["dop853-jit"]) == len(runs["rk4"]) >= 20
+    for (ta, ka), (tb, kb) in zip(runs["dop853-jit"], runs["rk4"]):
+        assert ka == kb and abs(ta - tb) < 1e-4
+    with pytest.raises(ValueError, match="integrator: DOP853 cannot follow hinge stop"):
+        Simulator(make_model("rigid", sc), make_integrator("DOP853")).advance(0.01)
+    scene_file = tmp_path / "stops.yaml"
+    from rod_sim.io.scene_yaml import scene_to_yaml
+    scene_file.write_text(scene_to_yaml(sc))
+    out = tmp_path / "x.mcap"
+    assert cli.main(["simulate", str(scene_file), "--integrator", "RK45", "--t-end", "0.1",
+                     "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "RK45 cannot follow hinge stop" in err[0] and not out.exists()

@@ -16,7 +16,9 @@ hinge, a stop crossing switches its contact law on or off, so that no step strad
 contact's jump in acceleration): the driver stops exactly at the earliest root (a latch
 first among equal roots), records it (t, code = 2 e + rising, interpolated state) and returns
 STATUS_EVENT; the caller changes the mode and restarts. A function that crosses twice within
-one step is not seen (as in scipy's solve_ivp).
+one step is not seen (as in scipy's solve_ivp), except in the step that starts on the root
+of the crossing just handled: there the interpolant is also sampled at x = 1/8 ... 7/8, so a
+hinge that leaves a stop and comes back within that step is caught.
 
 Status codes returned: 0 success, 1 step size underflow, 2 too many steps, 3 non-finite state,
 4 a terminal event (stopped at it), 5 the event buffer is full (stopped after a step; drain it
@@ -103,13 +105,13 @@ def _event_values(y, events, g):
 
 
 @njit
-def _illinois(F, y, h, a, g_hi, tol_x):
-    """Root x in (0, 1] of theta_h(x) - a on the interpolant, g(0) and g_hi = g(1) of
-    opposite signs (or g_hi = 0): the Illinois variant of regula falsi."""
+def _illinois(F, y, h, a, x_lo, g_lo, g_hi, tol_x):
+    """Root x in (x_lo, 1] of theta_h(x) - a on the interpolant, g_lo = g(x_lo) and g_hi =
+    g(1) of opposite signs (or g_hi = 0): the Illinois variant of regula falsi. Returns the
+    end of the final bracket on the side of g_hi (the state there has crossed)."""
     if g_hi == 0.0:
         return 1.0
-    x_lo, x_hi = 0.0, 1.0
-    g_lo = _theta_dense(F, y, 0.0, h) - a
+    x_hi = 1.0
     kept = 0
     x = 1.0
     for _ in range(200):
@@ -135,28 +137,67 @@ def _illinois(F, y, h, a, g_hi, tol_x):
 
 
 @njit
+def _on_root(g0, a):
+    """The step starts on the event function's root (the crossing just handled)."""
+    return abs(g0) <= 1e-12 * (1.0 + abs(a))
+
+
+@njit
+def _bracket(F, y, e, g0, g1, events):
+    """(x_lo, g(x_lo)) of a crossing of event e in the step, or (-1, 0): a sign change between
+    the step's ends, or, for a step that starts on the function's root, a return across it
+    seen at x = 1/8 ... 7/8 on the interpolant (leaving and coming back within the step)."""
+    ev_h, ev_a = events[0], events[1]
+    if (g0[e] < 0.0 and g1[e] >= 0.0) or (g0[e] > 0.0 and g1[e] <= 0.0):
+        return 0.0, g0[e]
+    if g1[e] == 0.0 or not _on_root(g0[e], ev_a[e]):
+        return -1.0, 0.0
+    x_lo, g_lo = -1.0, 0.0
+    for k in range(1, 8):
+        gk = _theta_dense(F, y, k / 8.0, ev_h[e]) - ev_a[e]
+        if gk * g1[e] < 0.0:
+            x_lo, g_lo = k / 8.0, gk
+    return x_lo, g_lo
+
+
+@njit
+def _may_cross(g0, g1, events):
+    """Whether a step with event values g0 -> g1 needs its interpolant for event location."""
+    for e in range(g0.shape[0]):
+        if (g0[e] < 0.0 and g1[e] >= 0.0) or (g0[e] > 0.0 and g1[e] <= 0.0):
+            return True
+        if _on_root(g0[e], events[1][e]):
+            return True
+    return False
+
+
+@njit
 def _locate(F, y, t, hs, g0, g1, events):
-    """Locate the earliest root of the event functions that change sign over the step
-    (t, t + hs] with interpolant F (a latch first among equal roots) and record it; returns
-    its x in (0, 1], or -1 when nothing crossed."""
+    """Locate the earliest crossing of the event functions in the step (t, t + hs] with
+    interpolant F (a latch first among equal roots; see :func:`_bracket`) and record it;
+    returns its x in (0, 1], or -1 when nothing crossed."""
     ev_h, ev_a, ev_k, ev_t, ev_i, ev_y, ev_n = events
     tol_x = 4.0 * 2.220446049250313e-16 * max(1.0, abs(t) + abs(hs)) / hs
     x_stop = 2.0
     first = -1
+    rising = 0
     for latch_pass in (True, False):
         for e in range(ev_h.shape[0]):
             if (ev_k[e] == EV_LATCH) != latch_pass:
                 continue
-            if (g0[e] < 0.0 and g1[e] >= 0.0) or (g0[e] > 0.0 and g1[e] <= 0.0):
-                x = _illinois(F, y, ev_h[e], ev_a[e], g1[e], tol_x)
-                if x < x_stop:
-                    x_stop = x
-                    first = e
+            x_lo, g_lo = _bracket(F, y, e, g0, g1, events)
+            if x_lo < 0.0:
+                continue
+            x = _illinois(F, y, ev_h[e], ev_a[e], x_lo, g_lo, g1[e], tol_x)
+            if x < x_stop:
+                x_stop = x
+                first = e
+                rising = 1 if g1[e] > g_lo else 0
     if first < 0:
         return -1.0
     k = ev_n[0]
     ev_t[k] = t + x_stop * hs
-    ev_i[k] = 2 * first + (1 if g1[first] > g0[first] else 0)
+    ev_i[k] = 2 * first + rising
     for i in range(y.shape[0]):
         ev_y[k, i] = _dense(F, y, x_stop, i)
     ev_n[0] = k + 1
@@ -317,9 +358,7 @@ def dop853_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol
             crossed = False
             if m_ev > 0:
                 _event_values(y_new, events, g1)
-                for e in range(m_ev):
-                    if (g0[e] < 0.0 and g1[e] >= 0.0) or (g0[e] > 0.0 and g1[e] <= 0.0):
-                        crossed = True
+                crossed = _may_cross(g0, g1, events)
             need_out = i_out < n_out and t_out[i_out] < t_new
             if crossed or need_out:
                 for s in range(N_STAGES + 1, 16):
@@ -431,11 +470,7 @@ def fixed_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b
             if m_ev == 0:
                 continue
             _event_values(y, events, g1)
-            crossed = False
-            for e in range(m_ev):
-                if (g0[e] < 0.0 and g1[e] >= 0.0) or (g0[e] > 0.0 and g1[e] <= 0.0):
-                    crossed = True
-            if crossed:
+            if _may_cross(g0, g1, events):
                 rhs(ts + hs, y, chain, extra, loads, held, t_side, f_new)
                 stats[0] += 1
                 for i in range(n):

@@ -240,15 +240,16 @@ class _NonFinite(Exception):
 
 
 def _scipy_events(plan):
-    """solve_ivp event functions for the plan's table."""
+    """solve_ivp event functions (terminal) for the plan's table: latches only (stops are
+    refused, see ScipyIntegrator)."""
     fns = []
-    for h, angle, kind in zip(*plan.events):
+    for h, angle in zip(*plan.events[:2]):
         h = int(h)
         if h == 0:
             f = (lambda t, y, a=angle: y[0] - a)
         else:
             f = (lambda t, y, h=h, a=angle: y[h] - y[h - 1] - a)
-        f.terminal = True           # every crossing changes the mode (latch or contact law)
+        f.terminal = True
         fns.append(f)
     return fns
 
@@ -256,7 +257,11 @@ def _scipy_events(plan):
 @dataclass
 class ScipyIntegrator(Integrator):
     """scipy.integrate.solve_ivp with one of its methods on the compiled right-hand side,
-    restarted at load breakpoints; hinge events through solve_ivp's event location."""
+    restarted at load breakpoints; latches through solve_ivp's event location. Scenes with
+    stops are refused (ValueError): after a contact ends, solve_ivp's first step from the
+    root can leave the stop and come back unseen, and the hinge then passes through it
+    (measured: scipy DOP853 missed 11 of 25 contact events of a 2 s test and let the hinge
+    reach 1.23 rad past a 0.2 rad stop)."""
 
     def __post_init__(self):
         self.order = {"RK45": 5, "DOP853": 8, "Radau": 5, "BDF": 5, "LSODA": 12}[self.name]
@@ -265,6 +270,9 @@ class ScipyIntegrator(Integrator):
         Y = np.empty((t_out.size, y0.size))
         edges = [float(t0), *[b for b in breaks if t0 < b < t_out[-1]], float(t_out[-1])]
         kernel, chain, extra, loads = model.kernel, model.chain, plan.extra, model.loads
+        if np.any(plan.events[2] != hinges.EV_LATCH):
+            raise ValueError(f"integrator: {self.name} cannot follow hinge stop contacts "
+                             "(hinges.stop); use dop853-jit, rk4, rk2 or euler")
         fns = _scipy_events(plan) or None
         y = y0
         done = 0

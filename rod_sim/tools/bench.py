@@ -316,6 +316,8 @@ def measure_setting(key, scene, model_name, integrator, settings, ref: Reference
         row.status = f"failed at t = {exc.t:.4g} s: {exc.reason}"
     except RunTimeout as exc:
         row.status = f"timed out: {exc}"
+    except ValueError as exc:                   # e.g. scipy's methods on a scene with stops
+        row.status = f"refused: {exc}"
     return row
 
 
