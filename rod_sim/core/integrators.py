@@ -400,6 +400,8 @@ def _latch(model, mode, t: float, y, located: int | None, events: list):
     """Lock the unlocked hinges whose latch angle is reached at (t, y): the located one
     (``located``) and any other within 1e-9 rad; at the start of a drive (``located``
     None) only exact hits. Returns (mode, y with the velocity projected)."""
+    if not model.has_latches:
+        return mode, y
     s = model.scene
     theta = hinges.hinge_angles(model.phi(y))
     gap = np.abs(theta - s.latch_angle)

@@ -6,13 +6,14 @@ them: ``rhs(t, y, chain, extra, loads, held, t_side, out)`` writes dy/dt into ``
 - ``chain`` = (l, m, mu, Kt, kappa, nu, Mt, C): arrays (n,) of rod length [m], mass per
   length [kg/m], node mass [kg], 4 EI / l [N m/rad], hinge stiffness [N m/rad], hinge damping
   [N m s/rad], tail mass M_k [kg] and m l^2 / 12 [kg m].
-- ``extra`` = (P_alpha, P_beta, B_inv, work, hinge): reduced-model constants P =
+- ``extra`` = (P_alpha, P_beta, B_inv, work, *hinge): reduced-model constants P =
   [kappa^{gamma phi}]^T [b^{gamma gamma}]^{-1} split into its alpha and beta halves (n, n)
   each and B_inv = [b^{gamma gamma}]^{-1} (2n, 2n) (other models: zeros, unused), ``work``, a
   scratch array of ``workspace_size(n)`` floats so that a call allocates nothing (the
   kernels are therefore not re-entrant: one model instance per thread), and ``hinge``, the
-  hinge features in the current mode (see :data:`HINGE_FIELDS`; all zeros/infinite for a
-  plain chain, which then runs exactly the paper's equations).
+  hinge features in the current mode, flat in ``extra[4:]`` (see :data:`HINGE_FIELDS`; all
+  zeros/infinite for a plain chain, which then runs exactly the paper's equations; flat
+  because every read of a nested tuple would reference-count all of its arrays).
 - ``loads`` = (node, axis, shape, amplitude, start, duration) arrays describing scripted loads;
   ``held`` (n, 2) the held (commanded) nodal forces [N]; ``t_side`` a time strictly inside the
   current segment between load breakpoints, which decides which side of a jump applies.
@@ -32,19 +33,17 @@ from .jit import njit
 
 SHAPE_PULSE, SHAPE_CONSTANT, SHAPE_STEP = 0, 1, 2
 
-HINGE_FIELDS = ("rest_phi", "rest_alpha", "rest_beta", "stop_lower", "stop_upper",
-                "stop_stiffness", "stop_damping", "flags", "T_row", "T_col", "T_val", "scratch",
-                "contact", "C_row", "C_col", "C_val", "pivots")
-"""``extra[4]``: rest-angle generalized forces on phi, alpha, beta (n,) each [N m]
-(kappa theta_rest dDelta/dq: kr_h - kr_{h+1}, kr_h, -kr_{h+1}); stop angles [rad] (n,)
-(+-inf: none, also for locked hinges), contact stiffness [N m/rad] and damping [N m s/rad]
-(n,); ``flags`` int64 (4,) = [any stop in contact, constrained, r, rows of C]; the
-constraint basis T (dof, r) as coordinate lists (row, col int64, value float); ``scratch``
-floats for the constrained solves (3 dof^2 + 2 dof); ``contact`` (n,): +1 in contact with the upper stop, -1 the lower, 0 free
-(the contact law applies by mode, switched at located crossings, not by the sign of the
-penetration); the constraint matrix C (rows, dof) as coordinate lists (the full model
-solves with Lagrange multipliers through its Schur complement) and ``pivots`` int64 (n,)
-scratch."""
+HINGE_FIELDS = ("H", "flags", "T_row", "T_col", "T_val", "C_row", "C_col", "C_val", "pivots",
+                "scratch")
+"""``extra[4:14]``. ``H`` (8, n) float, rows: rest-angle generalized forces on phi, alpha,
+beta [N m] (kappa theta_rest dDelta/dq: kr_h - kr_{h+1}, kr_h, -kr_{h+1}); stop angles lower,
+upper [rad] (+-inf: none); contact stiffness [N m/rad] and damping [N m s/rad]; contact
+state (+1 in contact with the upper stop, -1 the lower, 0 free: the contact law applies by
+mode, switched at located crossings, not by the sign of the penetration). ``flags`` int64
+(4,) = [any hinge in contact, constrained, r, rows of C]; the constraint basis T (dof, r)
+and the constraint matrix C (rows, dof) as coordinate lists (row, col int64, value float;
+the full model solves with Lagrange multipliers through its Schur complement, the others
+with T); ``pivots`` int64 (n,) and ``scratch`` floats (3 dof^2 + 2 dof) for those solves."""
 
 
 @njit(inline="always")
@@ -200,41 +199,31 @@ def solve_inplace(A, b):
 
 
 @njit(inline="always")
-def hinge_forces(phi, dphi, hinge, out):
+def hinge_forces(phi, dphi, H, flags, out):
     """Add the rest-angle and stop-contact generalized forces on phi (n,) [N m] to out."""
-    rest = hinge[0]
-    lo = hinge[3]
-    hi = hinge[4]
-    ks = hinge[5]
-    cs = hinge[6]
-    side = hinge[12]
     n = phi.shape[0]
     for k in range(n):
-        out[k] += rest[k]
-    if hinge[7][0] == 0:
+        out[k] += H[0, k]
+    if flags[0] == 0:
         return
     for h in range(n):
         th, dth = hinge_angle(phi, dphi, h)
         m = 0.0
-        if side[h] > 0.0:
-            m = -max(0.0, ks[h] * (th - hi[h]) + cs[h] * dth)
-        elif side[h] < 0.0:
-            m = max(0.0, ks[h] * (lo[h] - th) - cs[h] * dth)
+        if H[7, h] > 0.0:
+            m = -max(0.0, H[5, h] * (th - H[4, h]) + H[6, h] * dth)
+        elif H[7, h] < 0.0:
+            m = max(0.0, H[5, h] * (H[3, h] - th) - H[6, h] * dth)
         out[h] += m
         if h > 0:
             out[h - 1] -= m
 
 
 @njit(inline="always")
-def projected_solve(M, f, hinge, out):
-    """out = T (T^T M T)^{-1} T^T f for the constraint basis T of ``hinge`` (M (d, d) and
-    f (d,) are kept). Returns False when T^T M T is singular."""
+def projected_solve(M, f, r, rows, cols, vals, ws, out):
+    """out = T (T^T M T)^{-1} T^T f for the constraint basis T (d, r) given as coordinate
+    lists (M (d, d) and f (d,) are kept; ws scratch). Returns False when T^T M T is
+    singular."""
     d = f.shape[0]
-    r = hinge[7][2]
-    rows = hinge[8]
-    cols = hinge[9]
-    vals = hinge[10]
-    ws = hinge[11]
     for i in range(d):
         out[i] = 0.0
     if r == 0:
@@ -293,13 +282,13 @@ def _carve(ws, n):
 
 
 @njit(inline="always")
-def _rigid_terms(t, phi, dphi, chain, extra, loads, held, t_side):
-    """What the rigid and reduced kernels share, in scratch views of ``extra[3]``: the inertia
-    blocks, cos/sin of phi, the velocity terms, Q (in ``rhs``) and the gamma = 0 hinge
+def _rigid_terms(t, phi, dphi, chain, work, loads, held, t_side):
+    """What the rigid and reduced kernels share, in scratch views of ``work`` (extra[3]): the
+    inertia blocks, cos/sin of phi, the velocity terms, Q (in ``rhs``) and the gamma = 0 hinge
     moments (in ``tau``); v1, v2 are free (n,) scratch vectors."""
     l, m, mu, Kt, kappa, nu, Mt, C = chain
     n = l.shape[0]
-    A, Ma, Mb, W1, W2, c, s, gp, ga, rhs, tau, v1, v2, v3, f, tau1 = _carve(extra[3], n)
+    A, Ma, Mb, W1, W2, c, s, gp, ga, rhs, tau, v1, v2, v3, f, tau1 = _carve(work, n)
     for k in range(n):
         c[k] = math.cos(phi[k])
         s[k] = math.sin(phi[k])
@@ -317,24 +306,25 @@ def rigid_rhs(t, y, chain, extra, loads, held, t_side, out):
     n = l.shape[0]
     phi = y[:n]
     dphi = y[n:]
-    A, Ma, Mb, c, s, gp, ga, rhs, tau, v1, v2 = _rigid_terms(t, phi, dphi, chain, extra, loads,
-                                                             held, t_side)
+    A, Ma, Mb, c, s, gp, ga, rhs, tau, v1, v2 = _rigid_terms(t, phi, dphi, chain, extra[3],
+                                                             loads, held, t_side)
     for k in range(n):
         rhs[k] -= gp[k] + tau[k]
         if k + 1 < n:
             rhs[k] += tau[k + 1]
-    _finish(phi, dphi, A, rhs, extra[4], out)
+    _finish(phi, dphi, A, rhs, extra[4], extra[5], extra[6], extra[7], extra[8], extra[13],
+            out)
 
 
 @njit(inline="always")
-def _finish(phi, dphi, A, rhs, hinge, out):
+def _finish(phi, dphi, A, rhs, H, flags, T_row, T_col, T_val, scratch, out):
     """Rigid and reduced models: add the hinge features' forces, solve A phi_dd = rhs (on
     the constraint set when hinges are locked), write [phi_dot, phi_dd] into out."""
     n = phi.shape[0]
-    hinge_forces(phi, dphi, hinge, rhs)
+    hinge_forces(phi, dphi, H, flags, rhs)
     out[:n] = dphi
-    if hinge[7][1]:
-        ok = projected_solve(A, rhs, hinge, out[n:])
+    if flags[1]:
+        ok = projected_solve(A, rhs, flags[2], T_row, T_col, T_val, scratch, out[n:])
     else:
         ok = solve_inplace(A, rhs)
         out[n:] = rhs
@@ -351,17 +341,15 @@ def reduced_rhs(t, y, chain, extra, loads, held, t_side, out):
     n = l.shape[0]
     phi = y[:n]
     dphi = y[n:]
-    A, Ma, Mb, c, s, gp, ga, rhs, tau, v1, v2 = _rigid_terms(t, phi, dphi, chain, extra, loads,
-                                                             held, t_side)
+    A, Ma, Mb, c, s, gp, ga, rhs, tau, v1, v2 = _rigid_terms(t, phi, dphi, chain, extra[3],
+                                                             loads, held, t_side)
     a_al = v1
     a_be = v2
-    hinge = extra[4]
-    rest_al = hinge[1]
-    rest_be = hinge[2]
+    H = extra[4]
     for k in range(n):
         nxt = tau[k + 1] if k + 1 < n else 0.0
-        a_al[k] = ga[k] + tau[k] - rest_al[k]
-        a_be[k] = -ga[k] - nxt - rest_be[k]
+        a_al[k] = ga[k] + tau[k] - H[1, k]
+        a_be[k] = -ga[k] - nxt - H[2, k]
         rhs[k] -= gp[k] + tau[k] - nxt
     # M_r = A - P_alpha m^{alpha phi} - P_beta m^{beta phi} with m^{alpha phi} = Ma^T.
     # Off the diagonal Ma[i, j] = C_j l_i cos(phi_i - phi_j) = -Mb[i, j] (j > i), so
@@ -380,7 +368,8 @@ def reduced_rhs(t, y, chain, extra, loads, held, t_side, out):
             r = (Pa[k, i] - Pb[k, i]) * C[i]
             su += r * c[i]
             sv += r * s[i]
-    _finish(phi, dphi, A, rhs, hinge, out)
+    _finish(phi, dphi, A, rhs, extra[4], extra[5], extra[6], extra[7], extra[8], extra[13],
+            out)
 
 
 @njit
@@ -398,7 +387,8 @@ def full_rhs(t, y, chain, extra, loads, held, t_side, out):
     dal = y[4 * n:5 * n]
     dbe = y[5 * n:6 * n]
     A, Ma, Mb, Wa, Wb, c, s, gp, ga, Fp, Fa, Fb, ia, ib, f, tau = _carve(extra[3], n)
-    hinge = extra[4]
+    H = extra[4]
+    flags = extra[5]
     for k in range(n):
         c[k] = math.cos(phi[k])
         s[k] = math.sin(phi[k])
@@ -421,9 +411,9 @@ def full_rhs(t, y, chain, extra, loads, held, t_side, out):
             skj = s[k] * c[j] - c[k] * s[j]
             cor += C[j] * l[k] * skj * dphi[j] * (dal[j] - dbe[j])
         Fp[k] -= gp[k] + 2.0 * cor + tau[k] - tau[k + 1]
-        Fa[k] = -ga[k] - tau[k] - Kt[k] * (al[k] + 0.5 * be[k]) + hinge[1][k]
-        Fb[k] = ga[k] + tau[k + 1] - Kt[k] * (0.5 * al[k] + be[k]) + hinge[2][k]
-    hinge_forces(phi, dphi, hinge, Fp)
+        Fa[k] = -ga[k] - tau[k] - Kt[k] * (al[k] + 0.5 * be[k]) + H[1, k]
+        Fb[k] = ga[k] + tau[k + 1] - Kt[k] * (0.5 * al[k] + be[k]) + H[2, k]
+    hinge_forces(phi, dphi, H, flags, Fp)
     out[:3 * n] = y[3 * n:]
     # bending block per rod: [[a, b], [b, a]], a = m l^3/105, b = -m l^3/140
     for j in range(n):
@@ -443,8 +433,9 @@ def full_rhs(t, y, chain, extra, loads, held, t_side, out):
             for j in range(max(k, i), n):
                 acc += Wa[k, j] * Ma[i, j] + Wb[k, j] * Mb[i, j]
             A[k, i] -= acc
-    if hinge[7][1]:
-        _full_lagrange(A, Ma, Mb, Wa, Wb, ia, ib, Fp, Fa, Fb, hinge, out[3 * n:])
+    if flags[1]:
+        _full_lagrange(A, Ma, Mb, Wa, Wb, ia, ib, Fp, Fa, Fb, flags[3], extra[9], extra[10],
+                       extra[11], extra[12], extra[13], out[3 * n:])
         return
     x = gp  # g_phi is folded into Fp above; reuse its storage for the solve
     _schur_rhs(Wa, Wb, Fp, Fa, Fb, x)
@@ -535,19 +526,13 @@ def _bending_accelerations(Ma, Mb, ia, ib, ga, gb, x, out_a, out_b):
 
 
 @njit(inline="always")
-def _full_lagrange(A, Ma, Mb, Wa, Wb, ia, ib, Fp, Fa, Fb, hinge, acc):
+def _full_lagrange(A, Ma, Mb, Wa, Wb, ia, ib, Fp, Fa, Fb, nc, rows, cols, vals, piv, ws, acc):
     """Full model on the constraint set C x'' = 0 (M symmetric, so equal to the projected
     equations): x'' = M^{-1} (f + C^T lambda) with (C M^{-1} C^T) lambda = -C M^{-1} f, every
     solve through the Schur complement A (Schur-reduced on entry) factored once: 1 + rows(C)
     solves of O(n^2) each instead of a dense 3n x 3n system."""
     n = Fp.shape[0]
     d = 3 * n
-    nc = hinge[7][3]
-    rows = hinge[13]
-    cols = hinge[14]
-    vals = hinge[15]
-    piv = hinge[16]
-    ws = hinge[11]
     Zt = ws[0:nc * d].reshape((nc, d))
     o = nc * d
     g = ws[o:o + d]

@@ -112,7 +112,8 @@ class ChainModel:
         # rest-angle generalized forces kappa theta_rest dDelta/dq on phi, alpha, beta
         self._rest = (kr - kr_next, kr, -kr_next)
         self._base_extra = self._reduction() + (self._workspace(),)
-        self._plans: dict[bytes, Plan] = {}
+        self._plans: dict = {}
+        self.has_latches = bool(np.isfinite(scene.latch_angle).any())
         self.extra = self.plan().extra
 
     def _reduction(self) -> tuple:
@@ -153,14 +154,19 @@ class ChainModel:
         """The kernels' arguments and the event table with the latches ``mode`` (n,) bool
         fired (None: none) and the stop contacts ``contact`` (n,) int (+1 upper, -1 lower,
         0 free; None: all free)."""
-        locked = hinges.locked_hinges(self.scene, mode)
-        side = np.zeros(self.n, dtype=np.int8) if contact is None else \
-            np.asarray(contact, dtype=np.int8)
-        side = np.where(locked, 0, side).astype(np.int8)
-        key = locked.tobytes() + side.tobytes()
-        if key not in self._plans:
-            self._plans[key] = self._make_plan(locked, side)
-        return self._plans[key]
+        fast = (b"" if mode is None else np.asarray(mode, dtype=bool).tobytes(),
+                b"" if contact is None else np.asarray(contact, dtype=np.int8).tobytes())
+        plan = self._plans.get(fast)
+        if plan is None:
+            locked = hinges.locked_hinges(self.scene, mode)
+            side = np.zeros(self.n, dtype=np.int8) if contact is None else \
+                np.asarray(contact, dtype=np.int8)
+            side = np.where(locked, 0, side).astype(np.int8)
+            key = locked.tobytes() + side.tobytes()
+            if key not in self._plans:
+                self._plans[key] = self._make_plan(locked, side)
+            plan = self._plans[fast] = self._plans[key]
+        return plan
 
     def _make_plan(self, locked: np.ndarray, side: np.ndarray) -> Plan:
         s = self.scene
@@ -180,13 +186,13 @@ class ChainModel:
         flags = np.array([int(stops), int(T is not None), r, C.shape[0]], dtype=np.int64)
         c_rows, c_cols = np.nonzero(C)
         scratch = np.zeros(3 * d * d + 2 * d if T is not None else 1)
-        hinge = (*self._rest, lo, hi, np.array(s.stop_stiffness, dtype=float),
-                 np.array(s.stop_damping, dtype=float), flags, rows.astype(np.int64),
-                 cols.astype(np.int64), np.ascontiguousarray(vals, dtype=float), scratch,
-                 side.astype(float), c_rows.astype(np.int64), c_cols.astype(np.int64),
-                 np.ascontiguousarray(C[c_rows, c_cols], dtype=float),
-                 np.zeros(n, dtype=np.int64))
-        return Plan(self._base_extra + (hinge,), hinges.event_table(s, locked), locked, T)
+        H = np.ascontiguousarray(np.vstack([*self._rest, lo, hi, s.stop_stiffness,
+                                            s.stop_damping, side.astype(float)]))
+        hinge = (H, flags, rows.astype(np.int64), cols.astype(np.int64),
+                 np.ascontiguousarray(vals, dtype=float), c_rows.astype(np.int64),
+                 c_cols.astype(np.int64), np.ascontiguousarray(C[c_rows, c_cols], dtype=float),
+                 np.zeros(n, dtype=np.int64), scratch)
+        return Plan(self._base_extra + hinge, hinges.event_table(s, locked), locked, T)
 
     # ----- evaluation -----
     def forces(self, t: float, held: np.ndarray | None = None) -> np.ndarray:
