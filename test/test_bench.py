@@ -132,3 +132,37 @@ def test_mujoco_chain_is_our_rigid_model(scene_file):
     # and the error is the time step's: 4x larger step, clearly larger error (2nd order)
     coarse = mujoco_peer.ChainPeer(scene, 4e-4, "RK4").run(t_end, 100.0)
     assert float(np.max(np.abs(coarse.phi - ours))) > 4 * err
+
+
+def test_deployment_scene_row_has_the_hinge_angle_error():
+    # issue 12: the deployment scene (hinge features) is benched over 0..10 s
+    scene = bench.load_bench_scene("deployment")
+    ref = bench.reference(scene, "reduced", t_end=bench.SCENE_T_END["deployment"])
+    assert ref.ok
+    cfg = bench.BenchConfig(repeats=1, cap_s=30.0)
+    r = bench.measure_setting("deployment", scene, "reduced", "dop853-jit", {"rtol": 1e-7},
+                              ref, None, cfg)
+    assert r.status == "ok" and r.sim_s == 10.0
+    assert r.simulate_args[-4:] == ["--t-end", "10.0", "--rate", "100.0"]
+    # independent: hinge angles of a scipy DOP853 run (which refuses stops; here they sit on
+    # the latch angles and never act) against the reference's
+    free = scene.with_changes(stop_lower=-math.inf, stop_upper=math.inf)
+    sim = Simulator(make_model("reduced", free), make_integrator("DOP853", rtol=1e-7))
+    phi = sim.run(10.0, bench.RATE_HZ).phi
+    theta = np.diff(phi, prepend=0.0, axis=1)
+    assert sorted(e.hinge for e in sim.events if e.kind == "latch") == [1, 2, 3, 4]
+    assert 1e-9 < r.max_hinge_error < 1e-6
+    assert np.max(np.abs(theta - np.diff(ref.phi, prepend=0.0, axis=1))) < 1e-5
+    t = bench.targets([r])
+    assert t["deployment_reduced"]["setting"] == "rtol=1e-07"
+    assert "deployment full >= 20x" in t["met"]
+    refused = bench.measure_setting("deployment", scene, "reduced", "RK45", {"rtol": 1e-7},
+                                    ref, None, cfg)
+    assert refused.status.startswith("refused: integrator: RK45 cannot follow hinge stop")
+
+
+def test_hinge_rhs_cost_compares_with_the_plain_chain():
+    out = bench.hinge_rhs_cost(models=("rigid",))
+    c = out["rigid"]
+    assert c["n"] == 5 and c["hinge_s"] > 0 and c["plain_s"] > 0
+    assert math.isclose(c["ratio"], c["hinge_s"] / c["plain_s"])

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 import yaml
 
+from rod_sim.core import hinges
 from rod_sim.core.integrators import make_integrator
 from rod_sim.core.models import make_model
 from rod_sim.core.scene import Scene, SceneError
@@ -266,12 +267,12 @@ def test_latch_kinetic_energy_loss_is_the_impulsive_projection(model):
     rng = np.random.default_rng(3)
     y = m.initial_state()
     y[m.state_size // 2:] = rng.normal(size=m.state_size // 2)
-    m.latched = np.array([False, True, False])
-    y1 = m.project_velocity(y)
+    mode = np.array([False, True, False])
+    y1 = m.project_velocity(y, mode)
     d = m.state_size // 2
     v0, v1 = y[d:], y1[d:]
     M = m.mass_matrix(y)
-    C = m.constraint_matrix()
+    C = hinges.constraint_matrix(sc, m.dof_per_rod, hinges.locked_hinges(sc, mode))
     lam = np.linalg.solve(C @ np.linalg.solve(M, C.T), C @ v0)
     expected_loss = 0.5 * float(lam @ (C @ v0))          # (C v)^T (C M^-1 C^T)^-1 (C v) / 2
     loss = 0.5 * float(v0 @ M @ v0 - v1 @ M @ v1)
@@ -291,8 +292,7 @@ def test_latch_in_a_run_loses_the_reported_energy():
                       make_integrator("dop853-jit", rtol=1e-11, atol=1e-11))
     plain.run(ev.t, 1000.0)
     m = sim.model
-    m.latched = np.array([False, True, False])
-    y1 = m.project_velocity(plain.y)
+    y1 = m.project_velocity(plain.y, np.array([False, True, False]))
     loss = m.kinetic_energy(0.0, plain.y) - m.kinetic_energy(0.0, y1)
     assert abs(loss - ev.data["kinetic_energy_loss"]) < 1e-6 * loss
 
@@ -325,10 +325,17 @@ def test_deployment_events_in_the_log(tmp_path):
     assert stamps == [round(e["t"] * 1e9) for e in events]
 
 
-def test_fixed_step_integrator_is_refused_with_events():
-    sim = Simulator(make_model("rigid", _latch_scene(0.25)), make_integrator("rk4"))
-    with pytest.raises(ValueError, match="integrator: rk4"):
-        sim.advance(0.01)
+@pytest.mark.parametrize("name, step, tol", [("rk4", 1e-3, 1e-7), ("euler", 1e-4, 2e-3)])
+def test_fixed_step_integrator_locates_the_latch(name, step, tol):
+    # fixed-step methods locate events on each step's cubic Hermite interpolant
+    traj, sim = None, Simulator(make_model("reduced", _latch_scene(0.25)),
+                                make_integrator(name, step=step))
+    traj = sim.run(1.0, 100.0)
+    (latch,) = [e for e in sim.events if e.kind == "latch"]
+    assert latch.hinge == 1
+    assert abs(latch.t - _bisect_crossing(scene(hinges__damping=0.05), 0.25)) < tol
+    theta = traj.phi[:, 1] - traj.phi[:, 0]
+    np.testing.assert_allclose(theta[traj.t > latch.t], theta[-1], atol=1e-12)   # stays locked
 
 
 @pytest.mark.ros
@@ -357,21 +364,25 @@ def test_node_records_hinge_events(tmp_path, monkeypatch):
 
 
 def test_a_failed_advance_leaves_latches_and_events_as_they_were(monkeypatch):
-    from rod_sim.core.hinges import HingeEvent
-    from rod_sim.core.integrators import IntegrationError
+    from rod_sim.core.integrators import IntegrationError, Stretch
 
     sim = Simulator(make_model("rigid", scene(hinges__latch=[None, 0.5, None])))
     sim.advance(0.01)
     before = (sim.t_ns, sim.y.copy(), sim.mode.copy(), list(sim.events))
+    calls = []
 
-    def latch_then_fail(integrator, y0, t0, t_out, held, events, mode):
-        sim.model.latched = np.array([False, True, False])
-        events.append(HingeEvent(t0, "latch", 1))
+    def latch_then_fail(model, plan, y0, t0, t_out, held, breaks):
+        calls.append(t0)
+        if len(calls) == 1:        # a latch of hinge 1 at once, then a failure
+            latch = int(np.flatnonzero(plan.events[0] == 1)[0])
+            return Stretch(np.empty((t_out.size, y0.size)), 0, y0, t0, latch,
+                           (np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros((0, y0.size))))
         raise IntegrationError("step size underflow", t0)
 
-    monkeypatch.setattr(sim.model, "integrate_events", latch_then_fail)
+    monkeypatch.setattr(sim.integrator, "advance", latch_then_fail)
     with pytest.raises(IntegrationError):
         sim.advance(0.01)
+    assert len(calls) == 2
     assert sim.t_ns == before[0] and np.array_equal(sim.y, before[1])
-    assert np.array_equal(sim.mode, before[2]) and not sim.model.latched.any()
+    assert np.array_equal(sim.mode, before[2]) and not sim.mode.any()
     assert sim.events == before[3]

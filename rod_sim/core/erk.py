@@ -5,7 +5,24 @@ Both integrate a whole output grid in one compiled call, restarting at load brea
 (where a scripted force or its derivatives jump), so their accuracy is not spoiled by the
 forcing. ``rhs`` is any kernel of :mod:`rod_sim.core.kernels`.
 
-Status codes returned: 0 success, 1 step size underflow, 2 too many steps, 3 non-finite state.
+Event location (hinge latches and stop contacts, :mod:`rod_sim.core.hinges`): ``events`` =
+(hinge (m,), angle (m,), kind (m,), t_buf (cap,), code_buf (cap,), y_buf (cap, size),
+count (1,)). After every accepted step the event functions g_e = theta_{hinge_e}(y) - angle_e
+are compared at the step's ends; a sign change is bracketed on the step and its root found
+on the step's interpolant (DOP853: its 7th-order dense output; fixed-step methods: the cubic
+Hermite interpolant of the step's end values and slopes) by the Illinois method to
+|dt| <= 4 eps max(1, |t|) (a few 1e-16 s). Every event changes the mode (a latch locks the
+hinge, a stop crossing switches its contact law on or off, so that no step straddles the
+contact's jump in acceleration): the driver stops exactly at the earliest root (a latch
+first among equal roots), records it (t, code = 2 e + rising, interpolated state) and returns
+STATUS_EVENT; the caller changes the mode and restarts. A function that crosses twice within
+one step is not seen (as in scipy's solve_ivp), except in the step that starts on the root
+of the crossing just handled: there the interpolant is also sampled at x = 1/8 ... 7/8, so a
+hinge that leaves a stop and comes back within that step is caught.
+
+Status codes returned: 0 success, 1 step size underflow, 2 too many steps, 3 non-finite state,
+4 a terminal event (stopped at it), 5 the event buffer is full (stopped after a step; drain it
+and call again).
 """
 from __future__ import annotations
 
@@ -15,6 +32,8 @@ from scipy.integrate._ivp import dop853_coefficients as _dop
 from .jit import njit
 
 STATUS_OK, STATUS_STEP_UNDERFLOW, STATUS_MAX_STEPS, STATUS_NONFINITE = 0, 1, 2, 3
+STATUS_EVENT, STATUS_EVENTS_FULL = 4, 5
+EV_LATCH = 0
 STATUS_TEXT = {
     STATUS_OK: "ok",
     STATUS_STEP_UNDERFLOW: "step size fell below the minimum (the solution is not smooth "
@@ -50,6 +69,141 @@ def _all_finite(y):
     return True
 
 
+@njit(inline="always")
+def _dense(F, y, x, i):
+    """Component i of the step's interpolant at x = (t - t_step) / h in [0, 1]: F (7, size)
+    in DOP853's nested form (a cubic Hermite when F[3:] = 0)."""
+    v = 0.0
+    for j in range(7):
+        v += F[6 - j, i]
+        if j % 2 == 0:
+            v *= x
+        else:
+            v *= 1.0 - x
+    return v + y[i]
+
+
+@njit(inline="always")
+def _theta(y, h):
+    """Rigid hinge angle theta_h of state y (phi first in every model's layout) [rad]."""
+    return y[h] - y[h - 1] if h > 0 else y[0]
+
+
+@njit(inline="always")
+def _theta_dense(F, y, x, h):
+    if h == 0:
+        return _dense(F, y, x, 0)
+    return _dense(F, y, x, h) - _dense(F, y, x, h - 1)
+
+
+@njit
+def _event_values(y, events, g):
+    ev_h = events[0]
+    ev_a = events[1]
+    for e in range(ev_h.shape[0]):
+        g[e] = _theta(y, ev_h[e]) - ev_a[e]
+
+
+@njit
+def _illinois(F, y, h, a, x_lo, g_lo, g_hi, tol_x):
+    """Root x in (x_lo, 1] of theta_h(x) - a on the interpolant, g_lo = g(x_lo) and g_hi =
+    g(1) of opposite signs (or g_hi = 0): the Illinois variant of regula falsi. Returns the
+    end of the final bracket on the side of g_hi (the state there has crossed)."""
+    if g_hi == 0.0:
+        return 1.0
+    x_hi = 1.0
+    kept = 0
+    x = 1.0
+    for _ in range(200):
+        x = (x_lo * g_hi - x_hi * g_lo) / (g_hi - g_lo)
+        if not (x_lo < x < x_hi):
+            x = 0.5 * (x_lo + x_hi)
+        gx = _theta_dense(F, y, x, h) - a
+        if gx == 0.0:
+            return x
+        if (gx > 0.0) == (g_hi > 0.0):
+            x_hi, g_hi = x, gx
+            if kept == -1:
+                g_lo *= 0.5
+            kept = -1
+        else:
+            x_lo, g_lo = x, gx
+            if kept == 1:
+                g_hi *= 0.5
+            kept = 1
+        if x_hi - x_lo <= tol_x:
+            return x_hi
+    return x_hi
+
+
+@njit
+def _on_root(g0, a):
+    """The step starts on the event function's root (the crossing just handled)."""
+    return abs(g0) <= 1e-12 * (1.0 + abs(a))
+
+
+@njit
+def _bracket(F, y, e, g0, g1, events):
+    """(x_lo, g(x_lo)) of a crossing of event e in the step, or (-1, 0): a sign change between
+    the step's ends, or, for a step that starts on the function's root, a return across it
+    seen at x = 1/8 ... 7/8 on the interpolant (leaving and coming back within the step)."""
+    ev_h, ev_a = events[0], events[1]
+    if (g0[e] < 0.0 and g1[e] >= 0.0) or (g0[e] > 0.0 and g1[e] <= 0.0):
+        return 0.0, g0[e]
+    if g1[e] == 0.0 or not _on_root(g0[e], ev_a[e]):
+        return -1.0, 0.0
+    x_lo, g_lo = -1.0, 0.0
+    for k in range(1, 8):
+        gk = _theta_dense(F, y, k / 8.0, ev_h[e]) - ev_a[e]
+        if gk * g1[e] < 0.0:
+            x_lo, g_lo = k / 8.0, gk
+    return x_lo, g_lo
+
+
+@njit
+def _may_cross(g0, g1, events):
+    """Whether a step with event values g0 -> g1 needs its interpolant for event location."""
+    for e in range(g0.shape[0]):
+        if (g0[e] < 0.0 and g1[e] >= 0.0) or (g0[e] > 0.0 and g1[e] <= 0.0):
+            return True
+        if _on_root(g0[e], events[1][e]):
+            return True
+    return False
+
+
+@njit
+def _locate(F, y, t, hs, g0, g1, events):
+    """Locate the earliest crossing of the event functions in the step (t, t + hs] with
+    interpolant F (a latch first among equal roots; see :func:`_bracket`) and record it;
+    returns its x in (0, 1], or -1 when nothing crossed."""
+    ev_h, ev_a, ev_k, ev_t, ev_i, ev_y, ev_n = events
+    tol_x = 4.0 * 2.220446049250313e-16 * max(1.0, abs(t) + abs(hs)) / hs
+    x_stop = 2.0
+    first = -1
+    rising = 0
+    for latch_pass in (True, False):
+        for e in range(ev_h.shape[0]):
+            if (ev_k[e] == EV_LATCH) != latch_pass:
+                continue
+            x_lo, g_lo = _bracket(F, y, e, g0, g1, events)
+            if x_lo < 0.0:
+                continue
+            x = _illinois(F, y, ev_h[e], ev_a[e], x_lo, g_lo, g1[e], tol_x)
+            if x < x_stop:
+                x_stop = x
+                first = e
+                rising = 1 if g1[e] > g_lo else 0
+    if first < 0:
+        return -1.0
+    k = ev_n[0]
+    ev_t[k] = t + x_stop * hs
+    ev_i[k] = 2 * first + rising
+    for i in range(y.shape[0]):
+        ev_y[k, i] = _dense(F, y, x_stop, i)
+    ev_n[0] = k + 1
+    return x_stop
+
+
 @njit
 def _initial_step(rhs, chain, extra, loads, held, t_side, t0, y0, f0, t_bound, rtol, atol, stats):
     """Hairer's starting step (Solving ODEs I, II.4), as scipy's select_initial_step."""
@@ -79,13 +233,14 @@ def _initial_step(rhs, chain, extra, loads, held, t_side, t0, y0, f0, t_bound, r
 
 @njit
 def dop853_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-               max_step, max_steps, Y_out, stats):
+               max_step, max_steps, Y_out, stats, events):
     """Integrate from (t0, y0) through every time of ``t_out`` (sorted, > t0 or == t0).
 
     ``breaks`` (sorted) are times where the forcing jumps: steps end exactly there.
     Writes y(t_out[i]) into Y_out[i]. ``stats`` = [rhs evaluations, accepted steps,
     rejected steps] is accumulated. ``h_init`` <= 0 selects the first step automatically.
-    Returns (y_end, t_end, h_next, status).
+    ``events``: see the module docstring. Returns (y_end, t_end, h_next, status, number of
+    outputs written).
     """
     n = y0.shape[0]
     n_out = t_out.shape[0]
@@ -99,7 +254,12 @@ def dop853_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol
         Y_out[i_out, :] = y0
         i_out += 1
     if i_out == n_out:
-        return y, t, h_init, STATUS_OK
+        return y, t, h_init, STATUS_OK, i_out
+    m_ev = events[0].shape[0]
+    g0 = np.empty(m_ev)
+    g1 = np.empty(m_ev)
+    _event_values(y, events, g0)
+    cap = events[3].shape[0]
     h = h_init
     n_steps = 0
     safety = 0.9
@@ -127,10 +287,12 @@ def dop853_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol
                               rtol, atol, stats)
         rejected = False
         while t < seg_end:
+            if m_ev > 0 and events[6][0] + m_ev > cap:
+                return y, t, h, STATUS_EVENTS_FULL, i_out
             h = min(h, max_step)
             min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
             if h < min_step:
-                return y, t, h, STATUS_STEP_UNDERFLOW
+                return y, t, h, STATUS_STEP_UNDERFLOW, i_out
             t_new = t + h
             if t_new >= seg_end - 1e-14 * max(1.0, abs(seg_end)):
                 t_new = seg_end
@@ -191,69 +353,84 @@ def dop853_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol
                 factor = min(1.0, factor)
             rejected = False
             h_next = hs * factor
-            # dense output for the output times inside (t, t_new]
-            if i_out < n_out and t_out[i_out] <= t_new:
-                if t_out[i_out] < t_new:
-                    for s in range(N_STAGES + 1, 16):
-                        for i in range(n):
-                            acc = 0.0
-                            for r in range(s):
-                                acc += A_DOP[s, r] * K[r, i]
-                            yy[i] = y[i] + hs * acc
-                        rhs(t + C_DOP[s] * hs, yy, chain, extra, loads, held, t_side, K[s])
-                    stats[0] += 16 - N_STAGES - 1
+            # dense output: for the output times inside (t, t_new] and for event location
+            x_stop = -1.0
+            crossed = False
+            if m_ev > 0:
+                _event_values(y_new, events, g1)
+                crossed = _may_cross(g0, g1, events)
+            need_out = i_out < n_out and t_out[i_out] < t_new
+            if crossed or need_out:
+                for s in range(N_STAGES + 1, 16):
                     for i in range(n):
-                        dy = y_new[i] - y[i]
-                        F[0, i] = dy
-                        F[1, i] = hs * K[0, i] - dy
-                        F[2, i] = 2.0 * dy - hs * (f_new[i] + K[0, i])
-                        for d in range(4):
-                            acc = 0.0
-                            for r in range(16):
-                                acc += D_DOP[d, r] * K[r, i]
-                            F[3 + d, i] = hs * acc
-                while i_out < n_out and t_out[i_out] <= t_new:
-                    if t_out[i_out] == t_new:
-                        Y_out[i_out, :] = y_new
-                    else:
-                        x = (t_out[i_out] - t) / hs
-                        for i in range(n):
-                            v = 0.0
-                            for j in range(7):
-                                v += F[6 - j, i]
-                                if j % 2 == 0:
-                                    v *= x
-                                else:
-                                    v *= 1.0 - x
-                            Y_out[i_out, i] = v + y[i]
-                    i_out += 1
+                        acc = 0.0
+                        for r in range(s):
+                            acc += A_DOP[s, r] * K[r, i]
+                        yy[i] = y[i] + hs * acc
+                    rhs(t + C_DOP[s] * hs, yy, chain, extra, loads, held, t_side, K[s])
+                stats[0] += 16 - N_STAGES - 1
+                for i in range(n):
+                    dy = y_new[i] - y[i]
+                    F[0, i] = dy
+                    F[1, i] = hs * K[0, i] - dy
+                    F[2, i] = 2.0 * dy - hs * (f_new[i] + K[0, i])
+                    for d in range(4):
+                        acc = 0.0
+                        for r in range(16):
+                            acc += D_DOP[d, r] * K[r, i]
+                        F[3 + d, i] = hs * acc
+            if crossed:
+                x_stop = _locate(F, y, t, hs, g0, g1, events)
+            t_last = t_new if x_stop < 0.0 else t + x_stop * hs
+            while i_out < n_out and t_out[i_out] <= t_last:
+                if t_out[i_out] == t_new:
+                    Y_out[i_out, :] = y_new
+                else:
+                    x = (t_out[i_out] - t) / hs
+                    for i in range(n):
+                        Y_out[i_out, i] = _dense(F, y, x, i)
+                i_out += 1
+            if x_stop >= 0.0:
+                for i in range(n):
+                    yy[i] = _dense(F, y, x_stop, i) if x_stop < 1.0 else y_new[i]
+                return yy, t_last, h_next, STATUS_EVENT, i_out
+            g0[:] = g1
             t = t_new
             y[:] = y_new
             f[:] = f_new
             h = h_next
             if not _all_finite(y):
-                return y, t, h, STATUS_NONFINITE
+                return y, t, h, STATUS_NONFINITE, i_out
             if n_steps >= max_steps:
-                return y, t, h, STATUS_MAX_STEPS
-    return y, t, h, STATUS_OK
+                return y, t, h, STATUS_MAX_STEPS, i_out
+    return y, t, h, STATUS_OK, i_out
 
 
 @njit
 def fixed_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c,
-              Y_out, stats):
-    """Fixed-step explicit Runge-Kutta with tableau (A, b, c).
+              Y_out, stats, events):
+    """Fixed-step explicit Runge-Kutta with tableau (A, b, c) (c[0] = 0).
 
     Every interval between consecutive output times and breakpoints is split into
-    ceil(length / h_max) equal steps, so outputs and breakpoints are hit exactly.
-    Returns (y_end, t_end, status)."""
+    ceil(length / h_max) equal steps, so outputs and breakpoints are hit exactly. Events are
+    located on each step's cubic Hermite interpolant (one extra rhs at a sign change).
+    Returns (y_end, t_end, status, number of outputs written)."""
     n = y0.shape[0]
     ns = b.shape[0]
     K = np.empty((ns, n))
+    F = np.zeros((7, n))
     yy = np.empty(n)
+    y_prev = np.empty(n)
+    f_new = np.empty(n)
     y = y0.copy()
     t = t0
     n_out = t_out.shape[0]
     i_out = 0
+    m_ev = events[0].shape[0]
+    g0 = np.empty(m_ev)
+    g1 = np.empty(m_ev)
+    _event_values(y, events, g0)
+    cap = events[3].shape[0]
     while i_out < n_out and t_out[i_out] <= t0:
         Y_out[i_out, :] = y0
         i_out += 1
@@ -271,6 +448,9 @@ def fixed_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b
         t_start = t
         for step in range(n_sub):
             ts = t_start + step * hs
+            if m_ev > 0 and events[6][0] + m_ev > cap:
+                return y, ts, STATUS_EVENTS_FULL, i_out
+            y_prev[:] = y
             for s in range(ns):
                 for i in range(n):
                     acc = 0.0
@@ -286,12 +466,36 @@ def fixed_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b
                 y[i] += hs * acc
             stats[1] += 1
             if not _all_finite(y):
-                return y, ts + hs, STATUS_NONFINITE
+                return y, ts + hs, STATUS_NONFINITE, i_out
+            if m_ev == 0:
+                continue
+            _event_values(y, events, g1)
+            if _may_cross(g0, g1, events):
+                rhs(ts + hs, y, chain, extra, loads, held, t_side, f_new)
+                stats[0] += 1
+                for i in range(n):
+                    dy = y[i] - y_prev[i]
+                    F[0, i] = dy
+                    F[1, i] = hs * K[0, i] - dy
+                    F[2, i] = 2.0 * dy - hs * (f_new[i] + K[0, i])
+                x_stop = _locate(F, y_prev, ts, hs, g0, g1, events)
+                if x_stop >= 0.0:
+                    if x_stop < 1.0:
+                        for i in range(n):
+                            yy[i] = _dense(F, y_prev, x_stop, i)
+                        return yy, ts + x_stop * hs, STATUS_EVENT, i_out
+                    if step == n_sub - 1:
+                        while i_out < n_out and t_out[i_out] <= target:
+                            Y_out[i_out, :] = y
+                            i_out += 1
+                        return y, target, STATUS_EVENT, i_out
+                    return y, ts + hs, STATUS_EVENT, i_out
+            g0[:] = g1
         t = target
         while i_out < n_out and t_out[i_out] <= t:
             Y_out[i_out, :] = y
             i_out += 1
-    return y, t, STATUS_OK
+    return y, t, STATUS_OK, i_out
 
 
 # Module-level entry points, one per model kernel. Passing a kernel as an argument from
@@ -302,42 +506,44 @@ from . import kernels as _k  # noqa: E402
 
 @njit
 def _dop853_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                  max_step, max_steps, Y_out, stats):
+                  max_step, max_steps, Y_out, stats, events):
     return dop853_run(_k.rigid_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
-                      atol, h_init, max_step, max_steps, Y_out, stats)
+                      atol, h_init, max_step, max_steps, Y_out, stats, events)
 
 
 @njit
 def _dop853_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                    max_step, max_steps, Y_out, stats):
+                    max_step, max_steps, Y_out, stats, events):
     return dop853_run(_k.reduced_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
-                      atol, h_init, max_step, max_steps, Y_out, stats)
+                      atol, h_init, max_step, max_steps, Y_out, stats, events)
 
 
 @njit
 def _dop853_full(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                 max_step, max_steps, Y_out, stats):
+                 max_step, max_steps, Y_out, stats, events):
     return dop853_run(_k.full_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
-                      atol, h_init, max_step, max_steps, Y_out, stats)
+                      atol, h_init, max_step, max_steps, Y_out, stats, events)
 
 
 @njit
-def _fixed_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c, Y_out, stats):
+def _fixed_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c, Y_out, stats,
+                 events):
     return fixed_run(_k.rigid_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max,
-                     A, b, c, Y_out, stats)
+                     A, b, c, Y_out, stats, events)
 
 
 @njit
-def _fixed_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c, Y_out,
-                   stats):
+def _fixed_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c, Y_out, stats,
+                   events):
     return fixed_run(_k.reduced_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max,
-                     A, b, c, Y_out, stats)
+                     A, b, c, Y_out, stats, events)
 
 
 @njit
-def _fixed_full(chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c, Y_out, stats):
+def _fixed_full(chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c, Y_out, stats,
+                events):
     return fixed_run(_k.full_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max,
-                     A, b, c, Y_out, stats)
+                     A, b, c, Y_out, stats, events)
 
 
 DOP853 = {"rigid": _dop853_rigid, "reduced": _dop853_reduced, "full": _dop853_full}

@@ -1,7 +1,11 @@
-"""Time steppers behind one protocol, chosen by name.
+"""Time steppers behind one protocol, chosen by name, and the one integration driver.
 
-Every integrator maps (model, y0, t0, output times, held forces) to the states at the output
-times, restarting at the scene's load breakpoints:
+:func:`drive` is the only integration path (``Simulator``, and through it simulate, the node,
+compare, bench, advise and sweep): it asks an integrator to ``advance`` the model in the
+current mode through the output times until a terminal hinge event (a latch), applies the
+latch (mode change + impulsive velocity projection, :mod:`rod_sim.core.hinges`) and goes on.
+Every integrator restarts at the scene's load breakpoints (computed once, in :func:`drive`)
+and locates hinge events (latches, stop contact begin/end):
 
 - ``dop853-jit`` (default): compiled adaptive Dormand-Prince 8(5,3) with dense output.
 - ``radau-jit``: compiled implicit Radau IIA of order 5 (stiff scenes: the full model,
@@ -17,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from . import erk, radau
+from . import erk, hinges, radau
 
 DEFAULT_RTOL = 1e-8
 DEFAULT_STEP = 1e-3
@@ -113,8 +117,41 @@ class Stats:
 
 
 @dataclass
+class Stretch:
+    """What one ``Integrator.advance`` call did: states ``Y`` at the first ``written`` output
+    times, the state ``y`` reached at ``t`` [s], the event it stopped at (``event``: its
+    index in the plan's table, None: none) and the located crossing (t (k,), code (k,) =
+    2 e + rising for event e, states (k, size); k = 1 at an event, else 0)."""
+
+    Y: np.ndarray
+    written: int
+    y: np.ndarray
+    t: float
+    event: int | None
+    crossings: tuple
+
+
+def _event_buffers(plan, size: int):
+    cap = 64 + 2 * plan.events[0].size
+    return (*plan.events, np.empty(cap), np.empty(cap, dtype=np.int64), np.empty((cap, size)),
+            np.zeros(1, dtype=np.int64))
+
+
+def _no_crossings() -> tuple:
+    """The ``crossings`` of a :class:`Stretch` that located none."""
+    return (np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros((0, 0)))
+
+
+def _stretch(model, plan, Y, written, y, t, status, ev) -> Stretch:
+    k = int(ev[6][0])
+    crossings = (ev[3][:k].copy(), ev[4][:k].copy(), ev[5][:k].copy())
+    event = int(ev[4][k - 1]) // 2 if status == erk.STATUS_EVENT else None
+    return Stretch(Y, int(written), np.array(y), float(t), event, crossings)
+
+
+@dataclass
 class Integrator:
-    """Base class: ``integrate(model, y0, t0, t_out, held)`` -> states (len(t_out), size)."""
+    """Base class: ``advance(model, plan, y0, t0, t_out, held, breaks)`` -> :class:`Stretch`."""
 
     name: str = ""
     rtol: float = DEFAULT_RTOL
@@ -134,23 +171,18 @@ class Integrator:
             return f"{self.name} rtol={self.rtol:g} atol={self.abs_tol:g}"
         return f"{self.name} step={self.step:g}"
 
-    def integrate(self, model, y0, t0, t_out, held=None):
+    def advance(self, model, plan, y0, t0, t_out, held, breaks) -> Stretch:
+        """Integrate from (t0, y0) in the mode of ``plan`` through the sorted ``t_out`` until
+        the end or a terminal event. Raises IntegrationError."""
         raise NotImplementedError
 
-    @staticmethod
-    def _breaks(model, t0, t_end) -> np.ndarray:
-        b = [x for x in model.scene.load_breakpoints() if t0 < x < t_end]
-        return np.array(sorted(b), dtype=float)
+    def integrate(self, model, y0, t0, t_out, held=None, mode=None, events=None):
+        """States (len(t_out), state_size) at the sorted times t_out [s] from (t0, y0) in
+        ``mode`` (see :func:`drive`; events go to ``events`` if given)."""
+        return drive(model, self, y0, t0, t_out, held, mode, [] if events is None else events)[0]
 
-    @staticmethod
-    def _prepare(model, y0, t_out, held):
-        t_out = np.atleast_1d(np.asarray(t_out, dtype=float))
-        if t_out.size == 0:
-            raise ValueError("t_out: at least one output time is needed")
-        if np.any(np.diff(t_out) < 0):
-            raise ValueError("t_out: output times must be sorted")
-        held = model._held(held)
-        return np.ascontiguousarray(y0, dtype=float), t_out, held
+    def reset(self) -> None:
+        """Forget carried step sizes (a new run)."""
 
 
 @dataclass
@@ -163,22 +195,20 @@ class JitDop853(Integrator):
     max_steps: int = 10_000_000
     _h: float = 0.0
 
-    def _driver(self, model):
-        return erk.DOP853[model.name]
-
-    def integrate(self, model, y0, t0, t_out, held=None):
-        y0, t_out, held = self._prepare(model, y0, t_out, held)
+    def advance(self, model, plan, y0, t0, t_out, held, breaks) -> Stretch:
         Y = np.empty((t_out.size, y0.size))
-        stats = np.zeros(6, dtype=np.int64)
-        y, t, h, status = self._driver(model)(
-            model.chain, model.extra, model.loads, held, y0, float(t0), t_out,
-            self._breaks(model, t0, t_out[-1]), self.rtol, self.abs_tol, self._h,
-            self.max_step, self.max_steps, Y, stats)
+        stats = np.zeros(3, dtype=np.int64)
+        ev = _event_buffers(plan, y0.size)
+        y, t, h, status, written = erk.DOP853[model.name](
+            model.chain, plan.extra, model.loads, held, y0, float(t0), t_out, breaks,
+            self.rtol, self.abs_tol, self._h, self.max_step, self.max_steps, Y, stats, ev)
         self.stats.add(stats)
-        if status != erk.STATUS_OK:
+        if status not in (erk.STATUS_OK, erk.STATUS_EVENT, erk.STATUS_EVENTS_FULL):
             raise _failure(model, erk.STATUS_TEXT[status], t, y, held)
-        self._h = h
-        return Y
+        latch = status == erk.STATUS_EVENT and plan.events[2][int(ev[4][0]) // 2] == \
+            hinges.EV_LATCH
+        self._h = 0.0 if latch else h          # a fresh start after an impact
+        return _stretch(model, plan, Y, written, y, t, status, ev)
 
     def reset(self) -> None:
         self._h = 0.0
@@ -195,19 +225,32 @@ class JitRadau(JitDop853):
     _work: tuple | None = field(default=None, repr=False)
     _work_model: object = field(default=None, repr=False)
 
-    def _driver(self, model):
+    def _workspace(self, model):
         if self._work is None or self._work_model is not model:
             self._work = radau.radau_workspace(model.state_size)
             self._work_model = model
-        work, run = self._work, radau.RADAU_WORK[model.name]
-        return lambda *args: run(*args, work)
+        return self._work
 
-    def integrate(self, model, y0, t0, t_out, held=None):
+    def advance(self, model, plan, y0, t0, t_out, held, breaks) -> Stretch:
+        if plan.events[0].size:
+            raise ValueError(f"integrator: {self.name} does not locate hinge events yet "
+                             "(latches, stops); use dop853-jit, rk4, rk2 or euler")
+        Y = np.empty((t_out.size, y0.size))
+        stats = np.zeros(6, dtype=np.int64)
         try:
-            return super().integrate(model, y0, t0, t_out, held)
+            y, t, h, status = radau.RADAU_WORK[model.name](
+                model.chain, plan.extra, model.loads, held, y0, float(t0), t_out, breaks,
+                self.rtol, self.abs_tol, self._h, self.max_step, self.max_steps, Y, stats,
+                self._workspace(model))
         except BaseException:
             self._work = self._work_model = None        # no half-updated history kept
             raise
+        self.stats.add(stats)
+        if status != erk.STATUS_OK:
+            self._work = self._work_model = None
+            raise _failure(model, erk.STATUS_TEXT[status], t, y, held)
+        self._h = h
+        return Stretch(Y, t_out.size, np.array(y), float(t), None, _no_crossings())
 
     def reset(self) -> None:
         super().reset()
@@ -216,7 +259,8 @@ class JitRadau(JitDop853):
 
 @dataclass
 class JitFixedStep(Integrator):
-    """Compiled fixed-step explicit Runge-Kutta (euler, rk2 = Heun, rk4)."""
+    """Compiled fixed-step explicit Runge-Kutta (euler, rk2 = Heun, rk4); hinge events are
+    located on each step's cubic Hermite interpolant (erk.fixed_run)."""
 
     adaptive: bool = False
 
@@ -227,18 +271,18 @@ class JitFixedStep(Integrator):
         if not self.step > 0:
             raise ValueError(f"step: must be > 0 (got {self.step!r})")
 
-    def integrate(self, model, y0, t0, t_out, held=None):
-        y0, t_out, held = self._prepare(model, y0, t_out, held)
+    def advance(self, model, plan, y0, t0, t_out, held, breaks) -> Stretch:
         Y = np.empty((t_out.size, y0.size))
         stats = np.zeros(3, dtype=np.int64)
         A, b, c = self._tableau
-        y, t, status = erk.FIXED[model.name](model.chain, model.extra, model.loads, held,
-                                     y0, float(t0), t_out, self._breaks(model, t0, t_out[-1]),
-                                     float(self.step), A, b, c, Y, stats)
+        ev = _event_buffers(plan, y0.size)
+        y, t, status, written = erk.FIXED[model.name](
+            model.chain, plan.extra, model.loads, held, y0, float(t0), t_out, breaks,
+            float(self.step), A, b, c, Y, stats, ev)
         self.stats.add(stats)
-        if status != erk.STATUS_OK:
+        if status not in (erk.STATUS_OK, erk.STATUS_EVENT, erk.STATUS_EVENTS_FULL):
             raise _failure(model, erk.STATUS_TEXT[status], t, y, held)
-        return Y
+        return _stretch(model, plan, Y, written, y, t, status, ev)
 
 
 STALL_CALLS = 20_000
@@ -254,21 +298,44 @@ class _NonFinite(Exception):
         self.t, self.y, self.reason = float(t), y, reason
 
 
+def _scipy_events(plan):
+    """solve_ivp event functions (terminal) for the plan's table: latches only (stops are
+    refused, see ScipyIntegrator)."""
+    fns = []
+    for h, angle in zip(*plan.events[:2]):
+        h = int(h)
+        if h == 0:
+            f = (lambda t, y, a=angle: y[0] - a)
+        else:
+            f = (lambda t, y, h=h, a=angle: y[h] - y[h - 1] - a)
+        f.terminal = True
+        fns.append(f)
+    return fns
+
+
 @dataclass
 class ScipyIntegrator(Integrator):
-    """scipy.integrate.solve_ivp with one of its methods, restarted at load breakpoints.
-    ``max_nfev`` (0 = no limit) bounds the right-hand side evaluations of one call."""
+    """scipy.integrate.solve_ivp with one of its methods on the compiled right-hand side,
+    restarted at load breakpoints; latches through solve_ivp's event location. Scenes with
+    stops are refused (ValueError): after a contact ends, solve_ivp's first step from the
+    root can leave the stop and come back unseen, and the hinge then passes through it
+    (measured: scipy DOP853 missed 11 of 25 contact events of a 2 s test and let the hinge
+    reach 1.23 rad past a 0.2 rad stop). ``max_nfev`` (0 = no limit) bounds the right-hand
+    side evaluations of one call."""
 
     max_nfev: int = 0
 
     def __post_init__(self):
         self.order = {"RK45": 5, "DOP853": 8, "Radau": 5, "BDF": 5, "LSODA": 12}[self.name]
 
-    def integrate(self, model, y0, t0, t_out, held=None):
-        y0, t_out, held = self._prepare(model, y0, t_out, held)
+    def advance(self, model, plan, y0, t0, t_out, held, breaks) -> Stretch:
         Y = np.empty((t_out.size, y0.size))
-        edges = [float(t0), *self._breaks(model, t0, t_out[-1]), float(t_out[-1])]
-        kernel, chain, extra, loads = model.kernel, model.chain, model.extra, model.loads
+        edges = [float(t0), *[b for b in breaks if t0 < b < t_out[-1]], float(t_out[-1])]
+        kernel, chain, extra, loads = model.kernel, model.chain, plan.extra, model.loads
+        if np.any(plan.events[2] != hinges.EV_LATCH):
+            raise ValueError(f"integrator: {self.name} cannot follow hinge stop contacts "
+                             "(hinges.stop); use dop853-jit, rk4, rk2 or euler")
+        fns = _scipy_events(plan) or None
         y = y0
         done = 0
         calls = [0]                              # right-hand side evaluations of this call
@@ -300,13 +367,10 @@ class ScipyIntegrator(Integrator):
                                          f"{STALL_CALLS} derivative evaluations (it diverges)")
                 return out
 
-            stop = done
-            while stop < t_out.size and t_out[stop] <= b:
-                stop += 1
             try:
                 with np.errstate(all="ignore"):
                     sol = solve_ivp(fun, (a, b), y, method=self.name, rtol=self.rtol,
-                                    atol=self.abs_tol, dense_output=stop > done)
+                                    atol=self.abs_tol, dense_output=True, events=fns)
             except _NonFinite as exc:
                 raise _failure(model, exc.reason, exc.t, exc.y, held) from None
             except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
@@ -314,18 +378,117 @@ class ScipyIntegrator(Integrator):
                                a, y, held) from None
             self.stats.nfev += sol.nfev
             self.stats.steps += max(sol.t.size - 1, 0)
-            if sol.status != 0 or not np.all(np.isfinite(sol.y)):
+            if sol.status == -1 or not np.all(np.isfinite(sol.y)):
                 t_fail = float(sol.t[-1]) if sol.t.size else a
                 y_fail = sol.y[:, -1] if sol.t.size else y
-                raise _failure(model, sol.message if sol.status != 0 else
+                raise _failure(model, sol.message if sol.status == -1 else
                                erk.STATUS_TEXT[erk.STATUS_NONFINITE], t_fail, y_fail, held)
+            t_end = float(sol.t[-1])
+            stop = done
+            while stop < t_out.size and t_out[stop] <= t_end:
+                stop += 1
             if stop > done:
                 Y[done:stop] = sol.sol(t_out[done:stop]).T
-            y = sol.y[:, -1]
             done = stop
-        return Y
+            y = sol.y[:, -1].copy()
+            if sol.status == 1:
+                first = None
+                for e, ts in enumerate(sol.t_events):
+                    if ts.size and ts[-1] == t_end and (
+                            first is None or plan.events[2][e] == hinges.EV_LATCH):
+                        first = e
+                h = int(plan.events[0][first])
+                rising = hinges.hinge_angles(model.phi_rate(y))[h] > 0.0
+                crossing = (np.array([t_end]), np.array([2 * first + int(rising)]), y[None, :])
+                return Stretch(Y, done, y, t_end, first, crossing)
+        return Stretch(Y, done, y, float(t_out[-1]), None, self._found())
+
+    @staticmethod
+    def _found():
+        return _no_crossings()
 
 
+def drive(model, integrator: Integrator, y0, t0: float, t_out, held=None, mode=None,
+          events: list | None = None, contact=None):
+    """The integration driver: states at the sorted times ``t_out`` [s] from (t0, y0) with
+    held nodal forces (n, 2) [N], the latches ``mode`` (n,) bool already fired (None: none)
+    and the stop contacts ``contact`` (n,) int (None: as implied by y0), appending
+    :class:`~rod_sim.core.hinges.HingeEvent` s to ``events`` at their simulated times.
+    Every located event ends the integrator's stretch: a latch locks the hinge and projects
+    the velocity (outputs at exactly that time are the state before the impact), a stop
+    crossing switches the hinge's contact law; then the integration restarts there.
+    Returns (states (N, size), modes (N, n) of the samples, mode at the end, state at the
+    end (after the impact when a latch fell on the last time), contacts at the end).
+    Raises IntegrationError, ValueError (bad output times)."""
+    t_out = np.atleast_1d(np.asarray(t_out, dtype=float))
+    if t_out.size == 0:
+        raise ValueError("t_out: at least one output time is needed")
+    if np.any(np.diff(t_out) < 0):
+        raise ValueError("t_out: output times must be sorted")
+    held = model._held(held)
+    events = [] if events is None else events
+    mode = np.zeros(model.n, dtype=bool) if mode is None else np.array(mode, dtype=bool)
+    y = np.ascontiguousarray(y0, dtype=float).copy()
+    contact = model.contact_state(y) if contact is None else np.array(contact, dtype=np.int8)
+    t = float(t0)
+    Y = np.empty((t_out.size, y.size))
+    modes = np.empty((t_out.size, model.n), dtype=bool)
+    done = 0
+    while done < t_out.size and t_out[done] <= t:
+        Y[done], modes[done] = y, mode
+        done += 1
+    mode, y = _latch(model, mode, t, y, None, events)
+    breaks = np.array(sorted(b for b in model.scene.load_breakpoints() if t < b < t_out[-1]),
+                      dtype=float)
+    while done < t_out.size:
+        plan = model.plan(mode, contact)
+        s = integrator.advance(model, plan, y, t, t_out[done:], held, breaks)
+        Y[done:done + s.written] = s.Y[:s.written]
+        modes[done:done + s.written] = mode
+        done += s.written
+        y, t = np.ascontiguousarray(s.y, dtype=float), s.t
+        if s.event is None:
+            continue
+        h, kind = int(plan.events[0][s.event]), int(plan.events[2][s.event])
+        if kind == hinges.EV_LATCH:
+            mode, y = _latch(model, mode, t, y, h, events)
+            contact[h] = 0
+            continue
+        rising = bool(s.crossings[1][-1] % 2)
+        name, stop = hinges.crossing_kind(kind, rising)
+        contact[h] = (1 if stop == "upper" else -1) if name == "stop_contact_begin" else 0
+        events.append(hinges.HingeEvent(t, name, h, {
+            "stop": stop, "angle": float(hinges.hinge_angles(model.phi(y))[h]),
+            "rate": float(hinges.hinge_angles(model.phi_rate(y))[h])}))
+    return Y, modes, mode, y, contact
+
+
+def _latch(model, mode, t: float, y, located: int | None, events: list):
+    """Lock the unlocked hinges whose latch angle is reached at (t, y): the located one
+    (``located``) and any other within 1e-9 rad; at the start of a drive (``located``
+    None) only exact hits. Returns (mode, y with the velocity projected)."""
+    if not model.has_latches:
+        return mode, y
+    s = model.scene
+    theta = hinges.hinge_angles(model.phi(y))
+    gap = np.abs(theta - s.latch_angle)
+    free = ~hinges.locked_hinges(s, mode) & np.isfinite(s.latch_angle)
+    if located is None:
+        hit = free & (gap == 0.0)
+    else:
+        hit = free & (gap <= max(1e-9, 1e-9 * float(np.max(np.abs(theta)))))
+        hit[located] = free[located]
+    if not hit.any():
+        return mode, y
+    rate = hinges.hinge_angles(model.phi_rate(y))
+    new_mode = mode | hit
+    y1 = model.project_velocity(y, new_mode)
+    loss = model.kinetic_energy(t, y) - model.kinetic_energy(t, y1)
+    for h in np.flatnonzero(hit):
+        events.append(hinges.HingeEvent(t, "latch", int(h), {
+            "angle": float(theta[h]), "rate": float(rate[h]),
+            "kinetic_energy_loss": float(loss)}))
+    return new_mode, y1
 
 
 def make_integrator(name: str = "dop853-jit", *, rtol: float | None = None,

@@ -6,11 +6,14 @@ them: ``rhs(t, y, chain, extra, loads, held, t_side, out)`` writes dy/dt into ``
 - ``chain`` = (l, m, mu, Kt, kappa, nu, Mt, C): arrays (n,) of rod length [m], mass per
   length [kg/m], node mass [kg], 4 EI / l [N m/rad], hinge stiffness [N m/rad], hinge damping
   [N m s/rad], tail mass M_k [kg] and m l^2 / 12 [kg m].
-- ``extra`` = (P_alpha, P_beta, B_inv, work): reduced-model constants P = [kappa^{gamma phi}]^T
-  [b^{gamma gamma}]^{-1} split into its alpha and beta halves (n, n) each and
-  B_inv = [b^{gamma gamma}]^{-1} (2n, 2n) (other models: zeros, unused), and ``work``, a
+- ``extra`` = (P_alpha, P_beta, B_inv, work, *hinge): reduced-model constants P =
+  [kappa^{gamma phi}]^T [b^{gamma gamma}]^{-1} split into its alpha and beta halves (n, n)
+  each and B_inv = [b^{gamma gamma}]^{-1} (2n, 2n) (other models: zeros, unused), ``work``, a
   scratch array of ``workspace_size(n)`` floats so that a call allocates nothing (the
-  kernels are therefore not re-entrant: one model instance per thread).
+  kernels are therefore not re-entrant: one model instance per thread), and ``hinge``, the
+  hinge features in the current mode, flat in ``extra[4:]`` (see :data:`HINGE_FIELDS`; all
+  zeros/infinite for a plain chain, which then runs exactly the paper's equations; flat
+  because every read of a nested tuple would reference-count all of its arrays).
 - ``loads`` = (node, axis, shape, amplitude, start, duration) arrays describing scripted loads;
   ``held`` (n, 2) the held (commanded) nodal forces [N]; ``t_side`` a time strictly inside the
   current segment between load breakpoints, which decides which side of a jump applies.
@@ -29,6 +32,18 @@ import numpy as np
 from .jit import njit
 
 SHAPE_PULSE, SHAPE_CONSTANT, SHAPE_STEP = 0, 1, 2
+
+HINGE_FIELDS = ("H", "flags", "T_row", "T_col", "T_val", "C_row", "C_col", "C_val", "pivots",
+                "scratch")
+"""``extra[4:14]``. ``H`` (8, n) float, rows: rest-angle generalized forces on phi, alpha,
+beta [N m] (kappa theta_rest dDelta/dq: kr_h - kr_{h+1}, kr_h, -kr_{h+1}); stop angles lower,
+upper [rad] (+-inf: none); contact stiffness [N m/rad] and damping [N m s/rad]; contact
+state (+1 in contact with the upper stop, -1 the lower, 0 free: the contact law applies by
+mode, switched at located crossings, not by the sign of the penetration). ``flags`` int64
+(4,) = [any hinge in contact, constrained, r, rows of C]; the constraint basis T (dof, r)
+and the constraint matrix C (rows, dof) as coordinate lists (row, col int64, value float;
+the full model solves with Lagrange multipliers through its Schur complement, the others
+with T); ``pivots`` int64 (n,) and ``scratch`` floats (3 dof^2 + 2 dof) for those solves."""
 
 
 @njit(inline="always")
@@ -118,17 +133,32 @@ def rigid_velocity_terms(phi, dphi, chain, g_phi, g_alpha):
 
 
 @njit(inline="always")
+def hinge_angle(phi, dphi, h):
+    """Rigid hinge angle theta_h [rad] and its rate [rad/s] (phi_1; phi_{h+1} - phi_h)."""
+    if h == 0:
+        return phi[0], dphi[0]
+    return phi[h] - phi[h - 1], dphi[h] - dphi[h - 1]
+
+
+@njit(inline="always")
 def rigid_hinge_moments(phi, dphi, kappa, nu, out):
     """Hinge moments with gamma = 0: kappa_h dphi_h + nu_h d(dphi_h)/dt [N m] into out (n,)."""
     n = phi.shape[0]
     for h in range(n):
-        if h == 0:
-            d = phi[0]
-            dd = dphi[0]
-        else:
-            d = phi[h] - phi[h - 1]
-            dd = dphi[h] - dphi[h - 1]
+        d, dd = hinge_angle(phi, dphi, h)
         out[h] = kappa[h] * d + nu[h] * dd
+
+
+@njit(inline="always")
+def _pivot(A, col):
+    """(row of the largest |A[r, col]| for r >= col, that value): partial pivoting."""
+    piv = col
+    best = abs(A[col, col])
+    for r in range(col + 1, A.shape[0]):
+        if abs(A[r, col]) > best:
+            best = abs(A[r, col])
+            piv = r
+    return piv, best
 
 
 @njit(inline="always")
@@ -138,12 +168,7 @@ def solve_inplace(A, b):
     A (n, n) is destroyed. Returns False when A is singular (a zero pivot)."""
     n = b.shape[0]
     for col in range(n):
-        piv = col
-        best = abs(A[col, col])
-        for r in range(col + 1, n):
-            if abs(A[r, col]) > best:
-                best = abs(A[r, col])
-                piv = r
+        piv, best = _pivot(A, col)
         if best == 0.0:
             return False
         if piv != col:
@@ -170,6 +195,62 @@ def solve_inplace(A, b):
         for c2 in range(r + 1, n):
             acc -= A[r, c2] * b[c2]
         b[r] = acc / A[r, r]
+    return True
+
+
+@njit(inline="always")
+def hinge_forces(phi, dphi, H, flags, out):
+    """Add the rest-angle and stop-contact generalized forces on phi (n,) [N m] to out."""
+    n = phi.shape[0]
+    for k in range(n):
+        out[k] += H[0, k]
+    if flags[0] == 0:
+        return
+    for h in range(n):
+        th, dth = hinge_angle(phi, dphi, h)
+        m = 0.0
+        if H[7, h] > 0.0:
+            m = -max(0.0, H[5, h] * (th - H[4, h]) + H[6, h] * dth)
+        elif H[7, h] < 0.0:
+            m = max(0.0, H[5, h] * (H[3, h] - th) - H[6, h] * dth)
+        out[h] += m
+        if h > 0:
+            out[h - 1] -= m
+
+
+@njit(inline="always")
+def projected_solve(M, f, r, rows, cols, vals, ws, out):
+    """out = T (T^T M T)^{-1} T^T f for the constraint basis T (d, r) given as coordinate
+    lists (M (d, d) and f (d,) are kept; ws scratch). Returns False when T^T M T is
+    singular."""
+    d = f.shape[0]
+    for i in range(d):
+        out[i] = 0.0
+    if r == 0:
+        return True
+    MT = ws[0:d * r].reshape((d, r))
+    R = ws[d * r:d * r + r * r].reshape((r, r))
+    q = ws[d * r + r * r:d * r + r * r + r]
+    MT[:, :] = 0.0
+    R[:, :] = 0.0
+    q[:] = 0.0
+    for e in range(rows.shape[0]):
+        i = rows[e]
+        c = cols[e]
+        v = vals[e]
+        for a in range(d):
+            MT[a, c] += M[a, i] * v
+    for e in range(rows.shape[0]):
+        i = rows[e]
+        c = cols[e]
+        v = vals[e]
+        q[c] += v * f[i]
+        for c2 in range(r):
+            R[c, c2] += v * MT[i, c2]
+    if not solve_inplace(R, q):
+        return False
+    for e in range(rows.shape[0]):
+        out[rows[e]] += vals[e] * q[cols[e]]
     return True
 
 
@@ -201,13 +282,13 @@ def _carve(ws, n):
 
 
 @njit(inline="always")
-def _rigid_terms(t, phi, dphi, chain, extra, loads, held, t_side):
-    """What the rigid and reduced kernels share, in scratch views of ``extra[3]``: the inertia
-    blocks, cos/sin of phi, the velocity terms, Q (in ``rhs``) and the gamma = 0 hinge
+def _rigid_terms(t, phi, dphi, chain, work, loads, held, t_side):
+    """What the rigid and reduced kernels share, in scratch views of ``work`` (extra[3]): the
+    inertia blocks, cos/sin of phi, the velocity terms, Q (in ``rhs``) and the gamma = 0 hinge
     moments (in ``tau``); v1, v2 are free (n,) scratch vectors."""
     l, m, mu, Kt, kappa, nu, Mt, C = chain
     n = l.shape[0]
-    A, Ma, Mb, W1, W2, c, s, gp, ga, rhs, tau, v1, v2, v3, f, tau1 = _carve(extra[3], n)
+    A, Ma, Mb, W1, W2, c, s, gp, ga, rhs, tau, v1, v2, v3, f, tau1 = _carve(work, n)
     for k in range(n):
         c[k] = math.cos(phi[k])
         s[k] = math.sin(phi[k])
@@ -225,17 +306,30 @@ def rigid_rhs(t, y, chain, extra, loads, held, t_side, out):
     n = l.shape[0]
     phi = y[:n]
     dphi = y[n:]
-    A, Ma, Mb, c, s, gp, ga, rhs, tau, v1, v2 = _rigid_terms(t, phi, dphi, chain, extra, loads,
-                                                             held, t_side)
+    A, Ma, Mb, c, s, gp, ga, rhs, tau, v1, v2 = _rigid_terms(t, phi, dphi, chain, extra[3],
+                                                             loads, held, t_side)
     for k in range(n):
         rhs[k] -= gp[k] + tau[k]
         if k + 1 < n:
             rhs[k] += tau[k + 1]
+    _finish(phi, dphi, A, rhs, extra[4], extra[5], extra[6], extra[7], extra[8], extra[13],
+            out)
+
+
+@njit(inline="always")
+def _finish(phi, dphi, A, rhs, H, flags, T_row, T_col, T_val, scratch, out):
+    """Rigid and reduced models: add the hinge features' forces, solve A phi_dd = rhs (on
+    the constraint set when hinges are locked), write [phi_dot, phi_dd] into out."""
+    n = phi.shape[0]
+    hinge_forces(phi, dphi, H, flags, rhs)
     out[:n] = dphi
-    if not solve_inplace(A, rhs):
+    if flags[1]:
+        ok = projected_solve(A, rhs, flags[2], T_row, T_col, T_val, scratch, out[n:])
+    else:
+        ok = solve_inplace(A, rhs)
+        out[n:] = rhs
+    if not ok:
         _fill_nan(out)
-        return
-    out[n:] = rhs
 
 
 @njit
@@ -247,14 +341,15 @@ def reduced_rhs(t, y, chain, extra, loads, held, t_side, out):
     n = l.shape[0]
     phi = y[:n]
     dphi = y[n:]
-    A, Ma, Mb, c, s, gp, ga, rhs, tau, v1, v2 = _rigid_terms(t, phi, dphi, chain, extra, loads,
-                                                             held, t_side)
+    A, Ma, Mb, c, s, gp, ga, rhs, tau, v1, v2 = _rigid_terms(t, phi, dphi, chain, extra[3],
+                                                             loads, held, t_side)
     a_al = v1
     a_be = v2
+    H = extra[4]
     for k in range(n):
         nxt = tau[k + 1] if k + 1 < n else 0.0
-        a_al[k] = ga[k] + tau[k]
-        a_be[k] = -ga[k] - nxt
+        a_al[k] = ga[k] + tau[k] - H[1, k]
+        a_be[k] = -ga[k] - nxt - H[2, k]
         rhs[k] -= gp[k] + tau[k] - nxt
     # M_r = A - P_alpha m^{alpha phi} - P_beta m^{beta phi} with m^{alpha phi} = Ma^T.
     # Off the diagonal Ma[i, j] = C_j l_i cos(phi_i - phi_j) = -Mb[i, j] (j > i), so
@@ -273,11 +368,8 @@ def reduced_rhs(t, y, chain, extra, loads, held, t_side, out):
             r = (Pa[k, i] - Pb[k, i]) * C[i]
             su += r * c[i]
             sv += r * s[i]
-    out[:n] = dphi
-    if not solve_inplace(A, rhs):
-        _fill_nan(out)
-        return
-    out[n:] = rhs
+    _finish(phi, dphi, A, rhs, extra[4], extra[5], extra[6], extra[7], extra[8], extra[13],
+            out)
 
 
 @njit
@@ -295,6 +387,8 @@ def full_rhs(t, y, chain, extra, loads, held, t_side, out):
     dal = y[4 * n:5 * n]
     dbe = y[5 * n:6 * n]
     A, Ma, Mb, Wa, Wb, c, s, gp, ga, Fp, Fa, Fb, ia, ib, f, tau = _carve(extra[3], n)
+    H = extra[4]
+    flags = extra[5]
     for k in range(n):
         c[k] = math.cos(phi[k])
         s[k] = math.sin(phi[k])
@@ -317,8 +411,10 @@ def full_rhs(t, y, chain, extra, loads, held, t_side, out):
             skj = s[k] * c[j] - c[k] * s[j]
             cor += C[j] * l[k] * skj * dphi[j] * (dal[j] - dbe[j])
         Fp[k] -= gp[k] + 2.0 * cor + tau[k] - tau[k + 1]
-        Fa[k] = -ga[k] - tau[k] - Kt[k] * (al[k] + 0.5 * be[k])
-        Fb[k] = ga[k] + tau[k + 1] - Kt[k] * (0.5 * al[k] + be[k])
+        Fa[k] = -ga[k] - tau[k] - Kt[k] * (al[k] + 0.5 * be[k]) + H[1, k]
+        Fb[k] = ga[k] + tau[k + 1] - Kt[k] * (0.5 * al[k] + be[k]) + H[2, k]
+    hinge_forces(phi, dphi, H, flags, Fp)
+    out[:3 * n] = y[3 * n:]
     # bending block per rod: [[a, b], [b, a]], a = m l^3/105, b = -m l^3/140
     for j in range(n):
         ml3 = m[j] * l[j] ** 3
@@ -331,27 +427,139 @@ def full_rhs(t, y, chain, extra, loads, held, t_side, out):
         for j in range(n):
             Wa[k, j] = Ma[k, j] * ia[j] + Mb[k, j] * ib[j]
             Wb[k, j] = Ma[k, j] * ib[j] + Mb[k, j] * ia[j]
-    x = gp  # g_phi is folded into Fp above; reuse its storage for the solve
     for k in range(n):
-        acc = Fp[k]
-        for j in range(k, n):
-            acc -= Wa[k, j] * Fa[j] + Wb[k, j] * Fb[j]
-        x[k] = acc
         for i in range(n):
             acc = 0.0
             for j in range(max(k, i), n):
                 acc += Wa[k, j] * Ma[i, j] + Wb[k, j] * Mb[i, j]
             A[k, i] -= acc
-    out[:3 * n] = y[3 * n:]
+    if flags[1]:
+        _full_lagrange(A, Ma, Mb, Wa, Wb, ia, ib, Fp, Fa, Fb, flags[3], extra[9], extra[10],
+                       extra[11], extra[12], extra[13], out[3 * n:])
+        return
+    x = gp  # g_phi is folded into Fp above; reuse its storage for the solve
+    _schur_rhs(Wa, Wb, Fp, Fa, Fb, x)
     if not solve_inplace(A, x):
         _fill_nan(out)
         return
+    out[3 * n:4 * n] = x
+    _bending_accelerations(Ma, Mb, ia, ib, Fa, Fb, x, out[4 * n:5 * n], out[5 * n:])
+
+
+@njit(inline="always")
+def lu_inplace(A, piv):
+    """LU factorization with partial pivoting in place (rows swapped whole; piv[k] = the
+    row swapped with k at step k). Returns False for a zero pivot."""
+    n = A.shape[0]
+    for col in range(n):
+        p, best = _pivot(A, col)
+        piv[col] = p
+        if best == 0.0:
+            return False
+        if p != col:
+            for c2 in range(n):
+                tmp = A[col, c2]
+                A[col, c2] = A[p, c2]
+                A[p, c2] = tmp
+        inv = 1.0 / A[col, col]
+        for r in range(col + 1, n):
+            f = A[r, col] * inv
+            A[r, col] = f
+            for c2 in range(col + 1, n):
+                A[r, c2] -= f * A[col, c2]
+    return True
+
+
+@njit(inline="always")
+def lu_solve(LU, piv, b):
+    """Solve with the factors of :func:`lu_inplace`; x overwrites b."""
+    n = b.shape[0]
+    for col in range(n):
+        p = piv[col]
+        if p != col:
+            tmp = b[col]
+            b[col] = b[p]
+            b[p] = tmp
+        for r in range(col + 1, n):
+            b[r] -= LU[r, col] * b[col]
+    for r in range(n - 1, -1, -1):
+        acc = b[r]
+        for c2 in range(r + 1, n):
+            acc -= LU[r, c2] * b[c2]
+        b[r] = acc / LU[r, r]
+
+
+@njit(inline="always")
+def _schur_solve(LU, piv, Ma, Mb, Wa, Wb, ia, ib, gp, ga, gb, out):
+    """Full model: M z = (gp, ga, gb) through the factored Schur complement LU of the
+    bending block; z (3n,) into out (its phi part is solved in place there)."""
+    n = gp.shape[0]
+    x = out[:n]
+    _schur_rhs(Wa, Wb, gp, ga, gb, x)
+    lu_solve(LU, piv, x)
+    _bending_accelerations(Ma, Mb, ia, ib, ga, gb, x, out[n:2 * n], out[2 * n:])
+
+
+@njit(inline="always")
+def _schur_rhs(Wa, Wb, gp, ga, gb, x):
+    """Right-hand side of the Schur-complement system for phi_dd: gp - W (ga, gb) into x."""
+    n = gp.shape[0]
+    for k in range(n):
+        acc = gp[k]
+        for j in range(k, n):
+            acc -= Wa[k, j] * ga[j] + Wb[k, j] * gb[j]
+        x[k] = acc
+
+
+@njit(inline="always")
+def _bending_accelerations(Ma, Mb, ia, ib, ga, gb, x, out_a, out_b):
+    """alpha_dd, beta_dd (n,) each from phi_dd = x: the 2 x 2 bending block per rod."""
+    n = x.shape[0]
     for j in range(n):
-        ra = Fa[j]
-        rb = Fb[j]
+        ra = ga[j]
+        rb = gb[j]
         for k in range(j + 1):
             ra -= Ma[k, j] * x[k]
             rb -= Mb[k, j] * x[k]
-        out[3 * n + j] = x[j]
-        out[4 * n + j] = ia[j] * ra + ib[j] * rb
-        out[5 * n + j] = ib[j] * ra + ia[j] * rb
+        out_a[j] = ia[j] * ra + ib[j] * rb
+        out_b[j] = ib[j] * ra + ia[j] * rb
+
+
+@njit(inline="always")
+def _full_lagrange(A, Ma, Mb, Wa, Wb, ia, ib, Fp, Fa, Fb, nc, rows, cols, vals, piv, ws, acc):
+    """Full model on the constraint set C x'' = 0 (M symmetric, so equal to the projected
+    equations): x'' = M^{-1} (f + C^T lambda) with (C M^{-1} C^T) lambda = -C M^{-1} f, every
+    solve through the Schur complement A (Schur-reduced on entry) factored once: 1 + rows(C)
+    solves of O(n^2) each instead of a dense 3n x 3n system."""
+    n = Fp.shape[0]
+    d = 3 * n
+    Zt = ws[0:nc * d].reshape((nc, d))
+    o = nc * d
+    g = ws[o:o + d]
+    S = ws[o + d:o + d + nc * nc].reshape((nc, nc))
+    lam = ws[o + d + nc * nc:o + d + nc * nc + nc]
+    if not lu_inplace(A, piv):
+        for i in range(d):
+            acc[i] = np.nan
+        return
+    _schur_solve(A, piv, Ma, Mb, Wa, Wb, ia, ib, Fp, Fa, Fb, acc)
+    for i in range(nc):
+        g[:] = 0.0
+        for e in range(rows.shape[0]):
+            if rows[e] == i:
+                g[cols[e]] = vals[e]
+        _schur_solve(A, piv, Ma, Mb, Wa, Wb, ia, ib, g[:n], g[n:2 * n], g[2 * n:], Zt[i])
+    S[:, :] = 0.0
+    lam[:] = 0.0
+    for e in range(rows.shape[0]):
+        i = rows[e]
+        lam[i] -= vals[e] * acc[cols[e]]
+        for j in range(nc):
+            S[i, j] += vals[e] * Zt[j, cols[e]]
+    if not solve_inplace(S, lam):
+        for i in range(d):
+            acc[i] = np.nan
+        return
+    for j in range(nc):
+        for i in range(d):
+            acc[i] += Zt[j, i] * lam[j]

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .integrators import Integrator, IntegrationError, explain_state, make_integrator
+from .integrators import Integrator, IntegrationError, drive, explain_state, make_integrator
 from .models import ChainModel
 from .snapshot import Snapshot
 
@@ -23,11 +23,13 @@ def seconds_to_ns(t: float) -> int:
 
 @dataclass(frozen=True, eq=False)
 class Trajectory:
-    """States of a model sampled at times ``t`` (N,) [s]: ``y`` (N, state_size)."""
+    """States of a model sampled at times ``t`` (N,) [s]: ``y`` (N, state_size); ``modes``
+    (N, n) bool: the latches fired at each sample (None: none)."""
 
     model: ChainModel
     t: np.ndarray
     y: np.ndarray
+    modes: np.ndarray | None = None
 
     @property
     def phi(self) -> np.ndarray:
@@ -40,7 +42,8 @@ class Trajectory:
         return self.model.phi_rate(self.y)
 
     def snapshot(self, i: int, held=None) -> Snapshot:
-        return self.model.snapshot(float(self.t[i]), self.y[i], held)
+        mode = None if self.modes is None else self.modes[i]
+        return self.model.snapshot(float(self.t[i]), self.y[i], held, mode)
 
     def at(self, t: float) -> np.ndarray:
         """The state at a sample time t [s] (must be one of ``self.t`` to 1 ns)."""
@@ -62,14 +65,11 @@ class Simulator:
         """Back to the scene's initial state at t = 0 with zero held forces."""
         self.t_ns = 0
         self.events = []    # hinge events (latch, stop contact), see rod_sim.core.hinges
-        self.mode = None    # hinge models: which latches have fired
-        if hasattr(self.model, "initial_mode"):
-            self.mode = self.model.initial_mode()
-            self.model.latched = self.mode.copy()
+        self.mode = np.zeros(self.model.n, dtype=bool)    # which latches have fired
         self.y = self.model.initial_state()
+        self.contact = self.model.contact_state(self.y)     # stop contacts (+1, -1, 0)
         self.held = np.zeros((self.model.n, 2))
-        if hasattr(self.integrator, "reset"):
-            self.integrator.reset()
+        self.integrator.reset()
 
     @property
     def t(self) -> float:
@@ -89,25 +89,35 @@ class Simulator:
         if dt_ns <= 0:
             raise ValueError(f"dt: must be > 0 (got {dt!r})")
         t1_ns = self.t_ns + dt_ns
-        Y = self._integrate([t1_ns / NS_PER_S])
-        self._check_finite(np.array([t1_ns / NS_PER_S]), Y)
-        self.y = Y[-1].copy()
+        self._integrate([t1_ns / NS_PER_S])
         self.t_ns = t1_ns
 
-    def _integrate(self, t_out) -> np.ndarray:
-        """States at t_out from now; models with hinge events integrate themselves. When the
-        integration raises, the simulator is left as it was (latches and events included)."""
-        if not hasattr(self.model, "integrate_events"):
-            return self.integrator.integrate(self.model, self.y, self.t, t_out, self.held)
-        mode, latched, n_events = self.mode.copy(), self.model.latched.copy(), len(self.events)
+    def sample(self, t_out_ns) -> np.ndarray:
+        """Advance to the last of the sorted integer-ns times ``t_out_ns`` (all >= now) holding
+        the current forces; returns the states there (len(t_out_ns), state_size). Hinge
+        events on the way are handled and recorded as by ``run``."""
+        t_out_ns = np.asarray(t_out_ns, dtype=np.int64)
+        if t_out_ns.size == 0 or t_out_ns[0] < self.t_ns or np.any(np.diff(t_out_ns) < 0):
+            raise ValueError("t_out_ns: sorted times from the current time on are needed")
+        t = t_out_ns / NS_PER_S
+        Y, _ = self._integrate(t)
+        self.t_ns = int(t_out_ns[-1])
+        return Y
+
+    def _integrate(self, t_out):
+        """(states, modes) at t_out from now through the one driver; when it raises, the
+        simulator is left as it was (mode, contacts and events included)."""
+        n_events = len(self.events)
         try:
-            Y, self.mode = self.model.integrate_events(self.integrator, self.y, self.t, t_out,
-                                                       self.held, self.events, self.mode)
+            Y, modes, mode, y_end, contact = drive(self.model, self.integrator, self.y, self.t,
+                                                   t_out, self.held, self.mode, self.events,
+                                                   self.contact)
+            self._check_finite(np.asarray(t_out, dtype=float), Y)
         except BaseException:
-            self.mode, self.model.latched = mode, latched
             del self.events[n_events:]
             raise
-        return Y
+        self.mode, self.y, self.contact = mode, y_end, contact
+        return Y, modes
 
     def _check_finite(self, t: np.ndarray, Y: np.ndarray) -> None:
         """Never hand out a NaN: IntegrationError naming the first non-finite sample."""
@@ -120,7 +130,7 @@ class Simulator:
 
     def snapshot(self) -> Snapshot:
         """The chain now."""
-        return self.model.snapshot(self.t, self.y, self.held)
+        return self.model.snapshot(self.t, self.y, self.held, self.mode)
 
     def run(self, t_end: float, rate_hz: float = 100.0) -> Trajectory:
         """Integrate from now to t_end [s], sampling every 1/rate_hz [s] of simulated time
@@ -140,8 +150,6 @@ class Simulator:
         if ticks[-1] != end_ns:
             ticks = np.concatenate([ticks, [end_ns]])
         t = ticks / NS_PER_S
-        Y = self._integrate(t)
-        self._check_finite(t, Y)
-        self.y = Y[-1].copy()
+        Y, modes = self._integrate(t)
         self.t_ns = end_ns
-        return Trajectory(self.model, t, Y)
+        return Trajectory(self.model, t, Y, modes if modes.any() else None)

@@ -42,8 +42,9 @@ import numpy as np
 
 from rod_sim.core.integrators import IntegrationError, make_integrator
 from rod_sim.core.kinematics import node_positions
-from rod_sim.core.models import FullModel
+from rod_sim.core.models import FullModel, make_model
 from rod_sim.core.scene import Scene
+from rod_sim.core.simulator import Simulator
 
 if TYPE_CHECKING:
     from rod_sim.io.log_source import LogStream
@@ -86,19 +87,35 @@ class CompareInputError(ValueError):
 
 
 def reference_model(scene: Scene) -> FullModel:
-    """The model every reference run of compare integrates (one place to build it)."""
-    return FullModel(scene)
+    """The model every reference run of compare integrates (one place to build it): the full
+    model of the logged scene, hinge features included."""
+    return make_model("full", scene)
 
 
 class Run:
-    """A full-model run from the scene's initial state, continued window by window with the
-    compiled DOP853 at ``rtol`` (atol = rtol * 1e-2). ``y`` (6n,) is the state at ``t_ns``."""
+    """A full-model run from the scene's initial state, continued window by window through the
+    one driver (a :class:`Simulator`: hinge features, latches and stop contacts included) with
+    the compiled DOP853 at ``rtol`` (atol = rtol * 1e-2). ``y`` (6n,) is the state at ``t_ns``;
+    setting ``y`` (the twin's renormalisation) keeps the mode and re-derives the contacts."""
 
     def __init__(self, model: FullModel, rtol: float, y0: np.ndarray):
         self.model = model
         self.integ = make_integrator("dop853-jit", rtol=rtol, atol=rtol * 1e-2)
-        self.y = np.array(y0, dtype=float)
-        self.t_ns = 0
+        self.sim = Simulator(model, self.integ)
+        self.y = y0
+
+    @property
+    def y(self) -> np.ndarray:
+        return self.sim.y
+
+    @y.setter
+    def y(self, value) -> None:
+        self.sim.y = np.array(value, dtype=float)
+        self.sim.contact = self.model.contact_state(self.sim.y)
+
+    @property
+    def t_ns(self) -> int:
+        return self.sim.t_ns
 
     def advance(self, t_out: np.ndarray, bounds: list[int], helds: list[np.ndarray]) -> np.ndarray:
         """States (len(t_out), 6n) at the sorted times ``t_out`` [ns] (all >= ``t_ns``, the
@@ -115,11 +132,9 @@ class Run:
             j = k
             while j < t_out.size and t_out[j] <= b:
                 j += 1
-            times = np.concatenate([t_out[k:j], [b]]) / NS_PER_S
-            Y = self.integ.integrate(self.model, self.y, self.t_ns / NS_PER_S, times, held)
+            self.sim.set_forces(held)
+            Y = self.sim.sample(np.concatenate([t_out[k:j], [int(b)]]))
             out[k:j] = Y[:-1]
-            self.y = Y[-1].copy()
-            self.t_ns = int(b)
             k = j
         return out
 

@@ -1,0 +1,148 @@
+"""One engine (issue 12): every tool integrates through the one driver with the scene's hinge
+features compiled in.
+
+- compare re-runs exactly the logged scene: each shipped config's full-model log passes
+  against itself, and the deployment log fails against a scene with a tampered stop angle;
+- the compiled event location agrees with scipy's solve_ivp event location (an independent
+  root finder on another dense output) on the deployment scene's latch times;
+- the contact law switches at located crossings, so tight tolerances do not underflow at a
+  latch that sits on a stop (they did when a step straddled the contact's jump);
+- the locked-hinge constraint holds through a compiled run in every model.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from rod_sim.core.integrators import make_integrator
+from rod_sim.core.models import make_model
+from rod_sim.core.simulator import Simulator
+from rod_sim.io.scene_yaml import load_scene
+from rod_sim.tools import cli
+
+ROOT = Path(__file__).resolve().parents[1]
+CONFIG = ROOT / "config"
+DEPLOYMENT = CONFIG / "deployment.yaml"
+# (scene file, t_end [s], log rate [Hz]): short enough for the full model's two references
+SHIPPED = [("deployment.yaml", 2.0, 100), ("paper_example.yaml", 0.5, 100),
+           ("small_chain.yaml", 0.5, 100), ("bench/paper_stiff.yaml", 0.05, 1000),
+           ("bench/chain_n32.yaml", 0.01, 1000), ("bench/chain_n128.yaml", 0.002, 5000)]
+
+
+def _compare(capsys, log, *extra):
+    capsys.readouterr()
+    code = cli.main(["compare", str(log), "--json", *map(str, extra)])
+    out = capsys.readouterr()
+    return code, json.loads(out.out)
+
+
+def _full_log(tmp_path, scene_file, t_end, rate):
+    log = tmp_path / (Path(scene_file).stem + ".mcap")
+    assert cli.main(["simulate", str(CONFIG / scene_file), "--model", "full", "--t-end",
+                     str(t_end), "--rate", str(rate), "--rtol", "1e-11", "--atol", "1e-11",
+                     "--out", str(log)]) == 0
+    return log
+
+
+def test_every_shipped_config_compares_with_its_own_full_log(tmp_path, capsys):
+    # shipped configs that are scenes (not params files or sweep specs)
+    shipped = sorted(str(p.relative_to(CONFIG)) for p in CONFIG.rglob("*.yaml")
+                     if "rods" in (yaml.safe_load(p.read_text()) or {}))
+    assert shipped == sorted(s for s, _, _ in SHIPPED)
+    for scene_file, t_end, rate in SHIPPED:
+        log = _full_log(tmp_path, scene_file, t_end, rate)
+        code, rep = _compare(capsys, log)
+        assert code == 0 and rep["pass"], (scene_file, rep["max_abs_error"])
+        assert rep["max_abs_error"]["phi"] < 1e-7, scene_file
+
+
+def test_tampered_stop_angle_fails(tmp_path, capsys):
+    log = _full_log(tmp_path, "deployment.yaml", 2.0, 100)
+    data = yaml.safe_load(DEPLOYMENT.read_text())
+    data["hinges"]["stop"]["angle"][4] = [-3.2, -1.0]      # hinge 4 now stops at -1 rad
+    tampered = tmp_path / "tampered.yaml"
+    tampered.write_text(yaml.safe_dump(data))
+    code, rep = _compare(capsys, log, "--scene", tampered)
+    assert code == 1 and not rep["pass"]
+    assert rep["max_abs_error"]["phi"] > 0.1
+    code, rep = _compare(capsys, log)                       # the logged scene still passes
+    assert code == 0 and rep["pass"]
+
+
+def _latch_times(model, integrator, t_end, rtol, stops=True):
+    sc = load_scene(DEPLOYMENT)
+    if not stops:      # the stops sit on the latch angles: the latch catches each hinge first
+        sc = sc.with_changes(stop_lower=-np.inf, stop_upper=np.inf)
+    sim = Simulator(make_model(model, sc), make_integrator(integrator, rtol=rtol, atol=rtol))
+    sim.run(t_end, 10.0)
+    return {e.hinge: e.t for e in sim.events if e.kind == "latch"}
+
+
+def test_deployment_latch_times_agree_with_scipy_event_location():
+    ours = _latch_times("reduced", "dop853-jit", 7.0, 1e-11)
+    # scipy's methods refuse stops; without them the latches are the same events
+    scipy = _latch_times("reduced", "DOP853", 7.0, 1e-11, stops=False)
+    assert sorted(ours) == sorted(scipy) == [1, 2, 3, 4]
+    for h in ours:
+        assert abs(ours[h] - scipy[h]) < 1e-8, (h, ours[h], scipy[h])
+
+
+def test_tight_tolerance_through_a_latch_on_a_stop():
+    # hinge 4 reaches its latch and its stop (both at 0) at t ~ 1.003 s
+    times = _latch_times("full", "dop853-jit", 1.2, 1e-13)
+    assert list(times) == [4] and 1.0 < times[4] < 1.01
+    loose = _latch_times("full", "dop853-jit", 1.2, 1e-9)
+    assert abs(loose[4] - times[4]) < 1e-7
+
+
+@pytest.mark.parametrize("model", ["rigid", "reduced", "full"])
+def test_locked_root_hinge_holds_in_every_model(model):
+    sc = load_scene(DEPLOYMENT)
+    sim = Simulator(make_model(model, sc), make_integrator(rtol=1e-8))
+    traj = sim.run(2.0, 50.0)
+    # root hinge 0 locked at 0: theta_0 = phi_1 (rigid, reduced); the full model holds the
+    # rod end, Delta_0 = phi_1 + alpha_1 (docs/hinges.md), and phi_1 alone moves
+    held = traj.phi[:, 0] + (traj.y[:, sc.n] if model == "full" else 0.0)
+    assert np.max(np.abs(held)) < 1e-12
+    assert (np.max(np.abs(traj.phi[:, 0])) > 1e-4) == (model == "full")
+
+
+def test_no_scene_specific_model_class():
+    # hinge scenes and plain scenes run the same model classes (no wrapper, no dispatch)
+    sc = load_scene(DEPLOYMENT)
+    for name in ("rigid", "reduced", "full"):
+        assert type(make_model(name, sc)) is type(make_model(name, load_scene(
+            CONFIG / "small_chain.yaml")))
+
+
+def test_stop_contacts_agree_across_integrators_and_scipy_is_refused(tmp_path, capsys):
+    import sys
+    sys.path.insert(0, str(ROOT / "test"))
+    from test_hinge_features import _stop_scene
+
+    sc = _stop_scene(5.0)
+    runs = {}
+    for name, kw in (("dop853-jit", {"rtol": 1e-10, "atol": 1e-10}), ("rk4", {"step": 1e-4})):
+        sim = Simulator(make_model("rigid", sc), make_integrator(name, **kw))
+        traj = sim.run(2.0, 1000.0)
+        theta = traj.phi[:, 1] - traj.phi[:, 0]
+        assert theta.max() < 0.2 + 0.05                         # the stop holds (p ~ 1e-2)
+        runs[name] = [(e.t, e.kind) for e in sim.events]
+    # a hinge that leaves the stop and hits it again soon after: every contact is seen
+    assert len(runs["dop853-jit"]) == len(runs["rk4"]) >= 20
+    for (ta, ka), (tb, kb) in zip(runs["dop853-jit"], runs["rk4"]):
+        assert ka == kb and abs(ta - tb) < 1e-4
+    with pytest.raises(ValueError, match="integrator: DOP853 cannot follow hinge stop"):
+        Simulator(make_model("rigid", sc), make_integrator("DOP853")).advance(0.01)
+    scene_file = tmp_path / "stops.yaml"
+    from rod_sim.io.scene_yaml import scene_to_yaml
+    scene_file.write_text(scene_to_yaml(sc))
+    out = tmp_path / "x.mcap"
+    assert cli.main(["simulate", str(scene_file), "--integrator", "RK45", "--t-end", "0.1",
+                     "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "RK45 cannot follow hinge stop" in err[0] and not out.exists()
