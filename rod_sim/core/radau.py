@@ -37,8 +37,8 @@ import math
 import numpy as np
 
 from .erk import (STATUS_EVENT, STATUS_EVENTS_FULL, STATUS_NONFINITE, STATUS_MAX_STEPS,
-                  STATUS_OK, STATUS_STEP_UNDERFLOW, _all_finite, _event_values, _initial_step,
-                  _locate, _may_cross)
+                  STATUS_OK, STATUS_STEP_UNDERFLOW, _all_finite, _event_start, _event_values,
+                  _initial_step, _locate, _may_cross)
 from .jit import njit
 
 # ----------------------------------------------------------------- constants (scipy's radau.py)
@@ -497,11 +497,7 @@ def radau_run_work(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, 
         i_out += 1
     if i_out == n_out:
         return y, t, h_init, STATUS_OK, i_out
-    m_ev = events[0].shape[0]
-    g0 = np.empty(m_ev)
-    g1 = np.empty(m_ev)
-    _event_values(y, events, g0)
-    cap = events[3].shape[0]
+    m_ev, g0, g1, cap = _event_start(y, events)
     F = np.zeros((7, n))
     Q = work[8]
     f = np.empty(n)
