@@ -32,11 +32,11 @@ A_LIN = np.block([[np.zeros((2, 2)), np.eye(2)], [-K_LIN, -D_LIN]])
 Y0_LIN = np.array([1.0, -0.5, 0.0, 2.0])
 
 
-def event_buffers(hinge=(), angle=(), kind=(), size=4):
+def event_buffers(hinge=(), angle=(), kind=(), size=4, cap=64):
     """erk's event tuple for the linear problem (the 'hinge angle' of hinge 0 is y[0])."""
     return (np.array(hinge, dtype=np.int64), np.array(angle, dtype=float),
-            np.array(kind, dtype=np.int64), np.empty(64), np.empty(64, dtype=np.int64),
-            np.empty((64, size)), np.zeros(1, dtype=np.int64))
+            np.array(kind, dtype=np.int64), np.empty(cap), np.empty(cap, dtype=np.int64),
+            np.empty((cap, size)), np.zeros(1, dtype=np.int64))
 
 
 NO_EVENTS = event_buffers()
@@ -120,6 +120,20 @@ def test_run_stops_at_an_event_located_on_the_collocation_polynomial():
     assert ev[3][0] == t and abs(y[0] - 0.2) < 1e-10
     np.testing.assert_allclose(y, expm(A_LIN * t) @ Y0_LIN, atol=1e-7)
     assert written == np.count_nonzero(t_out <= t) and np.isnan(Y[written:]).all()
+
+
+def test_run_stops_when_the_event_buffer_is_full():
+    from rod_sim.core import erk, hinges
+
+    rhs, chain, extra, loads, held = linear_args()
+    t_out = np.linspace(0.0, 3.0, 31)
+    Y = np.empty((t_out.size, 4))
+    ev = event_buffers([0], [0.2], [hinges.EV_LATCH], cap=0)
+    y, t, h, status, written = radau.radau_run(
+        rhs, chain, extra, loads, held, Y0_LIN, 0.0, t_out, np.zeros(0), 1e-8, 1e-8, 0.0,
+        np.inf, 100_000, Y, np.zeros(6, dtype=np.int64), ev)
+    assert status == erk.STATUS_EVENTS_FULL and t == 0.0 and written == 1
+    np.testing.assert_array_equal(y, Y0_LIN)
 
 
 def test_run_error_falls_with_the_tolerance_on_the_stiff_linear_problem():
