@@ -32,6 +32,16 @@ A_LIN = np.block([[np.zeros((2, 2)), np.eye(2)], [-K_LIN, -D_LIN]])
 Y0_LIN = np.array([1.0, -0.5, 0.0, 2.0])
 
 
+def event_buffers(hinge=(), angle=(), kind=(), size=4, cap=64):
+    """erk's event tuple for the linear problem (the 'hinge angle' of hinge 0 is y[0])."""
+    return (np.array(hinge, dtype=np.int64), np.array(angle, dtype=float),
+            np.array(kind, dtype=np.int64), np.empty(cap), np.empty(cap, dtype=np.int64),
+            np.empty((cap, size)), np.zeros(1, dtype=np.int64))
+
+
+NO_EVENTS = event_buffers()
+
+
 @jit.njit
 def linear_rhs(t, y, chain, extra, loads, held, t_side, out):
     """Kernel calling convention (rod_sim.core.kernels); chain = (K, D)."""
@@ -89,6 +99,43 @@ def test_one_step_is_the_collocation_solution_and_its_polynomial():
     assert np.max(np.abs(y_new - expm(A_LIN * h) @ y0)) < 1e-2 * size
 
 
+def test_run_stops_at_an_event_located_on_the_collocation_polynomial():
+    from scipy.optimize import brentq
+
+    from rod_sim.core import erk, hinges
+
+    rhs, chain, extra, loads, held = linear_args()
+    q0 = lambda t: (expm(A_LIN * t) @ Y0_LIN)[0] - 0.2      # noqa: E731
+    grid = np.linspace(0.0, 3.0, 3001)
+    first = np.flatnonzero(np.diff(np.sign([q0(t) for t in grid])))[0]
+    exact = brentq(q0, grid[first], grid[first + 1], xtol=1e-14)
+    t_out = np.linspace(0.0, 3.0, 31)
+    Y = np.full((t_out.size, 4), np.nan)
+    ev = event_buffers([0], [0.2], [hinges.EV_LATCH])
+    y, t, h, status, written = radau.radau_run(
+        rhs, chain, extra, loads, held, Y0_LIN, 0.0, t_out, np.zeros(0), 1e-10, 1e-10, 0.0,
+        np.inf, 100_000, Y, np.zeros(6, dtype=np.int64), ev)
+    assert status == erk.STATUS_EVENT and ev[6][0] == 1 and ev[4][0] == 0     # falling
+    assert abs(t - exact) < 1e-8, (t, exact)
+    assert ev[3][0] == t and abs(y[0] - 0.2) < 1e-10
+    np.testing.assert_allclose(y, expm(A_LIN * t) @ Y0_LIN, atol=1e-7)
+    assert written == np.count_nonzero(t_out <= t) and np.isnan(Y[written:]).all()
+
+
+def test_run_stops_when_the_event_buffer_is_full():
+    from rod_sim.core import erk, hinges
+
+    rhs, chain, extra, loads, held = linear_args()
+    t_out = np.linspace(0.0, 3.0, 31)
+    Y = np.empty((t_out.size, 4))
+    ev = event_buffers([0], [0.2], [hinges.EV_LATCH], cap=0)
+    y, t, h, status, written = radau.radau_run(
+        rhs, chain, extra, loads, held, Y0_LIN, 0.0, t_out, np.zeros(0), 1e-8, 1e-8, 0.0,
+        np.inf, 100_000, Y, np.zeros(6, dtype=np.int64), ev)
+    assert status == erk.STATUS_EVENTS_FULL and t == 0.0 and written == 1
+    np.testing.assert_array_equal(y, Y0_LIN)
+
+
 def test_run_error_falls_with_the_tolerance_on_the_stiff_linear_problem():
     rhs, chain, extra, loads, held = linear_args()
     t_out = np.linspace(0.0, 3.0, 31)
@@ -97,10 +144,10 @@ def test_run_error_falls_with_the_tolerance_on_the_stiff_linear_problem():
     for rtol in (1e-4, 1e-6, 1e-8):
         Y = np.empty((t_out.size, 4))
         stats = np.zeros(6, dtype=np.int64)
-        y, t, h, status = radau.radau_run(rhs, chain, extra, loads, held, Y0_LIN, 0.0, t_out,
-                                          np.array([1.5]), rtol, rtol, 0.0, np.inf, 100_000,
-                                          Y, stats)
-        assert status == 0 and t == 3.0
+        y, t, h, status, written = radau.radau_run(
+            rhs, chain, extra, loads, held, Y0_LIN, 0.0, t_out, np.array([1.5]), rtol, rtol,
+            0.0, np.inf, 100_000, Y, stats, NO_EVENTS)
+        assert status == 0 and t == 3.0 and written == t_out.size
         np.testing.assert_array_equal(y, Y[-1])
         errors.append(np.max(np.abs(Y - exact)))
         nfev.append(stats[0])
@@ -313,3 +360,41 @@ def test_cost_split_accounts_for_every_rhs_and_the_run_time():
     total = sum(v["total_ms"] for v in split)
     assert r["cpu_ms"] / 3 < total < 3 * r["cpu_ms"], (total, r["cpu_ms"])
     assert "Newton iterations" in radau_cost.format_report(r)
+
+
+def _events_and_angles(sc, model, integrator, t_end, rate, rtol):
+    sim = Simulator(make_model(model, sc), make_integrator(integrator, rtol=rtol, atol=rtol))
+    traj = sim.run(t_end, rate)
+    theta = np.diff(traj.phi, axis=1, prepend=0.0)
+    return [(e.t, e.kind, e.hinge) for e in sim.events], theta, sim.integrator.stats
+
+
+def _assert_same_events(a, b, dt):
+    assert [(k, h) for _, k, h in a] == [(k, h) for _, k, h in b]
+    for (ta, _, _), (tb, _, _) in zip(a, b):
+        assert abs(ta - tb) < dt, (ta, tb)
+
+
+def test_radau_locates_the_deployment_latches_like_dop853():
+    sc = load_scene(ROOT / "config" / "deployment.yaml")
+    ev_d, th_d, _ = _events_and_angles(sc, "reduced", "dop853-jit", 7.0, 10.0, 1e-10)
+    ev_r, th_r, stats = _events_and_angles(sc, "reduced", "radau-jit", 7.0, 10.0, 1e-10)
+    assert sorted(h for _, k, h in ev_r if k == "latch") == [1, 2, 3, 4]
+    _assert_same_events(ev_d, ev_r, 1e-8)          # measured: 1.6e-10 s
+    np.testing.assert_allclose(th_r, th_d, rtol=0, atol=1e-8)      # measured: 4e-10 rad
+    assert stats.njev >= 4          # the Jacobian is rebuilt after every latch
+
+
+def test_radau_follows_stop_contacts_like_dop853():
+    import sys
+    sys.path.insert(0, str(ROOT / "test"))
+    from test_hinge_features import _stop_scene
+
+    sc = _stop_scene(5.0)
+    ev_d, th_d, st_d = _events_and_angles(sc, "rigid", "dop853-jit", 2.0, 1000.0, 1e-8)
+    ev_r, th_r, st_r = _events_and_angles(sc, "rigid", "radau-jit", 2.0, 1000.0, 1e-8)
+    assert len(ev_r) >= 20 and {k for _, k, _ in ev_r} == {"stop_contact_begin",
+                                                          "stop_contact_end"}
+    _assert_same_events(ev_d, ev_r, 1e-6)          # measured: 1.4e-7 s
+    np.testing.assert_allclose(th_r, th_d, rtol=0, atol=1e-6)      # measured: 1.5e-8 rad
+    assert th_r[:, 1].max() < 0.2 + 0.05                           # the stop holds

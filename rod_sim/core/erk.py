@@ -161,6 +161,16 @@ def _bracket(F, y, e, g0, g1, events):
 
 
 @njit
+def _event_start(y, events):
+    """(number of event functions m, their values at y (m,), scratch for the step's end (m,),
+    capacity of the event buffer) at the start of a driver call."""
+    m_ev = events[0].shape[0]
+    g0 = np.empty(m_ev)
+    _event_values(y, events, g0)
+    return m_ev, g0, np.empty(m_ev), events[3].shape[0]
+
+
+@njit
 def _may_cross(g0, g1, events):
     """Whether a step with event values g0 -> g1 needs its interpolant for event location."""
     for e in range(g0.shape[0]):
@@ -255,11 +265,7 @@ def dop853_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol
         i_out += 1
     if i_out == n_out:
         return y, t, h_init, STATUS_OK, i_out
-    m_ev = events[0].shape[0]
-    g0 = np.empty(m_ev)
-    g1 = np.empty(m_ev)
-    _event_values(y, events, g0)
-    cap = events[3].shape[0]
+    m_ev, g0, g1, cap = _event_start(y, events)
     h = h_init
     n_steps = 0
     safety = 0.9

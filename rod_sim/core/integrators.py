@@ -202,6 +202,11 @@ class JitDop853(Integrator):
         y, t, h, status, written = erk.DOP853[model.name](
             model.chain, plan.extra, model.loads, held, y0, float(t0), t_out, breaks,
             self.rtol, self.abs_tol, self._h, self.max_step, self.max_steps, Y, stats, ev)
+        return self._finish(model, plan, held, Y, stats, ev, y, t, h, status, written)
+
+    def _finish(self, model, plan, held, Y, stats, ev, y, t, h, status, written) -> Stretch:
+        """Account a compiled run's stats, raise on failure, carry the step size (a fresh
+        start after a latch's impact) and wrap the result as a :class:`Stretch`."""
         self.stats.add(stats)
         if status not in (erk.STATUS_OK, erk.STATUS_EVENT, erk.STATUS_EVENTS_FULL):
             raise _failure(model, erk.STATUS_TEXT[status], t, y, held)
@@ -232,25 +237,20 @@ class JitRadau(JitDop853):
         return self._work
 
     def advance(self, model, plan, y0, t0, t_out, held, breaks) -> Stretch:
-        if plan.events[0].size:
-            raise ValueError(f"integrator: {self.name} does not locate hinge events yet "
-                             "(latches, stops); use dop853-jit, rk4, rk2 or euler")
         Y = np.empty((t_out.size, y0.size))
         stats = np.zeros(6, dtype=np.int64)
+        ev = _event_buffers(plan, y0.size)
         try:
-            y, t, h, status = radau.RADAU_WORK[model.name](
+            y, t, h, status, written = radau.RADAU_WORK[model.name](
                 model.chain, plan.extra, model.loads, held, y0, float(t0), t_out, breaks,
-                self.rtol, self.abs_tol, self._h, self.max_step, self.max_steps, Y, stats,
+                self.rtol, self.abs_tol, self._h, self.max_step, self.max_steps, Y, stats, ev,
                 self._workspace(model))
         except BaseException:
             self._work = self._work_model = None        # no half-updated history kept
             raise
-        self.stats.add(stats)
-        if status != erk.STATUS_OK:
+        if status not in (erk.STATUS_OK, erk.STATUS_EVENT, erk.STATUS_EVENTS_FULL):
             self._work = self._work_model = None
-            raise _failure(model, erk.STATUS_TEXT[status], t, y, held)
-        self._h = h
-        return Stretch(Y, t_out.size, np.array(y), float(t), None, _no_crossings())
+        return self._finish(model, plan, held, Y, stats, ev, y, t, h, status, written)
 
     def reset(self) -> None:
         super().reset()
@@ -334,7 +334,7 @@ class ScipyIntegrator(Integrator):
         kernel, chain, extra, loads = model.kernel, model.chain, plan.extra, model.loads
         if np.any(plan.events[2] != hinges.EV_LATCH):
             raise ValueError(f"integrator: {self.name} cannot follow hinge stop contacts "
-                             "(hinges.stop); use dop853-jit, rk4, rk2 or euler")
+                             "(hinges.stop); use dop853-jit, radau-jit, rk4, rk2 or euler")
         fns = _scipy_events(plan) or None
         y = y0
         done = 0

@@ -20,7 +20,11 @@ Interfaces:
 - :func:`radau_step`: one accepted step (the building block for drivers with event
   location); :func:`radau_dense` evaluates its dense output.
 - :func:`radau_run`: the whole output grid in one call, with exactly the arguments and the
-  return of :func:`rod_sim.core.erk.dop853_run` (status codes of :mod:`rod_sim.core.erk`).
+  return of :func:`rod_sim.core.erk.dop853_run` (status codes of :mod:`rod_sim.core.erk`),
+  hinge events included: after every accepted step the event functions are compared at the
+  step's ends and a crossing is located on the step's cubic collocation polynomial, written
+  into DOP853's nested dense form so that erk's bracketing and Illinois search are reused
+  (:func:`_nested_form`).
 - ``RADAU``: per-model cached wrappers, like ``erk.DOP853``.
 
 ``stats`` = [rhs evaluations (Jacobian columns included), accepted steps, rejected steps];
@@ -32,8 +36,9 @@ import math
 
 import numpy as np
 
-from .erk import (STATUS_NONFINITE, STATUS_MAX_STEPS, STATUS_OK, STATUS_STEP_UNDERFLOW,
-                  _all_finite, _initial_step)
+from .erk import (STATUS_EVENT, STATUS_EVENTS_FULL, STATUS_NONFINITE, STATUS_MAX_STEPS,
+                  STATUS_OK, STATUS_STEP_UNDERFLOW, _all_finite, _event_start, _event_values,
+                  _initial_step, _locate, _may_cross)
 from .jit import njit
 
 # ----------------------------------------------------------------- constants (scipy's radau.py)
@@ -446,24 +451,41 @@ def radau_dense(y_old, Q, x, out):
 # ----------------------------------------------------------------- the driver
 @njit
 def radau_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-              max_step, max_steps, Y_out, stats):
+              max_step, max_steps, Y_out, stats, events):
     """Integrate from (t0, y0) through every time of ``t_out`` (sorted, >= t0): the same
     arguments, return and status codes as :func:`rod_sim.core.erk.dop853_run`.
 
     Steps end exactly at ``breaks`` (sorted times where the forcing jumps), where the step
     history is forgotten (:func:`radau_restart`). Writes y(t_out[i]) into Y_out[i] by dense
-    output. Returns (y_end, t_end, h_next, status)."""
+    output. ``events``: see :mod:`rod_sim.core.erk` (located on the collocation polynomial).
+    Returns (y_end, t_end, h_next, status, number of outputs written)."""
     return radau_run_work(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol,
-                          h_init, max_step, max_steps, Y_out, stats,
+                          h_init, max_step, max_steps, Y_out, stats, events,
                           radau_workspace(y0.shape[0]))
 
 
 @njit
+def _nested_form(Q, F):
+    """Write the step's cubic a x + b x^2 + c x^3 (Q (N, 3) = [a, b, c]) into DOP853's nested
+    dense form F (7, N) read by erk's event location: x (F0 + (1 - x) (F1 + x F2)) with
+    F0 = a + b + c, F1 = -(b + c), F2 = -c, F3..F6 = 0."""
+    for i in range(Q.shape[0]):
+        a, b, c = Q[i, 0], Q[i, 1], Q[i, 2]
+        F[0, i] = a + b + c
+        F[1, i] = -(b + c)
+        F[2, i] = -c
+        for k in range(3, 7):
+            F[k, i] = 0.0
+
+
+@njit
 def radau_run_work(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                   max_step, max_steps, Y_out, stats, work):
+                   max_step, max_steps, Y_out, stats, events, work):
     """:func:`radau_run` with the workspace ``work`` (:func:`radau_workspace`) given, so that
     a caller stepping one model period by period keeps its Jacobian between calls (it is
-    kept stale: slow Newton convergence still renews it)."""
+    kept stale: slow Newton convergence still renews it). At an event the history is
+    forgotten and the Jacobian dropped (the caller changes the mode: a latch jumps the
+    velocity, a stop contact switches the rhs), so the next call starts afresh."""
     n = y0.shape[0]
     n_out = t_out.shape[0]
     t_final = t_out[n_out - 1]
@@ -474,7 +496,9 @@ def radau_run_work(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, 
         Y_out[i_out, :] = y0
         i_out += 1
     if i_out == n_out:
-        return y, t, h_init, STATUS_OK
+        return y, t, h_init, STATUS_OK, i_out
+    m_ev, g0, g1, cap = _event_start(y, events)
+    F = np.zeros((7, n))
     Q = work[8]
     f = np.empty(n)
     y_new = np.empty(n)
@@ -496,27 +520,43 @@ def radau_run_work(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, 
                               rtol, atol, stats)
         radau_restart(work)
         while t < seg_end:
+            if m_ev > 0 and events[6][0] + m_ev > cap:
+                return y, t, h, STATUS_EVENTS_FULL, i_out
             h = min(h, max_step)
             status, t_new, h_next = radau_step(rhs, chain, extra, loads, held, t_side, t, y, f,
                                                h, seg_end, rtol, atol, work, y_new, f_new,
                                                stats)
             if status != STATUS_OK:
-                return y, t, h_next, status
+                return y, t, h_next, status, i_out
             hs = t_new - t
-            while i_out < n_out and t_out[i_out] <= t_new:
+            x_stop = -1.0
+            if m_ev > 0:
+                _event_values(y_new, events, g1)
+                if _may_cross(g0, g1, events):
+                    _nested_form(Q, F)
+                    x_stop = _locate(F, y, t, hs, g0, g1, events)
+            t_last = t_new if x_stop < 0.0 else t + x_stop * hs
+            while i_out < n_out and t_out[i_out] <= t_last:
                 if t_out[i_out] == t_new:
                     Y_out[i_out, :] = y_new
                 else:
                     radau_dense(y, Q, (t_out[i_out] - t) / hs, Y_out[i_out])
                 i_out += 1
+            if x_stop >= 0.0:
+                if x_stop < 1.0:
+                    radau_dense(y, Q, x_stop, y_new)
+                radau_restart(work)
+                work[11][HAVE_JAC] = 0.0
+                return y_new.copy(), t_last, h_next, STATUS_EVENT, i_out
+            g0[:] = g1
             t = t_new
             y[:] = y_new
             f[:] = f_new
             h = h_next
             n_steps += 1
             if n_steps >= max_steps:
-                return y, t, h, STATUS_MAX_STEPS
-    return y, t, h, STATUS_OK
+                return y, t, h, STATUS_MAX_STEPS, i_out
+    return y, t, h, STATUS_OK, i_out
 
 
 # Module-level entry points, one per model kernel (see erk.py: cached on disk).
@@ -525,44 +565,44 @@ from . import kernels as _k  # noqa: E402
 
 @njit
 def _radau_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                 max_step, max_steps, Y_out, stats):
+                 max_step, max_steps, Y_out, stats, events):
     return radau_run(_k.rigid_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
-                     atol, h_init, max_step, max_steps, Y_out, stats)
+                     atol, h_init, max_step, max_steps, Y_out, stats, events)
 
 
 @njit
 def _radau_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                   max_step, max_steps, Y_out, stats):
+                   max_step, max_steps, Y_out, stats, events):
     return radau_run(_k.reduced_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
-                     atol, h_init, max_step, max_steps, Y_out, stats)
+                     atol, h_init, max_step, max_steps, Y_out, stats, events)
 
 
 @njit
 def _radau_full(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                max_step, max_steps, Y_out, stats):
+                max_step, max_steps, Y_out, stats, events):
     return radau_run(_k.full_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
-                     atol, h_init, max_step, max_steps, Y_out, stats)
+                     atol, h_init, max_step, max_steps, Y_out, stats, events)
 
 
 @njit
 def _radau_work_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                      max_step, max_steps, Y_out, stats, work):
+                      max_step, max_steps, Y_out, stats, events, work):
     return radau_run_work(_k.rigid_rhs, chain, extra, loads, held, y0, t0, t_out, breaks,
-                          rtol, atol, h_init, max_step, max_steps, Y_out, stats, work)
+                          rtol, atol, h_init, max_step, max_steps, Y_out, stats, events, work)
 
 
 @njit
 def _radau_work_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                        max_step, max_steps, Y_out, stats, work):
+                        max_step, max_steps, Y_out, stats, events, work):
     return radau_run_work(_k.reduced_rhs, chain, extra, loads, held, y0, t0, t_out, breaks,
-                          rtol, atol, h_init, max_step, max_steps, Y_out, stats, work)
+                          rtol, atol, h_init, max_step, max_steps, Y_out, stats, events, work)
 
 
 @njit
 def _radau_work_full(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                     max_step, max_steps, Y_out, stats, work):
+                     max_step, max_steps, Y_out, stats, events, work):
     return radau_run_work(_k.full_rhs, chain, extra, loads, held, y0, t0, t_out, breaks,
-                          rtol, atol, h_init, max_step, max_steps, Y_out, stats, work)
+                          rtol, atol, h_init, max_step, max_steps, Y_out, stats, events, work)
 
 
 RADAU = {"rigid": _radau_rigid, "reduced": _radau_reduced, "full": _radau_full}
