@@ -136,6 +136,7 @@ class LogWriter:
         self._last_ns: dict[str, int] = {}
         self._sequence: dict[str, int] = {}
         self._closed = False
+        self._broken = False        # a write to the file failed
 
     # ----- writing -----
 
@@ -183,8 +184,12 @@ class LogWriter:
             raise LogWriteError(f"{topic}: cannot encode {type_name}: {exc}") from exc
         self._sequence[topic] += 1
         self._last_ns[topic] = t_ns
-        self._writer.add_message(channel_id=channel_id, log_time=t_ns, publish_time=t_ns,
-                                 sequence=self._sequence[topic], data=data)
+        try:
+            self._writer.add_message(channel_id=channel_id, log_time=t_ns, publish_time=t_ns,
+                                     sequence=self._sequence[topic], data=data)
+        except OSError:
+            self._broken = True     # the file ends at its last complete chunk: keep it so
+            raise
 
     def write_snapshot(self, snapshot: Snapshot, scene: Scene, frame_id: str = "world",
                        topics: Iterable[str] | None = None) -> None:
@@ -199,14 +204,30 @@ class LogWriter:
         return self._closed
 
     def close(self) -> None:
-        """Write the last chunk, the summary and the footer, and close the file (idempotent)."""
+        """Write the last chunk, the summary and the footer, and close the file (idempotent).
+        After a failed write (e.g. a full disk) nothing more is written: the file ends with
+        its last complete chunk, as after a killed writer, and readers scan it (a data-end
+        record written now would carry a CRC over bytes that never reached the file)."""
         if self._closed:
             return
         self._closed = True
+        if self._broken:
+            try:
+                self._file.close()
+            except OSError:         # the failed write's bytes may still be buffered
+                pass
+            return
         try:
             self._writer.finish()
+        except OSError:
+            self._broken = True
+            raise
         finally:
-            self._file.close()
+            try:
+                self._file.close()
+            except OSError:
+                if not self._broken:
+                    raise
 
     def __enter__(self) -> "LogWriter":
         return self
