@@ -283,6 +283,20 @@ def _carve(ws, n):
 
 
 @njit(inline="always")
+def _chain_terms(t, phi, dphi, chain, loads, held, t_side, A, Ma, Mb, c, s, gp, ga, f, Q):
+    """What every kernel computes first at time t [s] from phi [rad], phi_dot [rad/s] (n,):
+    c = cos(phi), s = sin(phi) (n,), the inertia blocks A, Ma, Mb (n, n) and the velocity
+    terms gp, ga (n,) (:func:`assemble`), the nodal forces f (n, 2) [N] (:func:`load_forces`)
+    and the generalised forces Q (n,) [N m] (:func:`generalized_forces`)."""
+    for k in range(phi.shape[0]):
+        c[k] = math.cos(phi[k])
+        s[k] = math.sin(phi[k])
+    assemble(c, s, dphi, chain, A, Ma, Mb, gp, ga)
+    load_forces(t, loads, held, t_side, f)
+    generalized_forces(chain[0], c, s, f, Q)
+
+
+@njit(inline="always")
 def _rigid_terms(t, phi, dphi, chain, work, loads, held, t_side):
     """What the rigid and reduced kernels share, in scratch views of ``work`` (extra[3]): the
     inertia blocks, cos/sin of phi, the velocity terms, Q (in ``rhs``) and the gamma = 0 hinge
@@ -290,12 +304,7 @@ def _rigid_terms(t, phi, dphi, chain, work, loads, held, t_side):
     l, m, mu, Kt, kappa, nu, Mt, C = chain
     n = l.shape[0]
     A, Ma, Mb, W1, W2, c, s, gp, ga, rhs, tau, v1, v2, v3, f, tau1 = _carve(work, n)
-    for k in range(n):
-        c[k] = math.cos(phi[k])
-        s[k] = math.sin(phi[k])
-    assemble(c, s, dphi, chain, A, Ma, Mb, gp, ga)
-    load_forces(t, loads, held, t_side, f)
-    generalized_forces(l, c, s, f, rhs)
+    _chain_terms(t, phi, dphi, chain, loads, held, t_side, A, Ma, Mb, c, s, gp, ga, f, rhs)
     rigid_hinge_moments(phi, dphi, kappa, nu, tau)
     return A, Ma, Mb, c, s, gp, ga, rhs, tau, v1, v2
 
@@ -390,12 +399,7 @@ def full_rhs(t, y, chain, extra, loads, held, t_side, out):
     A, Ma, Mb, Wa, Wb, c, s, gp, ga, Fp, Fa, Fb, ia, ib, f, tau = _carve(extra[3], n)
     H = extra[4]
     flags = extra[5]
-    for k in range(n):
-        c[k] = math.cos(phi[k])
-        s[k] = math.sin(phi[k])
-    assemble(c, s, dphi, chain, A, Ma, Mb, gp, ga)
-    load_forces(t, loads, held, t_side, f)
-    generalized_forces(l, c, s, f, Fp)
+    _chain_terms(t, phi, dphi, chain, loads, held, t_side, A, Ma, Mb, c, s, gp, ga, f, Fp)
     for h in range(n):
         if h == 0:
             d = phi[0] + al[0]

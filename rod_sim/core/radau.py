@@ -38,7 +38,7 @@ import numpy as np
 
 from .erk import (STATUS_EVENT, STATUS_EVENTS_FULL, STATUS_NONFINITE, STATUS_MAX_STEPS,
                   STATUS_OK, STATUS_STEP_UNDERFLOW, _all_finite, _event_start, _event_values,
-                  _initial_step, _locate, _may_cross)
+                  _initial_step, _locate, _may_cross, _segment_end)
 from . import kernels as _k
 from .jit import njit
 from .kernels import lu_inplace, lu_solve
@@ -453,12 +453,7 @@ def radau_run_work(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, 
     h = h_init
     n_steps = 0
     while t < t_final:
-        seg_end = t_final
-        for b in breaks:
-            if b > t + 1e-12 * max(1.0, abs(t)):
-                if b < seg_end:
-                    seg_end = b
-                break
+        seg_end = _segment_end(breaks, t, t_final)
         t_side = 0.5 * (t + seg_end)
         rhs(t, y, chain, extra, loads, held, t_side, f)
         stats[0] += 1
