@@ -314,17 +314,22 @@ def test_messages_out_of_order_in_the_file_are_read_in_time_order(tmp_path, full
     assert b.quantities["phi"].max == a.quantities["phi"].max
 
 
-def test_state_log_times_swapped_are_refused(tmp_path, full_log, capsys):
-    path = tmp_path / "swapped.mcap"
-
+def swap_times(topic: str, a: int, b: int):
+    """A ``rewrite`` edit: swap the log and publish times of the a-th and b-th message on
+    ``topic``."""
     def swap(items):
-        idx = [i for i, it in enumerate(items) if it[1].topic == "/rod_states"]
-        i, j = idx[10], idx[20]
+        idx = [i for i, it in enumerate(items) if it[1].topic == topic]
+        i, j = idx[a], idx[b]
         ti, tj = items[i][2].log_time, items[j][2].log_time
         items[i][2].log_time = items[i][2].publish_time = tj
         items[j][2].log_time = items[j][2].publish_time = ti
         return items
-    rewrite(full_log, path, swap)
+    return swap
+
+
+def test_state_log_times_swapped_are_refused(tmp_path, full_log, capsys):
+    path = tmp_path / "swapped.mcap"
+    rewrite(full_log, path, swap_times("/rod_states", 10, 20))
     assert_clean_error(capsys, path, match="differs from the header stamp")
 
 
@@ -332,15 +337,7 @@ def test_applied_forces_times_swapped_fail(tmp_path, full_log, capsys):
     """/applied_forces has no stamp: swapped times cannot be detected as such, but the re-run
     then departs from the log and the verdict is a fail, not a pass."""
     path = tmp_path / "swapped_forces.mcap"
-
-    def swap(items):
-        idx = [i for i, it in enumerate(items) if it[1].topic == "/applied_forces"]
-        i, j = idx[3], idx[30]
-        ti, tj = items[i][2].log_time, items[j][2].log_time
-        items[i][2].log_time = items[i][2].publish_time = tj
-        items[j][2].log_time = items[j][2].publish_time = ti
-        return items
-    rewrite(full_log, path, swap)
+    rewrite(full_log, path, swap_times("/applied_forces", 3, 30))
     code, rep, _ = run_json(capsys, path, "--tolerance", "1e-5")
     assert code == 1 and rep["max_abs_error"]["phi"] > 1e-4
 

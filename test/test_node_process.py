@@ -3,7 +3,6 @@ model, clean shutdown on SIGTERM, a readable log after SIGKILL, exit status 2 fo
 and the one-process demo. Each test uses its own ROS_DOMAIN_ID with LOCALHOST discovery."""
 from __future__ import annotations
 
-import os
 import signal
 import subprocess
 import sys
@@ -22,6 +21,7 @@ from rosbags.typesys import Stores, get_typestore  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
 
+from procs import Child, ros_env  # noqa: E402
 from rod_sim.core.integrators import make_integrator  # noqa: E402
 from rod_sim.core.models import make_model  # noqa: E402
 from rod_sim.core.simulator import Simulator  # noqa: E402
@@ -47,12 +47,7 @@ def compiled_kernels():
     sim.advance(0.01)
 
 
-def ros_env(domain: int) -> dict[str, str]:
-    return dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
-                ROS_DOMAIN_ID=str(domain), PYTHONUNBUFFERED="1")
-
-
-class NodeProcess:
+class NodeProcess(Child):
     """``python -m rod_sim.ros.node --ros-args -p k:=v ...`` with output in files."""
 
     def __init__(self, tmp_path: Path, domain: int, **params):
@@ -60,15 +55,8 @@ class NodeProcess:
         for key, value in params.items():
             text = str(value).lower() if isinstance(value, bool) else str(value)
             args += ["-p", f"{key}:={text}"]
-        self.stdout_path = tmp_path / f"node_{domain}.out"
-        self.stderr_path = tmp_path / f"node_{domain}.err"
-        with open(self.stdout_path, "w") as out, open(self.stderr_path, "w") as err:
-            self.proc = subprocess.Popen(args, cwd=REPO, env=ros_env(domain), stdout=out,
-                                         stderr=err)
-
-    @property
-    def stderr(self) -> str:
-        return self.stderr_path.read_text()
+        super().__init__(args, domain, tmp_path / f"node_{domain}.err",
+                         tmp_path / f"node_{domain}.out")
 
     def wait_for_output(self, text: str, timeout: float = STARTUP_S) -> None:
         deadline = time.monotonic() + timeout
@@ -83,11 +71,6 @@ class NodeProcess:
         if self.proc.poll() is None:
             self.proc.send_signal(sig)
         return self.proc.wait(timeout=timeout)
-
-    def kill(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.kill()
-            self.proc.wait(timeout=10)
 
 
 @pytest.fixture

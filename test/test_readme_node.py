@@ -4,7 +4,6 @@ lockstep, the one-process demo) and the lockstep Python client against the names
 Only the domain id and the output directory are replaced. ROS_DOMAIN_IDs 129..131 (LOCALHOST)."""
 from __future__ import annotations
 
-import os
 import re
 import signal
 import subprocess
@@ -16,6 +15,7 @@ import pytest
 
 pytest.importorskip("rclpy")
 
+from procs import Child, ros_env  # noqa: E402
 from rod_sim.io.mcap_log import LogReader  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]
@@ -55,23 +55,12 @@ def localized(command: str, domain: int, out_dir: Path) -> str:
             .replace("out/", f"{out_dir}/"))
 
 
-def env(domain: int) -> dict[str, str]:
-    return dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
-                ROS_DOMAIN_ID=str(domain), PYTHONUNBUFFERED="1")
-
-
-class Shell:
+class Shell(Child):
     """One README command under bash (``exec env``: signals reach the program itself)."""
 
     def __init__(self, command: str, domain: int, tmp_path: Path, name: str):
-        self.err_path = tmp_path / f"{name}.err"
-        with open(self.err_path, "w") as err:
-            self.proc = subprocess.Popen(["bash", "-c", "exec env " + command], cwd=REPO,
-                                         env=env(domain), stdout=subprocess.DEVNULL, stderr=err)
-
-    @property
-    def stderr(self) -> str:
-        return self.err_path.read_text()
+        super().__init__(["bash", "-c", "exec env " + command], domain,
+                         tmp_path / f"{name}.err")
 
     def wait_for(self, text: str, timeout: float = STARTUP_S) -> None:
         deadline = time.monotonic() + timeout
@@ -83,11 +72,6 @@ class Shell:
     def interrupt(self) -> int:
         self.proc.send_signal(signal.SIGINT)
         return self.proc.wait(timeout=30)
-
-    def kill(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.kill()
-            self.proc.wait(timeout=10)
 
 
 @pytest.fixture
@@ -139,7 +123,7 @@ def test_lockstep_python_client_drives_the_namespaced_node(shell, tmp_path):
         "    return [0.0] * 16\n"
         + code_blocks("python")[0])
     client = subprocess.run([sys.executable, str(script), "--ros-args", "-r", "__ns:=/arm1"],
-                            cwd=REPO, env=env(DOMAIN_LOCKSTEP), capture_output=True, text=True,
+                            cwd=REPO, env=ros_env(DOMAIN_LOCKSTEP), capture_output=True, text=True,
                             timeout=120)
     assert client.returncode == 0, client.stderr
     assert f"answered {states} states" in client.stdout

@@ -7,9 +7,7 @@ parsing, bag directories, truncated logs, the timeline) are tested without ROS.
 Each ROS test uses its own ROS_DOMAIN_ID (190..199) with LOCALHOST discovery."""
 from __future__ import annotations
 
-import os
 import signal
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -18,6 +16,7 @@ import numpy as np
 import pytest
 import yaml
 
+from procs import Child
 from rod_sim.core.integrators import make_integrator
 from rod_sim.core.models import make_model
 from rod_sim.core.simulator import Simulator
@@ -235,11 +234,6 @@ CLOCK_RECEIVE_QOS = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_LAST,
 STARTUP_S = 40.0
 
 
-def ros_env(domain: int) -> dict[str, str]:
-    return dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
-                ROS_DOMAIN_ID=str(domain), PYTHONUNBUFFERED="1")
-
-
 class Listener:
     """In-process subscribers (raw CDR bytes) with monotonic arrival times [ns]."""
 
@@ -300,27 +294,15 @@ def listener(monkeypatch):
         lis.close()
 
 
-class Replay:
+class Replay(Child):
     """``python -m rod_sim.tools.cli replay ...`` in its own ROS domain."""
 
     def __init__(self, tmp_path: Path, domain: int, *args):
-        self.err_path = tmp_path / f"replay_{domain}.err"
-        with open(self.err_path, "w") as err:
-            self.proc = subprocess.Popen(
-                [sys.executable, "-m", "rod_sim.tools.cli", "replay", *map(str, args)],
-                cwd=REPO, env=ros_env(domain), stdout=subprocess.DEVNULL, stderr=err)
-
-    @property
-    def stderr(self) -> str:
-        return self.err_path.read_text()
+        super().__init__([sys.executable, "-m", "rod_sim.tools.cli", "replay",
+                          *map(str, args)], domain, tmp_path / f"replay_{domain}.err")
 
     def wait(self, timeout: float = 20.0) -> int:
         return self.proc.wait(timeout=timeout)
-
-    def kill(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.kill()
-            self.proc.wait(timeout=10)
 
 
 @pytest.fixture

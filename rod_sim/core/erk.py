@@ -215,6 +215,39 @@ def _locate(F, y, t, hs, g0, g1, events):
 
 
 @njit
+def _segment_end(breaks, t, t_end):
+    """End [s] of the smooth segment from t [s]: the first of ``breaks`` (sorted times [s] where
+    the forcing jumps) later than t by more than 1e-12 max(1, |t|), or ``t_end`` [s] if that
+    comes first."""
+    for b in breaks:
+        if b > t + 1e-12 * max(1.0, abs(t)):
+            return min(b, t_end)
+    return t_end
+
+
+@njit(inline="always")
+def _combine(w, K, y, h, out):
+    """out (size,) = y + h sum_r w[r] K[r] over the weights w (s,) and the first s stage
+    derivatives of K (>= s, size); ``out`` may be ``y``."""
+    for i in range(y.shape[0]):
+        acc = 0.0
+        for r in range(w.shape[0]):
+            acc += w[r] * K[r, i]
+        out[i] = y[i] + h * acc
+
+
+@njit(inline="always")
+def _hermite_form(y, y_new, f, f_new, h, F):
+    """The cubic Hermite interpolant of a step of h [s] from (y, f) to (y_new, f_new) (size,)
+    each, in DOP853's nested form: F[0:3] (of F (7, size)) as :func:`_dense` reads them."""
+    for i in range(y.shape[0]):
+        dy = y_new[i] - y[i]
+        F[0, i] = dy
+        F[1, i] = h * f[i] - dy
+        F[2, i] = 2.0 * dy - h * (f_new[i] + f[i])
+
+
+@njit
 def _initial_step(rhs, chain, extra, loads, held, t_side, t0, y0, f0, t_bound, rtol, atol, stats):
     """Hairer's starting step (Solving ODEs I, II.4), as scipy's select_initial_step."""
     n = y0.shape[0]
@@ -278,13 +311,7 @@ def dop853_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol
     yy = np.empty(n)
     scale = np.empty(n)
     while t < t_final:
-        # end of the current smooth segment
-        seg_end = t_final
-        for b in breaks:
-            if b > t + 1e-12 * max(1.0, abs(t)):
-                if b < seg_end:
-                    seg_end = b
-                break
+        seg_end = _segment_end(breaks, t, t_final)
         t_side = 0.5 * (t + seg_end)
         rhs(t, y, chain, extra, loads, held, t_side, f)
         stats[0] += 1
@@ -306,17 +333,9 @@ def dop853_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol
             # stages
             K[0, :] = f
             for s in range(1, N_STAGES):
-                for i in range(n):
-                    acc = 0.0
-                    for r in range(s):
-                        acc += A_DOP[s, r] * K[r, i]
-                    yy[i] = y[i] + hs * acc
+                _combine(A_DOP[s, :s], K, y, hs, yy)
                 rhs(t + C_DOP[s] * hs, yy, chain, extra, loads, held, t_side, K[s])
-            for i in range(n):
-                acc = 0.0
-                for r in range(N_STAGES):
-                    acc += B_DOP[r] * K[r, i]
-                y_new[i] = y[i] + hs * acc
+            _combine(B_DOP, K, y, hs, y_new)
             rhs(t_new, y_new, chain, extra, loads, held, t_side, f_new)
             K[N_STAGES, :] = f_new
             stats[0] += N_STAGES
@@ -368,18 +387,11 @@ def dop853_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol
             need_out = i_out < n_out and t_out[i_out] < t_new
             if crossed or need_out:
                 for s in range(N_STAGES + 1, 16):
-                    for i in range(n):
-                        acc = 0.0
-                        for r in range(s):
-                            acc += A_DOP[s, r] * K[r, i]
-                        yy[i] = y[i] + hs * acc
+                    _combine(A_DOP[s, :s], K, y, hs, yy)
                     rhs(t + C_DOP[s] * hs, yy, chain, extra, loads, held, t_side, K[s])
                 stats[0] += 16 - N_STAGES - 1
+                _hermite_form(y, y_new, K[0], f_new, hs, F)
                 for i in range(n):
-                    dy = y_new[i] - y[i]
-                    F[0, i] = dy
-                    F[1, i] = hs * K[0, i] - dy
-                    F[2, i] = 2.0 * dy - hs * (f_new[i] + K[0, i])
                     for d in range(4):
                         acc = 0.0
                         for r in range(16):
@@ -432,20 +444,12 @@ def fixed_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b
     t = t0
     n_out = t_out.shape[0]
     i_out = 0
-    m_ev = events[0].shape[0]
-    g0 = np.empty(m_ev)
-    g1 = np.empty(m_ev)
-    _event_values(y, events, g0)
-    cap = events[3].shape[0]
+    m_ev, g0, g1, cap = _event_start(y, events)
     while i_out < n_out and t_out[i_out] <= t0:
         Y_out[i_out, :] = y0
         i_out += 1
     while i_out < n_out:
-        target = t_out[i_out]
-        for bk in breaks:
-            if bk > t + 1e-12 * max(1.0, abs(t)) and bk < target:
-                target = bk
-                break
+        target = _segment_end(breaks, t, t_out[i_out])
         t_side = 0.5 * (t + target)
         n_sub = int(np.ceil((target - t) / h_max - 1e-9))
         if n_sub < 1:
@@ -458,18 +462,10 @@ def fixed_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b
                 return y, ts, STATUS_EVENTS_FULL, i_out
             y_prev[:] = y
             for s in range(ns):
-                for i in range(n):
-                    acc = 0.0
-                    for r in range(s):
-                        acc += A[s, r] * K[r, i]
-                    yy[i] = y[i] + hs * acc
+                _combine(A[s, :s], K, y, hs, yy)
                 rhs(ts + c[s] * hs, yy, chain, extra, loads, held, t_side, K[s])
             stats[0] += ns
-            for i in range(n):
-                acc = 0.0
-                for r in range(ns):
-                    acc += b[r] * K[r, i]
-                y[i] += hs * acc
+            _combine(b, K, y, hs, y)
             stats[1] += 1
             if not _all_finite(y):
                 return y, ts + hs, STATUS_NONFINITE, i_out
@@ -479,11 +475,7 @@ def fixed_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b
             if _may_cross(g0, g1, events):
                 rhs(ts + hs, y, chain, extra, loads, held, t_side, f_new)
                 stats[0] += 1
-                for i in range(n):
-                    dy = y[i] - y_prev[i]
-                    F[0, i] = dy
-                    F[1, i] = hs * K[0, i] - dy
-                    F[2, i] = 2.0 * dy - hs * (f_new[i] + K[0, i])
+                _hermite_form(y_prev, y, K[0], f_new, hs, F)
                 x_stop = _locate(F, y_prev, ts, hs, g0, g1, events)
                 if x_stop >= 0.0:
                     if x_stop < 1.0:

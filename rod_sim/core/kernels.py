@@ -155,8 +155,9 @@ def _pivot(A, col):
     piv = col
     best = abs(A[col, col])
     for r in range(col + 1, A.shape[0]):
-        if abs(A[r, col]) > best:
-            best = abs(A[r, col])
+        v = abs(A[r, col])
+        if v > best:
+            best = v
             piv = r
     return piv, best
 
@@ -282,6 +283,20 @@ def _carve(ws, n):
 
 
 @njit(inline="always")
+def _chain_terms(t, phi, dphi, chain, loads, held, t_side, A, Ma, Mb, c, s, gp, ga, f, Q):
+    """What every kernel computes first at time t [s] from phi [rad], phi_dot [rad/s] (n,):
+    c = cos(phi), s = sin(phi) (n,), the inertia blocks A, Ma, Mb (n, n) and the velocity
+    terms gp, ga (n,) (:func:`assemble`), the nodal forces f (n, 2) [N] (:func:`load_forces`)
+    and the generalised forces Q (n,) [N m] (:func:`generalized_forces`)."""
+    for k in range(phi.shape[0]):
+        c[k] = math.cos(phi[k])
+        s[k] = math.sin(phi[k])
+    assemble(c, s, dphi, chain, A, Ma, Mb, gp, ga)
+    load_forces(t, loads, held, t_side, f)
+    generalized_forces(chain[0], c, s, f, Q)
+
+
+@njit(inline="always")
 def _rigid_terms(t, phi, dphi, chain, work, loads, held, t_side):
     """What the rigid and reduced kernels share, in scratch views of ``work`` (extra[3]): the
     inertia blocks, cos/sin of phi, the velocity terms, Q (in ``rhs``) and the gamma = 0 hinge
@@ -289,12 +304,7 @@ def _rigid_terms(t, phi, dphi, chain, work, loads, held, t_side):
     l, m, mu, Kt, kappa, nu, Mt, C = chain
     n = l.shape[0]
     A, Ma, Mb, W1, W2, c, s, gp, ga, rhs, tau, v1, v2, v3, f, tau1 = _carve(work, n)
-    for k in range(n):
-        c[k] = math.cos(phi[k])
-        s[k] = math.sin(phi[k])
-    assemble(c, s, dphi, chain, A, Ma, Mb, gp, ga)
-    load_forces(t, loads, held, t_side, f)
-    generalized_forces(l, c, s, f, rhs)
+    _chain_terms(t, phi, dphi, chain, loads, held, t_side, A, Ma, Mb, c, s, gp, ga, f, rhs)
     rigid_hinge_moments(phi, dphi, kappa, nu, tau)
     return A, Ma, Mb, c, s, gp, ga, rhs, tau, v1, v2
 
@@ -389,12 +399,7 @@ def full_rhs(t, y, chain, extra, loads, held, t_side, out):
     A, Ma, Mb, Wa, Wb, c, s, gp, ga, Fp, Fa, Fb, ia, ib, f, tau = _carve(extra[3], n)
     H = extra[4]
     flags = extra[5]
-    for k in range(n):
-        c[k] = math.cos(phi[k])
-        s[k] = math.sin(phi[k])
-    assemble(c, s, dphi, chain, A, Ma, Mb, gp, ga)
-    load_forces(t, loads, held, t_side, f)
-    generalized_forces(l, c, s, f, Fp)
+    _chain_terms(t, phi, dphi, chain, loads, held, t_side, A, Ma, Mb, c, s, gp, ga, f, Fp)
     for h in range(n):
         if h == 0:
             d = phi[0] + al[0]
@@ -448,8 +453,10 @@ def full_rhs(t, y, chain, extra, loads, held, t_side, out):
 
 @njit(inline="always")
 def lu_inplace(A, piv):
-    """LU factorization with partial pivoting in place (rows swapped whole; piv[k] = the
-    row swapped with k at step k). Returns False for a zero pivot."""
+    """LU factorisation with partial pivoting of A (n, n), float64 or complex128, in place
+    (LAPACK's getrf layout: unit-lower L below the diagonal, U on and above; rows swapped
+    whole, piv[k] (n,) int64 = the row swapped with k at step k). Returns False for a zero
+    pivot. Also the factorisation of :mod:`rod_sim.core.radau` (real and complex)."""
     n = A.shape[0]
     for col in range(n):
         p, best = _pivot(A, col)
@@ -462,31 +469,39 @@ def lu_inplace(A, piv):
                 A[col, c2] = A[p, c2]
                 A[p, c2] = tmp
         inv = 1.0 / A[col, col]
+        # row slices (contiguous 1-D views) let LLVM vectorise the update (see solve_inplace)
+        pivot_row = A[col, col + 1:]
         for r in range(col + 1, n):
             f = A[r, col] * inv
             A[r, col] = f
-            for c2 in range(col + 1, n):
-                A[r, c2] -= f * A[col, c2]
+            row = A[r, col + 1:]
+            for c2 in range(pivot_row.shape[0]):
+                row[c2] -= f * pivot_row[c2]
     return True
 
 
 @njit(inline="always")
 def lu_solve(LU, piv, b):
-    """Solve with the factors of :func:`lu_inplace`; x overwrites b."""
+    """Solve A x = b (b (n,), float64 or complex128) with the factors LU (n, n), piv (n,) of
+    :func:`lu_inplace`; x overwrites b. The row swaps are applied first (the factors' L rows
+    were swapped whole), then the two triangular solves."""
     n = b.shape[0]
-    for col in range(n):
-        p = piv[col]
-        if p != col:
-            tmp = b[col]
-            b[col] = b[p]
+    for i in range(n):
+        p = piv[i]
+        if p != i:
+            tmp = b[i]
+            b[i] = b[p]
             b[p] = tmp
-        for r in range(col + 1, n):
-            b[r] -= LU[r, col] * b[col]
-    for r in range(n - 1, -1, -1):
-        acc = b[r]
-        for c2 in range(r + 1, n):
-            acc -= LU[r, c2] * b[c2]
-        b[r] = acc / LU[r, r]
+    for i in range(n):
+        acc = b[i]
+        for j in range(i):
+            acc -= LU[i, j] * b[j]
+        b[i] = acc
+    for i in range(n - 1, -1, -1):
+        acc = b[i]
+        for j in range(i + 1, n):
+            acc -= LU[i, j] * b[j]
+        b[i] = acc / LU[i, i]
 
 
 @njit(inline="always")

@@ -38,8 +38,10 @@ import numpy as np
 
 from .erk import (STATUS_EVENT, STATUS_EVENTS_FULL, STATUS_NONFINITE, STATUS_MAX_STEPS,
                   STATUS_OK, STATUS_STEP_UNDERFLOW, _all_finite, _event_start, _event_values,
-                  _initial_step, _locate, _may_cross)
+                  _initial_step, _locate, _may_cross, _segment_end)
+from . import kernels as _k
 from .jit import njit
+from .kernels import lu_inplace, lu_solve
 
 # ----------------------------------------------------------------- constants (scipy's radau.py)
 S6 = 6.0 ** 0.5
@@ -69,61 +71,6 @@ JAC_RATE = 0.1      # recompute the Jacobian after a step whose Newton rate exce
 
 
 # ----------------------------------------------------------------- dense linear algebra
-@njit
-def lu_factor(A, piv):
-    """In-place LU with partial pivoting of A (n, n), float64 or complex128 (LAPACK's getrf
-    layout: unit-lower L below the diagonal, U on and above; row swaps in ``piv`` (n,)
-    int64). Returns False when a pivot is exactly zero."""
-    n = A.shape[0]
-    for col in range(n):
-        p = col
-        best = abs(A[col, col])
-        for r in range(col + 1, n):
-            v = abs(A[r, col])
-            if v > best:
-                best = v
-                p = r
-        piv[col] = p
-        if best == 0.0:
-            return False
-        if p != col:
-            for c2 in range(n):
-                tmp = A[col, c2]
-                A[col, c2] = A[p, c2]
-                A[p, c2] = tmp
-        inv = 1.0 / A[col, col]
-        pivot_row = A[col, col + 1:]
-        for r in range(col + 1, n):
-            fct = A[r, col] * inv
-            A[r, col] = fct
-            row = A[r, col + 1:]
-            for c2 in range(pivot_row.shape[0]):
-                row[c2] -= fct * pivot_row[c2]
-    return True
-
-
-@njit
-def lu_solve(LU, piv, b):
-    """Solve A x = b in place (b (n,)) with the factors of :func:`lu_factor`."""
-    n = b.shape[0]
-    for i in range(n):
-        p = piv[i]
-        if p != i:
-            tmp = b[i]
-            b[i] = b[p]
-            b[p] = tmp
-    for i in range(n):
-        acc = b[i]
-        for j in range(i):
-            acc -= LU[i, j] * b[j]
-        b[i] = acc
-    for i in range(n - 1, -1, -1):
-        acc = b[i]
-        for j in range(i + 1, n):
-            acc -= LU[i, j] * b[j]
-        b[i] = acc / LU[i, i]
-
-
 @njit
 def _form(J, gamma, M):
     """M = gamma^2 I - gamma D - K (m, m) from J = [K, D] (m, 2m)."""
@@ -159,7 +106,7 @@ def _factor(work, h, stats):
     _form(J, complex(MU_C_RE, MU_C_IM) / h, LUc)
     if stats.shape[0] > 4:
         stats[4] += 1
-    ok = lu_factor(LUr, pivr) and lu_factor(LUc, pivc)
+    ok = lu_inplace(LUr, pivr) and lu_inplace(LUc, pivc)
     ctl[LU_H] = h if ok else 0.0
     return ok
 
@@ -506,12 +453,7 @@ def radau_run_work(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, 
     h = h_init
     n_steps = 0
     while t < t_final:
-        seg_end = t_final
-        for b in breaks:
-            if b > t + 1e-12 * max(1.0, abs(t)):
-                if b < seg_end:
-                    seg_end = b
-                break
+        seg_end = _segment_end(breaks, t, t_final)
         t_side = 0.5 * (t + seg_end)
         rhs(t, y, chain, extra, loads, held, t_side, f)
         stats[0] += 1
@@ -560,7 +502,6 @@ def radau_run_work(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, 
 
 
 # Module-level entry points, one per model kernel (see erk.py: cached on disk).
-from . import kernels as _k  # noqa: E402
 
 
 @njit

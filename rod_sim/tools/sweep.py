@@ -32,17 +32,8 @@ class SweepInterrupted(Exception):
         self.rows = rows
 
 
-def _workers(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {quote(text)}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0 (got {value})")
-    return value
-
-
-def _seed(text: str) -> int:
+def _whole_number(text: str) -> int:
+    """argparse type of --workers and --seed: a whole number >= 0."""
     try:
         value = int(text)
     except ValueError:
@@ -59,13 +50,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "<spec name>.csv in the current directory)")
     parser.add_argument("--plot", default=None, metavar="PNG",
                         help="summary plot of outputs against each swept parameter")
-    parser.add_argument("--workers", type=_workers, default=None,
+    parser.add_argument("--workers", type=_whole_number, default=None,
                         help="local worker processes (default: os.cpu_count() - 1, at least 1; "
                              "0 = run in this process)")
     parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
                         help="run on an existing Dask cluster (e.g. tcp://10.0.0.5:8786) "
                              "instead of local processes")
-    parser.add_argument("--seed", type=_seed, default=None,
+    parser.add_argument("--seed", type=_whole_number, default=None,
                         help="seed of the Monte-Carlo draws (overrides the spec's seed)")
 
 

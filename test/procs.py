@@ -1,0 +1,37 @@
+"""Child processes of the tests that start ROS graphs: the environment of one ROS domain
+(localhost discovery only) and a process started in the repository whose stderr goes to a
+file (so that a test can wait for a line and show it on failure)."""
+from __future__ import annotations
+
+import os
+import subprocess
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def ros_env(domain: int) -> dict[str, str]:
+    """This process's environment with ROS domain ``domain`` on localhost, unbuffered."""
+    return dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+                ROS_DOMAIN_ID=str(domain), PYTHONUNBUFFERED="1")
+
+
+class Child:
+    """``args`` run in the repository in ROS domain ``domain``: stderr into ``err_path``,
+    stdout into ``out_path`` (None: discarded)."""
+
+    def __init__(self, args: list[str], domain: int, err_path: Path,
+                 out_path: Path | None = None):
+        self.err_path = err_path
+        with open(err_path, "w") as err, open(out_path or os.devnull, "w") as out:
+            self.proc = subprocess.Popen(args, cwd=REPO, env=ros_env(domain), stdout=out,
+                                         stderr=err)
+
+    @property
+    def stderr(self) -> str:
+        return self.err_path.read_text()
+
+    def kill(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait(timeout=10)
