@@ -52,7 +52,7 @@ demo: venv
 bench: venv
 	$(VENV)/bin/rod-sim bench
 
-# Regenerates docs/bench/ (results.md, bench.json, work-precision and scaling plots); ~30 min.
+# Regenerates docs/bench/ (results.md, bench.json, work-precision and scaling plots); ~40 min.
 bench-report: venv
 	$(VENV)/bin/rod-sim bench --out docs/bench
 
