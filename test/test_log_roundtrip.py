@@ -449,3 +449,51 @@ def test_snapshot_messages_topic_selection():
                                                                    "damping": 0.0}})
     width, diameter = topics.marker_sizes(massless)
     assert 0 < width < diameter < 1.0
+
+
+def test_a_failed_write_leaves_the_complete_chunks_and_nothing_after(tmp_path, monkeypatch):
+    """A full disk in the middle of a log: close() writes nothing more (no data-end record with
+    a CRC over bytes that never reached the file), the file ends at its last complete chunk and
+    the readers give every sample of those chunks (rosbags too, after `rod-sim repair`)."""
+    import errno
+    import os
+
+    from rod_sim.io import mcap_log
+
+    budget = 20_000
+    written = [0]
+    real = mcap_log._FlushingFile.write
+
+    def write(self, data):
+        if written[0] + len(data) > budget:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        written[0] += len(data)
+        return real(self, data)
+
+    monkeypatch.setattr(mcap_log._FlushingFile, "write", write)
+    scene = make_scene(3)
+    path = tmp_path / "full.mcap"
+    writer = LogWriter(path, metadata=METADATA, chunk_size=2048)
+    logged = 0
+    with pytest.raises(OSError):
+        for snap in make_snapshots(scene, 2000, seed=5):
+            writer.write_snapshot(snap, scene, topics=["rod_states"])
+            logged += 1
+    size = path.stat().st_size
+    assert size == written[0] <= budget
+    writer.close()
+    writer.close()                                   # idempotent
+    assert writer.closed and path.stat().st_size == size
+    monkeypatch.undo()
+    t, phi, _ = read_rod_states(path)
+    # the failing call's message may sit in the last complete chunk (the chunk was written,
+    # its message index was not)
+    assert 0 < t.size <= logged + 1 and phi.shape == (t.size, 3)
+    np.testing.assert_allclose(np.diff(t), 0.01, atol=1e-9)    # a prefix, no gaps
+    # no footer (as after a kill): `rod-sim repair` makes it a log that rosbags reads whole
+    from rod_sim.io.repair import repair_log
+
+    fixed = tmp_path / "fixed.mcap"
+    repair_log(path, fixed)
+    with AnyReader([fixed], default_typestore=JAZZY) as reader:
+        assert sum(1 for _ in reader.messages()) == t.size
