@@ -144,8 +144,9 @@ def test_out_in_a_directory_without_permission(tmp_path, capsys):
     assert "--out" in line and "Permission denied" in line
 
 
-def full_disk(monkeypatch, budget: int) -> None:
-    """Writes of the log fail with ENOSPC once ``budget`` bytes are written."""
+def full_disk(monkeypatch, budget: int) -> list[int]:
+    """Writes of the log fail with ENOSPC once ``budget`` bytes are written; returns the
+    one-element list counting the bytes that did reach the file."""
     written = [0]
     real = mcap_log._FlushingFile.write
 
@@ -156,6 +157,7 @@ def full_disk(monkeypatch, budget: int) -> None:
         return real(self, data)
 
     monkeypatch.setattr(mcap_log._FlushingFile, "write", write)
+    return written
 
 
 def test_full_disk_before_the_first_chunk_removes_the_log(tmp_path, capsys, monkeypatch):

@@ -455,22 +455,11 @@ def test_a_failed_write_leaves_the_complete_chunks_and_nothing_after(tmp_path, m
     """A full disk in the middle of a log: close() writes nothing more (no data-end record with
     a CRC over bytes that never reached the file), the file ends at its last complete chunk and
     the readers give every sample of those chunks (rosbags too, after `rod-sim repair`)."""
-    import errno
-    import os
-
-    from rod_sim.io import mcap_log
+    from rod_sim.io.repair import repair_log
+    from test_cli_limits import full_disk
 
     budget = 20_000
-    written = [0]
-    real = mcap_log._FlushingFile.write
-
-    def write(self, data):
-        if written[0] + len(data) > budget:
-            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-        written[0] += len(data)
-        return real(self, data)
-
-    monkeypatch.setattr(mcap_log._FlushingFile, "write", write)
+    written = full_disk(monkeypatch, budget)
     scene = make_scene(3)
     path = tmp_path / "full.mcap"
     writer = LogWriter(path, metadata=METADATA, chunk_size=2048)
@@ -491,8 +480,6 @@ def test_a_failed_write_leaves_the_complete_chunks_and_nothing_after(tmp_path, m
     assert 0 < t.size <= logged + 1 and phi.shape == (t.size, 3)
     np.testing.assert_allclose(np.diff(t), 0.01, atol=1e-9)    # a prefix, no gaps
     # no footer (as after a kill): `rod-sim repair` makes it a log that rosbags reads whole
-    from rod_sim.io.repair import repair_log
-
     fixed = tmp_path / "fixed.mcap"
     repair_log(path, fixed)
     with AnyReader([fixed], default_typestore=JAZZY) as reader:

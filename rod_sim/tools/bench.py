@@ -569,11 +569,8 @@ def full_model_bound(rows, scene_key: str = "paper_example", samples: int = 21) 
     from ..core import erk
     from ..core.stability import spectral_radius, stability_limit
 
-    best = {}
-    for integ in ("dop853-jit", "radau-jit"):
-        b = [r for r in rows if r.scene == scene_key and r.model == "full"
-             and r.integrator == integ and r.status == "ok" and r.max_phi_error <= TARGET_ERROR]
-        best[integ] = max(b, key=lambda r: r.rtf_cpu) if b else None
+    best = {integ: best_at([r for r in rows if r.integrator == integ], "full", scene=scene_key)
+            for integ in ("dop853-jit", "radau-jit")}
     if best["dop853-jit"] is None:
         return None
     _, make_integrator, make_model, Simulator = _core()
