@@ -41,7 +41,7 @@ from .erk import (STATUS_EVENT, STATUS_EVENTS_FULL, STATUS_NONFINITE, STATUS_MAX
                   _initial_step, _locate, _may_cross, _segment_end)
 from . import kernels as _k
 from .jit import njit
-from .kernels import lu_inplace, lu_solve
+from .dense_lu import lu_inplace, lu_solve
 
 # ----------------------------------------------------------------- constants (scipy's radau.py)
 S6 = 6.0 ** 0.5
