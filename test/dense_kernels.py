@@ -589,7 +589,6 @@ def dense_rhs(model_name: str, scene, t, y, held=None, locked=None, side=None):
     stop ``side`` (n,) int contacts."""
     import numpy as np
 
-    from rod_sim.core import hinges
     from rod_sim.core.matrices import ChainParams, reduction_matrices
     from rod_sim.core.models import load_table
 
@@ -621,11 +620,11 @@ def dense_rhs(model_name: str, scene, t, y, held=None, locked=None, side=None):
     kr = p.kappa * np.asarray(scene.hinge_rest_angle, float) + h3[:, 2]
     kr_next = np.append(kr[1:], 0.0)
     rest = (kr - kr_next, kr, -kr_next)
-    C = hinges.constraint_matrix(scene, dof_per_rod, locked)
+    C = constraint_matrix(scene, dof_per_rod, locked)
     T = None
     if C.shape[0]:
         order = (list(range(n, 3 * n)) if dof_per_rod == 3 else []) + list(range(n - 1, -1, -1))
-        T = hinges.constraint_basis(C, order)
+        T = constraint_basis(C, order)
     d = dof_per_rod * n
     r = T.shape[1] if T is not None else 0
     rows, cols = np.nonzero(T) if T is not None else (np.zeros(0, int), np.zeros(0, int))
@@ -645,3 +644,92 @@ def dense_rhs(model_name: str, scene, t, y, held=None, locked=None, side=None):
     kernel(float(t), np.ascontiguousarray(y, float), chain, extra, load_table(scene),
            np.ascontiguousarray(h3[:, :2]), float(t), out)
     return out
+
+
+def constraint_matrix(scene, dof_per_rod: int, locked: np.ndarray) -> np.ndarray:
+    """C (rows, dof): C x' = 0 for the locked hinges (and rigid rods in the full model)."""
+    n = scene.n
+    dof = n * dof_per_rod
+    full = dof_per_rod == 3
+    rows = []
+    for h in np.flatnonzero(locked):
+        r = np.zeros(dof)
+        r[h] = 1.0
+        if full:
+            r[n + h] = 1.0               # Delta_h = phi_h + alpha_h - phi_{h-1} - beta_{h-1}
+        if h > 0:
+            r[h - 1] = -1.0
+            if full:
+                r[2 * n + h - 1] = -1.0
+        rows.append(r)
+    if full:
+        for k in np.flatnonzero(scene.rod_rigid):
+            for off in (n, 2 * n):
+                r = np.zeros(dof)
+                r[off + k] = 1.0
+                rows.append(r)
+    return np.array(rows).reshape(len(rows), dof)
+
+
+def constraint_basis(C: np.ndarray, pivot_order) -> np.ndarray:
+    """T (dof, r), a basis of null(C) from its reduced row echelon form: pivots are tried in
+    ``pivot_order`` (coordinates to eliminate first), every free coordinate gets a column
+    with 1 at itself and minus its pivot-row entries. Sparse for the hinge constraints."""
+    R = np.array(C, dtype=float)
+    rows, dof = R.shape
+    pivots: list[int] = []
+    r = 0
+    for col in pivot_order:
+        if r == rows:
+            break
+        i = r + int(np.argmax(np.abs(R[r:, col])))
+        if abs(R[i, col]) < 1e-12:
+            continue
+        R[[r, i]] = R[[i, r]]
+        R[r] /= R[r, col]
+        for k in range(rows):
+            if k != r and R[k, col] != 0.0:
+                R[k] -= R[k, col] * R[r]
+        pivots.append(col)
+        r += 1
+    free = [j for j in range(dof) if j not in pivots]
+    T = np.zeros((dof, len(free)))
+    for c, j in enumerate(free):
+        T[j, c] = 1.0
+        for k, p in enumerate(pivots):
+            T[p, c] = -R[k, j]
+    T[np.abs(T) < 1e-15] = 0.0
+    return T
+
+
+
+
+def dense_mass_matrix(model, y):
+    """The model's inertia matrix M (dof, dof) at y, column by column from its O(n) product
+    ``model.mass_times`` (rigid: m^{phi phi}; full: the 3n x 3n matrix of (9)-(10))."""
+    import numpy as np
+
+    d = model.dof
+    return np.column_stack([model.mass_times(y, np.eye(d)[i]) for i in range(d)])
+
+
+def dense_reduced_mass(scene, phi):
+    """M_r (n, n) of eq. (15) at phi with the scene's rigid rods (their gamma rows removed),
+    from the dense blocks."""
+    import numpy as np
+
+    from rod_sim.core.matrices import ChainParams, reduction_matrices
+
+    p = ChainParams.from_scene(scene)
+    n = p.n
+    K_gp, B = reduction_matrices(p)
+    rigid = np.asarray(scene.rod_rigid, dtype=bool)
+    keep = np.flatnonzero(np.concatenate([~rigid, ~rigid]))
+    B_inv = np.zeros((2 * n, 2 * n))
+    B_inv[np.ix_(keep, keep)] = np.linalg.inv(B[np.ix_(keep, keep)])
+    P = K_gp.T @ B_inv
+    chain = (p.l, p.m, p.mu, p.bending_stiffness_diag(), p.kappa, p.nu, p.tail_mass(),
+             p.m * p.l ** 2 / 12.0)
+    A, Ma, Mb = np.empty((n, n)), np.empty((n, n)), np.empty((n, n))
+    mass_blocks(np.ascontiguousarray(phi, dtype=float), chain, A, Ma, Mb)
+    return A - P[:, :n] @ Ma.T - P[:, n:] @ Mb.T

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from rod_sim.core import jit, kernels, radau
+from rod_sim.core import dense_lu, jit, radau
 from rod_sim.core.integrators import IntegrationError, make_integrator
 from rod_sim.core.models import make_model
 from rod_sim.core.scene import Scene
@@ -74,8 +74,7 @@ def collocation_stages(A, y0, h):
 
 @pytest.mark.parametrize("dtype", [np.float64, np.complex128])
 def test_shared_lu_solves_with_row_swaps(dtype):
-    """kernels.lu_inplace / lu_solve, the LU of radau's real and complex iteration matrices
-    and of the full model's Schur complement, against numpy on matrices whose pivoting swaps
+    """dense_lu.lu_inplace / lu_solve, the LU of radau's real and complex iteration matrices, against numpy on matrices whose pivoting swaps
     rows after the first column (the solve must apply every swap before the triangular
     solves, since the factorisation swaps whole rows); a zero pivot returns False."""
     rng = np.random.default_rng(4)
@@ -88,13 +87,13 @@ def test_shared_lu_solves_with_row_swaps(dtype):
             b += 1j * rng.standard_normal(n)
         LU = A.copy()
         piv = np.zeros(n, dtype=np.int64)
-        assert kernels.lu_inplace(LU, piv)
+        assert dense_lu.lu_inplace(LU, piv)
         late_swaps |= bool(np.any(piv[1:] != np.arange(1, n)))
         x = b.copy()
-        kernels.lu_solve(LU, piv, x)
+        dense_lu.lu_solve(LU, piv, x)
         np.testing.assert_allclose(x, np.linalg.solve(A, b), rtol=1e-10, atol=1e-12)
     assert late_swaps
-    assert not kernels.lu_inplace(np.zeros((3, 3), dtype=dtype), np.zeros(3, dtype=np.int64))
+    assert not dense_lu.lu_inplace(np.zeros((3, 3), dtype=dtype), np.zeros(3, dtype=np.int64))
 
 
 def test_one_step_is_the_collocation_solution_and_its_polynomial():

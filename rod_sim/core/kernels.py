@@ -80,7 +80,9 @@ class Extra(NamedTuple):
     dDelta/dq on phi, alpha, beta; stop_lower, stop_upper [rad] (+-inf: none), stop_k [N m/rad],
     stop_c [N m s/rad]; contact (+1 in contact with the upper stop, -1 the lower, 0 free: the
     contact law applies by mode, switched at located crossings); locked int64 (1: hinge held
-    rigid, C x'' = 0); pinned int64 (1: the rod's end slopes are zero: rigid rods, every rod of
+    rigid, C x'' = 0, or with comp != 0 compliant: C x'' = -comp lambda, see
+    :func:`chain_solve`); comp [rad/(N m)] (n,) compliance of locked hinges (0 in the
+    dynamics); pinned int64 (1: the rod's end slopes are zero: rigid rods, every rod of
     the rigid model); flags int64 (2,) = [any hinge in contact, any hinge locked]; work
     (n, N_WORK) and small (N_SMALL,) scratch; forces (n, 2) and tau (n + 1,) scratch."""
 
@@ -93,6 +95,7 @@ class Extra(NamedTuple):
     stop_c: np.ndarray
     contact: np.ndarray
     locked: np.ndarray
+    comp: np.ndarray
     pinned: np.ndarray
     flags: np.ndarray
     work: np.ndarray
@@ -113,16 +116,18 @@ def make_chain(l, m, mu, EI, kappa, nu) -> Chain:
                  ml3 / 140.0, np.append(kappa[1:], 0.0))
 
 
-def make_extra(rest, stops, contact, locked, pinned) -> Extra:
+def make_extra(rest, stops, contact, locked, pinned, comp=None) -> Extra:
     """:class:`Extra` for n rods: ``rest`` (3, n) [N m], ``stops`` (4, n) = lower, upper [rad],
-    stiffness, damping; ``contact`` (n,) int; ``locked``, ``pinned`` (n,) bool."""
+    stiffness, damping; ``contact`` (n,) int; ``locked``, ``pinned`` (n,) bool; ``comp``
+    (n,) compliance of the locked hinges (default 0: rigid)."""
     n = len(locked)
     f = lambda a: np.ascontiguousarray(a, dtype=float)  # noqa: E731
     i = lambda a: np.ascontiguousarray(a, dtype=np.int64)  # noqa: E731
     contact = f(contact)
     flags = np.array([int(np.any(contact != 0)), int(np.any(locked))], dtype=np.int64)
     return Extra(f(rest[0]), f(rest[1]), f(rest[2]), f(stops[0]), f(stops[1]), f(stops[2]),
-                 f(stops[3]), contact, i(locked), i(pinned), flags, np.zeros((n, N_WORK)),
+                 f(stops[3]), contact, i(locked), f(np.zeros(n) if comp is None else comp),
+                 i(pinned), flags, np.zeros((n, N_WORK)),
                  np.zeros(N_SMALL), np.zeros((n, 2)), np.zeros(n + 1))
 
 
@@ -280,7 +285,10 @@ def chain_solve(kind, ch, ex, W):
     F_p; m^{gamma p} phi'' + [b^{gamma gamma}] gamma = F_gamma], i.e. eq. (15) before the
     elimination of gamma); KIND_FULL: unknowns phi'', alpha'', beta'' of eqs. (9)-(10). Pinned
     rods have alpha = beta = 0 (their gamma rows dropped); locked hinges add C x'' = 0 with a
-    multiplier (the projected equations T^T M T q = T^T f of a constraint basis T). Outputs
+    multiplier (the projected equations T^T M T q = T^T f of a constraint basis T); with a
+    compliance comp_h the hinge's row becomes d_h^T x'' = -comp_h lambda_h, which solves
+    (M + s sum_h kappa'_h d_h d_h^T) x = f for comp_h = -1 / (s kappa'_h) (d_h: the hinge's
+    relative rotation, dDelta_h/dq; used by the eigenvalue and Newton solves). Outputs
     phi'' (W_X), alpha or alpha'' (W_A), beta or beta'' (W_B). Returns False if singular."""
     n = W.shape[0]
     sm = ex.small
@@ -356,14 +364,16 @@ def chain_solve(kind, ch, ex, W):
             G[2, 1] = Cr * c + kt * K[2, 0]
             G[2, 2] = Cr * s + kt * K[2, 1]
         locked = ex.locked[r] != 0
+        cr = ex.comp[r]
         if locked:
             # phi''_r is given by the rod before (reduced: x_{r-1} = u_3; full: rho - alpha''
-            # with rho = u_2 = x_{r-1} + beta''_{r-1}); slot 0 becomes the multiplier
+            # with rho = u_2 = x_{r-1} + beta''_{r-1}), less comp * lambda for a compliant
+            # hinge; slot 0 becomes the multiplier lambda
             for i in range(3):
                 col[i] = E[i, 0]
-            E[0, 0] = 1.0
-            E[1, 0] = 1.0 if full else 0.0
-            E[2, 0] = 0.0
+            E[0, 0] = 1.0 - cr * col[0]
+            E[1, 0] = (1.0 if full else 0.0) - cr * col[1]
+            E[2, 0] = -cr * col[2]
             for i in range(3):
                 if full:
                     E[i, 1] -= col[i]
@@ -389,12 +399,12 @@ def chain_solve(kind, ch, ex, W):
                 xu[j] = G[0, j]
         elif full:
             for j in range(5):
-                xu[j] = -G[1, j]
+                xu[j] = -G[1, j] - cr * G[0, j]
             xu[3] += 1.0
         else:
             for j in range(5):
-                xu[j] = 0.0
-            xu[4] = 1.0
+                xu[j] = -cr * G[0, j]
+            xu[4] += 1.0
         # the interface to the rod before: w_r = (R_{r-1}, 2 more) = nP + nK u
         for i in range(2):
             e_i = c if i == 0 else s
@@ -442,9 +452,9 @@ def chain_solve(kind, ch, ex, W):
         if ex.locked[r] == 0:
             x = v0
         elif full:
-            x = u2 - va
+            x = u2 - va - ex.comp[r] * v0
         else:
-            x = u3
+            x = u3 - ex.comp[r] * v0
         W[r, W_X] = x
         W[r, W_A] = va
         W[r, W_B] = vb
