@@ -103,7 +103,9 @@ def test_one_step_is_the_collocation_solution_and_its_polynomial():
     work = radau.radau_workspace(4)
     y_new, f_new = np.empty(4), np.empty(4)
     stats = np.zeros(6, dtype=np.int64)
-    status, t_new, h_next = radau.radau_step(rhs, chain, extra, loads, held, 0.5, 0.0, y0, f0,
+    status, t_new, h_next = radau.radau_step(rhs, radau.dense_jac, radau.dense_factor,
+                                             radau.dense_solve, chain, extra, loads, held, 0.5,
+                                             0.0, y0, f0,
                                              0.01, 1.0, 1e-2, 1e-2, work, y_new, f_new, stats)
     assert status == 0 and 0.0 < t_new <= 0.01 and h_next > 0
     h = t_new
@@ -261,7 +263,11 @@ def test_step_size_is_carried_between_calls_and_reset():
     assert sim.integrator._h > 0
     nfev = sim.integrator.stats.nfev
     sim.advance(0.05)
-    assert sim.integrator.stats.nfev - nfev < nfev       # no new start-up
+    carried = sim.integrator.stats.nfev - nfev
+    sim.integrator._h = 0.0                              # the same period from a cold start
+    nfev = sim.integrator.stats.nfev
+    sim.advance(0.05)
+    assert carried < sim.integrator.stats.nfev - nfev    # no new start-up
     sim.reset()
     assert sim.integrator._h == 0.0
 
@@ -288,7 +294,7 @@ def test_radau_is_cached_under_the_core_stamp():
     if not jit.CORE_LOCATORS:
         pytest.skip("this numba has no cache locator API")
     assert (jit.CORE_DIR / "radau.py").exists()
-    for dispatcher in (*radau.RADAU.values(), *radau.RADAU_WORK.values()):
+    for dispatcher in radau.RADAU_WORK.values():
         locator = dispatcher._cache._impl.locator
         assert isinstance(locator, jit.CORE_LOCATORS), type(locator)
         assert locator.get_source_stamp() == jit.sources_stamp()
@@ -376,8 +382,7 @@ def test_cost_split_accounts_for_every_rhs_and_the_run_time():
 
     r = radau_cost.measure(load_scene(PAPER), "reduced", rtol=1e-6, t_end=0.5)
     split = list(r["split"].values())
-    n_state = 16
-    assert split[0]["count"] + split[1]["count"] * n_state == r["nfev"]
+    assert split[0]["count"] == r["nfev"]                 # no rhs spent on Jacobians
     assert split[1]["count"] == r["njev"] >= 1 and split[3]["count"] == r["newton_iterations"]
     assert all(v["unit_us"] > 0 for v in split)
     # the parts, timed separately, explain the run's CPU time to within a factor 3

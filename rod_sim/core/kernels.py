@@ -82,9 +82,12 @@ class Extra(NamedTuple):
     contact law applies by mode, switched at located crossings); locked int64 (1: hinge held
     rigid, C x'' = 0, or with comp != 0 compliant: C x'' = -comp lambda, see
     :func:`chain_solve`); comp [rad/(N m)] (n,) compliance of locked hinges (0 in the
-    dynamics); pinned int64 (1: the rod's end slopes are zero: rigid rods, every rod of
+    dynamics); gw (n,): weight of a compliant hinge's multiplier on the slope rows of the
+    reduced model (1: the hinge spring's own rows, alpha_h and beta_{h-1}; 0: the phi rows
+    only, as a lock or a stop); pinned int64 (1: the rod's end slopes are zero: rigid rods, every rod of
     the rigid model); flags int64 (2,) = [any hinge in contact, any hinge locked]; work
-    (n, N_WORK) and small (N_SMALL,) scratch; forces (n, 2) and tau (n + 1,) scratch."""
+    (n, N_WORK) and small (N_SMALL,) scratch; forces (n, 2) and tau (n + 1,) scratch; kind:
+    KIND_REDUCED (rigid and reduced models) or KIND_FULL."""
 
     rest_phi: np.ndarray
     rest_alpha: np.ndarray
@@ -96,12 +99,14 @@ class Extra(NamedTuple):
     contact: np.ndarray
     locked: np.ndarray
     comp: np.ndarray
+    gw: np.ndarray
     pinned: np.ndarray
     flags: np.ndarray
     work: np.ndarray
     small: np.ndarray
     forces: np.ndarray
     tau: np.ndarray
+    kind: int
 
 
 def make_chain(l, m, mu, EI, kappa, nu) -> Chain:
@@ -116,19 +121,22 @@ def make_chain(l, m, mu, EI, kappa, nu) -> Chain:
                  ml3 / 140.0, np.append(kappa[1:], 0.0))
 
 
-def make_extra(rest, stops, contact, locked, pinned, comp=None) -> Extra:
+def make_extra(rest, stops, contact, locked, pinned, comp=None, kind=KIND_REDUCED,
+               dtype=float) -> Extra:
     """:class:`Extra` for n rods: ``rest`` (3, n) [N m], ``stops`` (4, n) = lower, upper [rad],
     stiffness, damping; ``contact`` (n,) int; ``locked``, ``pinned`` (n,) bool; ``comp``
-    (n,) compliance of the locked hinges (default 0: rigid)."""
+    (n,) compliance of the locked hinges (default 0: rigid); ``dtype`` of the solve's
+    scratch and compliances (complex for Radau's complex Newton system)."""
     n = len(locked)
     f = lambda a: np.ascontiguousarray(a, dtype=float)  # noqa: E731
     i = lambda a: np.ascontiguousarray(a, dtype=np.int64)  # noqa: E731
     contact = f(contact)
     flags = np.array([int(np.any(contact != 0)), int(np.any(locked))], dtype=np.int64)
     return Extra(f(rest[0]), f(rest[1]), f(rest[2]), f(stops[0]), f(stops[1]), f(stops[2]),
-                 f(stops[3]), contact, i(locked), f(np.zeros(n) if comp is None else comp),
-                 i(pinned), flags, np.zeros((n, N_WORK)),
-                 np.zeros(N_SMALL), np.zeros((n, 2)), np.zeros(n + 1))
+                 f(stops[3]), contact, i(locked),
+                 np.array(np.zeros(n) if comp is None else comp, dtype=dtype),
+                 np.zeros(n, dtype=dtype), i(pinned), flags, np.zeros((n, N_WORK), dtype=dtype),
+                 np.zeros(N_SMALL, dtype=dtype), np.zeros((n, 2)), np.zeros(n + 1), int(kind))
 
 
 @njit(inline="always")
@@ -357,12 +365,14 @@ def chain_solve(kind, ch, ex, W):
             G[1, 1] = -Cr * c
             G[1, 2] = -Cr * s
             G[1, 3] = ka
-            E[2, 0] = -ch.c20[r] - kt * kx[2]
+            # beta row: -kappa_{r+1} alpha_{r+1} - gw_{r+1} lambda_{r+1}
+            gt = ex.gw[r + 1] if r + 1 < n else 0.0
+            E[2, 0] = -ch.c20[r] - kt * kx[2] - gt * kx[3]
             E[2, 1] = 0.5 * Ktr
-            E[2, 2] = kt + Ktr - kt * kb[2]
-            G[2, 0] = W[r, W_FB] + kt * P[2]
-            G[2, 1] = Cr * c + kt * K[2, 0]
-            G[2, 2] = Cr * s + kt * K[2, 1]
+            E[2, 2] = kt + Ktr - kt * kb[2] - gt * kb[3]
+            G[2, 0] = W[r, W_FB] + kt * P[2] + gt * P[3]
+            G[2, 1] = Cr * c + kt * K[2, 0] + gt * K[3, 0]
+            G[2, 2] = Cr * s + kt * K[2, 1] + gt * K[3, 1]
         locked = ex.locked[r] != 0
         cr = ex.comp[r]
         if locked:
@@ -372,7 +382,7 @@ def chain_solve(kind, ch, ex, W):
             for i in range(3):
                 col[i] = E[i, 0]
             E[0, 0] = 1.0 - cr * col[0]
-            E[1, 0] = (1.0 if full else 0.0) - cr * col[1]
+            E[1, 0] = (1.0 if full else ex.gw[r]) - cr * col[1]
             E[2, 0] = -cr * col[2]
             for i in range(3):
                 if full:

@@ -62,7 +62,8 @@ def shifted_solver(model, phi: np.ndarray, s: float):
     chain = ch._replace(c105=ch.c105 + s * ch.Kt, c140=ch.c140 - 0.5 * s * ch.Kt,
                         kappa=np.zeros(n), kappa_tip=np.zeros(n))
     extra = kernels.make_extra(np.zeros((3, n)), np.zeros((4, n)), np.zeros(n),
-                               locked | sprung, np.asarray(sc.rod_rigid, dtype=bool), comp)
+                               locked | sprung, np.asarray(sc.rod_rigid, dtype=bool), comp,
+                               kind=kernels.KIND_FULL)
     phi = np.ascontiguousarray(phi, dtype=float)
 
     def solve(f):

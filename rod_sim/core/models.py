@@ -163,7 +163,8 @@ class ChainModel:
         return plan
 
     def _make_plan(self, locked: np.ndarray, side: np.ndarray) -> Plan:
-        extra = kernels.make_extra(self._rest, self._stops, side, locked, self._pinned())
+        extra = kernels.make_extra(self._rest, self._stops, side, locked, self._pinned(),
+                                   kind=self._kind)
         return Plan(extra, hinges.event_table(self.scene, locked), locked)
 
     # ----- evaluation -----
