@@ -69,15 +69,20 @@ def test_extreme_scene_values_are_refused_with_the_key(tmp_path, capsys, key, va
     assert not (tmp_path / "run.mcap").exists()
 
 
-def test_a_chain_too_large_for_memory_is_refused_with_the_figure(tmp_path, capsys):
+def test_a_chain_too_large_for_memory_is_refused_with_the_figure(tmp_path, capsys,
+                                                                 monkeypatch):
+    monkeypatch.setattr(limits, "available_memory", lambda: 1024 ** 3)
     scene = scene_yaml(tmp_path, key="count", value="100000")
     assert simulate(tmp_path, scene, "--t-end", "0.1") == 2
     line = one_line_error(capsys)
-    assert "rods.count" in line and "GiB" in line
+    assert "rods.count" in line and "1.92 GiB" in line           # linear: 400 MiB + 16 KiB/rod
     assert not (tmp_path / "run.mcap").exists()
-    limits.check_model_memory(1000, available=10 ** 9)            # 0.29 GB: fits
-    with pytest.raises(UsageError, match="0.268 GiB"):
+    limits.check_model_memory(1000, available=10 ** 9)            # 0.41 GiB: fits
+    with pytest.raises(UsageError, match="0.406 GiB"):
         limits.check_model_memory(1000, available=10 ** 8)
+    # linear in n, not quadratic
+    assert limits.model_memory(200_000) - limits.model_memory(100_000) == \
+        limits.model_memory(100_000) - limits.model_memory(0)
 
 
 def test_quote_is_short_and_bounded_for_a_yaml_bomb():

@@ -20,7 +20,7 @@ from .quote import quote
 
 LOAD_SHAPES = ("raised_cosine_pulse", "constant", "step")
 LOAD_AXES = ("x", "y")
-MAX_RODS = 100_000          # rods.count; the models' memory is checked at the edges too
+MAX_RODS = 1_000_000        # rods.count; the run's memory estimate is checked at the edges too
 MAX_MAGNITUDE = 1e12        # |value| of every scene number, SI units
 MIN_POSITIVE = 1e-12        # smallest length [m] and bending stiffness [N m^2]
 
@@ -404,7 +404,7 @@ class _SceneParser:
             values[nulls] = math.nan
             return values
         if _is_number(value):
-            values = [value] * n
+            values = [value]          # one check, then broadcast (O(1) Python work per key)
         elif isinstance(value, (list, tuple)):
             if len(value) != n:
                 raise SceneError(path, f"expected a scalar or a list of {n} values, got {len(value)}")
@@ -426,6 +426,8 @@ class _SceneParser:
                 raise SceneError(path, f"must be {op} {minimum:g}{where} (got {quote(v)})")
             if strict and x < MIN_POSITIVE:
                 raise SceneError(path, f"must be >= {MIN_POSITIVE:g}{where} (got {quote(v)})")
+        if len(values) != n:
+            return np.full(n, _num(value), dtype=float)
         return np.asarray(values, dtype=float)
 
     def _loads(self, loads, n) -> tuple[Load, ...]:

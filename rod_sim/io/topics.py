@@ -188,12 +188,25 @@ def _marker_geometry(scene: Scene, points_per_rod: int):
             shape_table(np.asarray(scene.length, dtype=float), points_per_rod))
 
 
+MARKER_POINTS = 20_000
+"""Points of all rod line strips together: a long chain's rods get fewer points each (at
+least their two ends), so one markers message stays ~1 MB whatever n."""
+
+
+def marker_points_per_rod(n: int) -> int:
+    """Points per rod line strip: 11 up to 1818 rods, then MARKER_POINTS / n, at least 2."""
+    return max(2, min(11, MARKER_POINTS // max(n, 1)))
+
+
 def markers(snapshot: Snapshot, scene: Scene, frame_id: str = "world",
-            points_per_rod: int = 11) -> Msg:
+            points_per_rod: int | None = None) -> Msg:
     """``visualization_msgs/MarkerArray``: one LINE_STRIP per rod (ns ``rods``, id k = 1..n)
-    through ``points_per_rod`` points of the bent rod (paper eq. (4)), and one SPHERE_LIST
+    through ``points_per_rod`` points of the bent rod (paper eq. (4); default
+    :func:`marker_points_per_rod`), and one SPHERE_LIST
     (ns ``nodes``, id 0) at nodes 1..n for the node masses (size from :func:`marker_sizes`).
     All ADD, lifetime 0 (forever), not frame-locked, z = 0."""
+    if points_per_rod is None:
+        points_per_rod = marker_points_per_rod(scene.n)
     width, diameter, table = _marker_geometry(scene, points_per_rod)
     pts = rod_points(np.asarray(scene.length, dtype=float), np.asarray(snapshot.phi, dtype=float),
                      np.asarray(snapshot.alpha, dtype=float),

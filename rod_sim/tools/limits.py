@@ -18,10 +18,11 @@ MAX_OUTPUT_BYTES = 4 * 1024 ** 3    # estimated (uncompressed) size of a simulat
 # on logs of n = 8 (6325 B) and n = 64 (45733 B); zstd makes the file 3x (moving chain) to 40x
 # (chain at rest) smaller.
 LOG_BYTES_PER_SAMPLE = (700, 704)   # (fixed, per rod)
-# Peak memory of a model's construction and first steps, in n x n float64 matrices (measured
-# with tracemalloc at n = 1000: 13 for the full and rigid models, 33 for the reduced one; a
-# reduced n = 1500 run peaks at 0.7 GB RSS).
-MODEL_MATRICES = 36
+# Peak memory of a run is linear in n (the O(n) kernels keep no n x n array): a base for the
+# interpreter, numba, numpy and the log writer, plus bytes per rod for the scene, the model,
+# the integrators' workspaces and one sample's messages (bounds above the peak RSS measured in
+# docs/bench.md, "start-up and memory").
+MODEL_MEMORY = (400 * 1024 ** 2, 16 * 1024)     # (base, per rod) [bytes]
 MAX_FIXED_STEPS = 1e8               # --t-end / --step of a fixed-step integrator
 
 
@@ -70,10 +71,16 @@ def available_memory() -> int | None:
         return None
 
 
+def model_memory(n: int) -> int:
+    """Estimated peak memory [bytes] of a run of an n-rod chain (:data:`MODEL_MEMORY`)."""
+    base, per_rod = MODEL_MEMORY
+    return base + per_rod * n
+
+
 def check_model_memory(n: int, available: int | None = None) -> None:
     """Refuse a chain whose model would not fit in memory, before allocating it."""
-    need = MODEL_MATRICES * 8 * n * n
+    need = model_memory(n)
     have = available_memory() if available is None else available
     if have is not None and need > have:
         raise UsageError(f"rods.count: a chain of {n} rods needs about {gib(need)} of memory "
-                         f"({MODEL_MATRICES} n x n matrices of float64); {gib(have)} available")
+                         f"({gib(MODEL_MEMORY[1] * 1024)} per 1024 rods); {gib(have)} available")
