@@ -32,7 +32,7 @@ setup(
         "ros": ["ros-jazzy-rclpy[fastrtps]", "ros-jazzy-common-interfaces"],
         "test": ["pytest", "pytest-timeout", "rosbags", "sympy"],
         "plot": ["matplotlib"],
-        "peer": ["mujoco"],                                     # bench: MuJoCo side by side
+        "peer": ["mujoco", "pin"],              # bench: MuJoCo and Pinocchio side by side
         "sweep": ["dask[distributed]", "pyarrow", "tqdm"],      # rod-sim sweep on a cluster
     },
     zip_safe=True,

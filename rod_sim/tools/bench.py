@@ -782,6 +782,10 @@ def markdown(rows, data) -> str:
             for m, r in per.items():
                 lines.append(f"| {scene} | {m} | {_g(r['gap_rad'], '.2g')} | "
                              f"{_g(r['wall_s'], '.3g')} | {'yes' if r['ok'] else r['message']} |")
+    if data.get("long_chains"):
+        from .bench_long import markdown_lines
+
+        lines += markdown_lines(data["long_chains"])
     sc = data.get("scaling")
     if sc:
         lines += ["", "## Cost per right-hand side against n", "",
@@ -894,6 +898,9 @@ def configure(parser) -> None:
     parser.add_argument("--no-mujoco", action="store_true", help="skip the MuJoCo peer")
     parser.add_argument("--no-scaling", action="store_true",
                         help="skip the cost-per-rhs scaling (n = 8 ... 512)")
+    parser.add_argument("--no-long", action="store_true",
+                        help="skip the long chains (n = 8 ... 4096 beside Pinocchio, start-up, "
+                             "chain n = 256/1024, stiff tether n = 512; ~10 min)")
     parser.add_argument("--out", default=None,
                         help="directory for bench.json, results.md and the PNG plots")
 
@@ -923,6 +930,11 @@ def run(args) -> int:
     scale = None
     if out_dir is not None and not args.no_scaling and not args.quick:
         scale = scaling(log=cfg.log)
+    long = None
+    if out_dir is not None and not args.no_long and not args.quick:
+        from . import bench_long
+
+        long = bench_long.run_all(log=cfg.log)
     hinge_cost = bound = None
     if "deployment" in scenes:
         hinge_cost = hinge_rhs_cost(cfg.models)
@@ -936,6 +948,7 @@ def run(args) -> int:
                     f"dop853-jit needs >= {bound['dop853_min_rhs']} rhs: RTF <= "
                     f"{bound['dop853_rtf_bound']:.3g}")
     data = as_json(rows, refs, cfg, scale, hinge_cost, bound)
+    data["long_chains"] = long
     if out_dir is not None:
         for path in write_report(out_dir, data):
             print(f"wrote {path}", file=sys.stderr)
