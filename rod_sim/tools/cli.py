@@ -16,7 +16,9 @@ import json
 import math
 import pkgutil
 import re
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -129,6 +131,8 @@ def cmd_simulate(args) -> int:
     from ..io.mcap_log import LogWriter
     from ..io.scene_yaml import scene_to_yaml
 
+    if not args.frame_id:                   # as the node's frame_id parameter
+        raise UsageError("--frame-id: must not be empty")
     scene = load_scene(args.scene)
     limits.check_rtol(args.rtol)
     limits.check_sampling(args.t_end, args.rate, scene.n)
@@ -285,8 +289,29 @@ def _error(command: str, err, status: int) -> int:
     return status
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread like Ctrl-C's KeyboardInterrupt, so that the same
+    cleanup runs (a log is closed with its summary, a sweep writes its finished rows)."""
+
+
+def _on_sigterm(signum, frame) -> None:
+    # the first SIGTERM interrupts; a second one during the cleanup is ignored (SIGKILL is
+    # the way to stop a cleanup that hangs)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    raise Terminated
+
+
+def handle_sigterm() -> None:
+    """SIGTERM raises :class:`Terminated` (a KeyboardInterrupt) in the main thread, as SIGINT
+    does: ``simulate``, ``compare``, ``sweep`` and the other commands close their files and
+    exit with status 130, as for Ctrl-C (the node and ``replay`` install their own handler)."""
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _on_sigterm)
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    handle_sigterm()
     if argv[:1] == ["node"]:
         # argparse cannot hand "--ros-args ..." through a subparser untouched; the node has
         # its own parser (for --help and typos) and reports bad parameters with status 2.
@@ -306,8 +331,9 @@ def main(argv: list[str] | None = None) -> int:
         return _error(args.command, "out of memory", EXIT_CHECK_FAILED)
     except RuntimeError as err:             # IntegrationError: the run could not go on
         return _error(args.command, err, EXIT_CHECK_FAILED)
-    except KeyboardInterrupt:
-        print("rod-sim: interrupted", file=sys.stderr)
+    except KeyboardInterrupt as err:
+        how = " (SIGTERM)" if isinstance(err, Terminated) else ""
+        print(f"rod-sim {args.command}: interrupted{how}", file=sys.stderr)
         return 130
 
 
