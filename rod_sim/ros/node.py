@@ -92,6 +92,8 @@ from rod_sim.io.hinge_events import (HINGE_EVENTS_TOPIC, HINGE_EVENTS_TYPE, even
                                      event_time_ns)
 from rod_sim.io.mcap_log import LogWriter
 from rod_sim.io.scene_yaml import load_scene, scene_to_yaml
+from rod_sim.tools.common import UsageError
+from rod_sim.tools.limits import check_model_memory
 from rod_sim.ros import budget
 from rod_sim.ros.commands import COMMAND_SLACK_BYTES, Command, CommandIntake  # noqa: F401
 from rod_sim.ros.conversions import message_class, message_to_dict, to_message
@@ -189,13 +191,17 @@ class RodSimNode(Node):
         s = self.settings
         try:
             self.scene = load_scene(s.scene_file)
+            check_model_memory(self.scene.n)      # simulate's estimate, before allocating
             self.model = make_model(s.model, self.scene)
             integrator = make_integrator(s.integrator, rtol=s.rtol)
             self.period_ns = period_ns(s.rate_hz)
         except SceneError as exc:
             raise NodeConfigError(f"scene_file {s.scene_file}: {one_line(exc)}") from None
-        except (ModelError, ValueError) as exc:
+        except (ModelError, ValueError, UsageError) as exc:
             raise NodeConfigError(one_line(exc)) from None
+        except MemoryError:          # beyond the estimate: still one line, not a traceback
+            raise NodeConfigError(f"scene_file {s.scene_file}: out of memory building the "
+                                  f"{s.model} model of {self.scene.n} rods") from None
         self.sim = Simulator(self.model, integrator)
 
     def _start_checked(self) -> None:
