@@ -312,6 +312,9 @@ def handle_sigterm() -> None:
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     handle_sigterm()
+    log_module = sys.modules.get("rod_sim.io.mcap_log")
+    if log_module is not None:          # a log's damage warnings: once per command
+        log_module._reported.clear()
     if argv[:1] == ["node"]:
         # argparse cannot hand "--ros-args ..." through a subparser untouched; the node has
         # its own parser (for --help and typos) and reports bad parameters with status 2.
