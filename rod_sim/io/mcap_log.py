@@ -519,8 +519,8 @@ class LogReader:
         self._first_chunk: int | None = None
         self._data_crc_mismatch: tuple[int, int, int] | None = None
         for pos, opcode, body in self._records():
-            if opcode != Opcode.CHUNK and self._first_chunk is not None:
-                self._chunk_headers.append((pos, pos + 9 + len(body)))   # message indexes
+            if opcode != Opcode.CHUNK and self._first_chunk is not None:   # message indexes
+                self._outside_chunks(pos, pos + 9 + len(body))
             if opcode == Opcode.MESSAGE:
                 t = self._parse(pos, opcode, body)[0].log_time
                 self._spans.append(_Span(t, t, pos))
@@ -532,7 +532,7 @@ class LogReader:
                     self._first_chunk = pos
                 # opcode, length, times, sizes, CRC, compression string, records length
                 name_len = struct.unpack_from("<I", body, 28)[0] if len(body) >= 32 else 0
-                self._chunk_headers.append((pos, pos + 9 + 32 + min(name_len, 64) + 8))
+                self._outside_chunks(pos, pos + 9 + 32 + min(name_len, 64) + 8)
                 try:
                     parsed = self._parse(pos, opcode, body, messages=False)
                 except LogFormatError as exc:
@@ -555,6 +555,15 @@ class LogReader:
                 elif isinstance(record, _Times) and record.first is not None:
                     self._spans.append(_Span(record.first, record.last, pos))
 
+    def _outside_chunks(self, start: int, stop: int) -> None:
+        """Note bytes outside the chunks' data (merged with the previous range when they
+        follow it: two ranges a chunk, whatever the number of its message indexes)."""
+        ranges = self._chunk_headers
+        if ranges and ranges[-1][1] == start:
+            ranges[-1] = (ranges[-1][0], stop)
+        else:
+            ranges.append((start, stop))
+
     def _explain_data_crc(self) -> None:
         """Every chunk's CRC holds but the data-section CRC does not: find the one flipped
         bit outside the chunks' data (header, metadata, chunk headers) and correct it, or
@@ -569,7 +578,9 @@ class LogReader:
         prefix_end = self._first_chunk if self._first_chunk is not None else pos
         ranges = self._chunk_headers
         if sum(b - a for a, b in ranges) > self.MAX_SEARCH_BYTES:    # chunk headers only
-            ranges = [(a, b) for a, b in ranges if b - a <= 9 + 32 + 64 + 8]
+            head = 9 + 32 + 64 + 8            # a range begins or ends with a chunk header
+            ranges = [r for a, b in ranges for r in ((a, min(b, a + head)),
+                                                    (max(a, b - head), b))]
         found = locate_single_bit(syndrome, pos, [(0, prefix_end), *ranges])
         if found is not None:
             at, bit = found
