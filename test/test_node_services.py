@@ -5,7 +5,6 @@ diagnostics meanwhile, a second ~/step is refused "busy", the first answers when
 ROS_DOMAIN_IDs 224..227 (LOCALHOST)."""
 from __future__ import annotations
 
-import itertools
 import time
 
 import pytest
@@ -21,22 +20,7 @@ import rod_sim.ros.node as node_module  # noqa: E402
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
 
 
-@pytest.fixture
-def harness(monkeypatch):
-    monkeypatch.setattr(base, "DOMAINS", itertools.count(224 + 2 * next(_MODULE_TESTS)))
-    made = []
-
-    def make(**kwargs) -> base.Harness:
-        h = base.Harness(monkeypatch, **kwargs)
-        made.append(h)
-        return h
-
-    yield make
-    for h in made:
-        h.close()
-
-
-_MODULE_TESTS = itertools.count()
+harness = base.harness_fixture(224)
 
 
 def ready_client(h, srv_type, name):

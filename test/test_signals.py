@@ -88,3 +88,21 @@ def test_sigterm_stops_a_sweep_and_writes_the_finished_rows(tmp_path):
     assert status == 130, err
     assert "interrupted" in err and "Traceback" not in err
     assert out.exists()
+
+
+def test_an_interrupt_raised_inside_a_compiled_call_is_still_an_interrupt(monkeypatch, capsys):
+    """A signal handler's exception that fires inside a numba call (e.g. while it loads a
+    cached kernel) comes back as SystemError caused by it: still exit 130, one line (seen
+    under load: SIGTERM during compare gave a SystemError traceback and exit 1)."""
+    from rod_sim.tools import cli
+
+    def compare_run(args):
+        try:
+            raise cli.Terminated
+        except KeyboardInterrupt as stop:
+            raise SystemError("CPUDispatcher(...) returned a result with an exception set") \
+                from stop
+
+    monkeypatch.setattr(cli.plugin_modules()["compare"], "run", compare_run)
+    assert cli.main(["compare", "x.mcap"]) == 130
+    assert capsys.readouterr().err.strip() == "rod-sim compare: interrupted (SIGTERM)"

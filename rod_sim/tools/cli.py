@@ -335,9 +335,31 @@ def main(argv: list[str] | None = None) -> int:
     except RuntimeError as err:             # IntegrationError: the run could not go on
         return _error(args.command, err, EXIT_CHECK_FAILED)
     except KeyboardInterrupt as err:
-        how = " (SIGTERM)" if isinstance(err, Terminated) else ""
-        print(f"rod-sim {args.command}: interrupted{how}", file=sys.stderr)
-        return 130
+        return _interrupted(args.command, err)
+    except SystemError as err:
+        # a signal handler's exception raised inside a compiled (numba) call comes back as
+        # "SystemError: ... returned a result with an exception set", caused by it
+        stop = _interruption(err)
+        if stop is None:
+            raise
+        return _interrupted(args.command, stop)
+
+
+def _interruption(err: BaseException) -> KeyboardInterrupt | None:
+    """The KeyboardInterrupt (Ctrl-C or SIGTERM) that ``err`` was raised from, if any."""
+    seen = set()
+    while err is not None and id(err) not in seen:
+        if isinstance(err, KeyboardInterrupt):
+            return err
+        seen.add(id(err))
+        err = err.__cause__ or err.__context__
+    return None
+
+
+def _interrupted(command: str, err: KeyboardInterrupt) -> int:
+    how = " (SIGTERM)" if isinstance(err, Terminated) else ""
+    print(f"rod-sim {command}: interrupted{how}", file=sys.stderr)
+    return 130
 
 
 if __name__ == "__main__":
