@@ -106,3 +106,45 @@ def test_an_interrupt_raised_inside_a_compiled_call_is_still_an_interrupt(monkey
     monkeypatch.setattr(cli.plugin_modules()["compare"], "run", compare_run)
     assert cli.main(["compare", "x.mcap"]) == 130
     assert capsys.readouterr().err.strip() == "rod-sim compare: interrupted (SIGTERM)"
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_a_signal_in_the_middle_of_a_log_write_waits_for_its_end(tmp_path, monkeypatch, capsys,
+                                                                 sig):
+    """The signal arrives inside a file write of the log (the 40th): it is raised once the
+    sample is written, so the log closes with its summary and holds whole samples only. (The
+    first full `make test` hit this by chance: SIGTERM inside a chunk write left a log that
+    ended in a broken record, no DataEnd.)"""
+    import os
+
+    from rod_sim.io import mcap_log
+    from rod_sim.tools import cli
+
+    for s in (signal.SIGTERM, signal.SIGINT):
+        monkeypatch.setattr(cli, "_restore_" + s.name, signal.getsignal(s), raising=False)
+    real = mcap_log._FlushingFile.write
+    calls = []
+
+    def write(self, data):
+        calls.append(len(data))
+        if len(calls) == 40:
+            os.kill(os.getpid(), sig)         # the handler runs here, before the bytes go out
+        return real(self, data)
+
+    monkeypatch.setattr(mcap_log._FlushingFile, "write", write)
+    log = tmp_path / "sig.mcap"
+    try:
+        code = cli.main(["simulate", str(PAPER), "--t-end", "20", "--rate", "1000",
+                         "--out", str(log)])
+    finally:
+        for s in (signal.SIGTERM, signal.SIGINT):
+            signal.signal(s, getattr(cli, "_restore_" + s.name))
+    assert len(calls) > 40 and code == 130
+    assert capsys.readouterr().err.strip().splitlines()[-1].startswith(
+        "rod-sim simulate: interrupted")
+    with LogReader(log) as reader:
+        assert reader.complete and not reader.damaged
+        counts = {}
+        for topic, _, _ in reader.raw_messages():
+            counts[topic] = counts.get(topic, 0) + 1
+    assert len(set(counts.values())) == 1, counts        # whole samples: every topic alike
