@@ -119,12 +119,22 @@ def test_scene_files_must_be_small_regular_files(tmp_path):
     (["--t-end", "1", "--rate", "1e9"], "--rate x --t-end"),
     (["--t-end", "1", "--integrator", "rk4", "--step", "1e-300"], "step"),
     (["--t-end", "100", "--integrator", "rk4", "--step", "1e-7"], "--step"),
+    (["--t-end", "1", "--frame-id", ""], "--frame-id: must not be empty"),   # as the node
 ])
 def test_simulate_option_limits(tmp_path, capsys, options, named):
     assert simulate(tmp_path, PAPER, *options) == 2
     line = one_line_error(capsys)
     assert named in line, line
     assert not (tmp_path / "run.mcap").exists()
+
+
+@pytest.mark.parametrize("repeats", ["0", "-1", "1001", "two"])
+def test_advise_refuses_a_repeat_count_outside_1_to_1000(capsys, repeats):
+    with pytest.raises(SystemExit) as exc:          # argparse: exit 2, one line of usage error
+        cli.main(["advise", str(PAPER), "--tolerance", "1e-3", "--repeats", repeats])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "argument --repeats:" in err.splitlines()[-1] and "Traceback" not in err
 
 
 def test_rates_below_2_hz_are_honoured_exactly(tmp_path, capsys):

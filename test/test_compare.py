@@ -548,7 +548,8 @@ def test_bag_written_by_rosbags_rosbag2_writer(tmp_path, full_log, small, capsys
 
 def test_corrupted_and_cut_files_never_crash(tmp_path, full_log, capsys):
     """Seeded byte flips and cuts anywhere in a log: exit 0, 1 or 2, never an exception, at
-    most one line on stderr; an exit 2 names the file."""
+    most one line on stderr besides the warnings that name damaged sections (issue 19 item
+    3); an exit 2 names the file."""
     data = full_log.read_bytes()
     rng = random.Random(11)
     seen = set()
@@ -565,7 +566,9 @@ def test_corrupted_and_cut_files_never_crash(tmp_path, full_log, capsys):
         out = capsys.readouterr()
         seen.add(code)
         assert code in (0, 1, 2) and "Traceback" not in out.err
-        assert len(out.err.strip().splitlines()) <= (1 if code == 2 else 0), out.err
+        lines = [ln for ln in out.err.strip().splitlines()
+                 if not ln.startswith("rod-sim: warning:")]
+        assert len(lines) <= (1 if code == 2 else 0), out.err
         if code == 2:
             assert "error:" in out.err
     assert 2 in seen

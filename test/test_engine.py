@@ -64,6 +64,7 @@ def test_tampered_stop_angle_fails(tmp_path, capsys):
     log = _full_log(tmp_path, "deployment.yaml", 2.0, 100)
     data = yaml.safe_load(DEPLOYMENT.read_text())
     data["hinges"]["stop"]["angle"][4] = [-3.2, -1.0]      # hinge 4 now stops at -1 rad
+    data["hinges"]["latch"][4] = -1.0          # (a latch at 0, beyond that stop, is refused)
     tampered = tmp_path / "tampered.yaml"
     tampered.write_text(yaml.safe_dump(data))
     code, rep = _compare(capsys, log, "--scene", tampered)

@@ -87,6 +87,21 @@ def test_bad_feature_keys_are_named(path, value, key):
     assert "\n" not in str(info.value)
 
 
+@pytest.mark.parametrize("latch", [[None, 1.5, None], [None, None, -0.6]])
+def test_a_latch_beyond_its_hinges_stops_is_refused(latch):
+    # issue 19 item 8: accepted without a word before (the hinge can never reach it)
+    with pytest.raises(SceneError) as info:
+        scene(hinges__latch=latch,
+              hinges__stop={"angle": [None, [-0.5, 1.0], [-0.5, 0.7]], "stiffness": 1e4})
+    assert info.value.key == "hinges.latch" and "outside its stops" in str(info.value)
+    assert "\n" not in str(info.value)
+    # on a stop (the deployment scene's latches) and without stops it is a valid latch
+    scene(hinges__latch=[None, 1.0, -0.5],
+          hinges__stop={"angle": [None, [-0.5, 1.0], [-0.5, 0.7]], "stiffness": 1e4})
+    scene(hinges__latch=[None, 2.0, -0.6], hinges__stop={"angle": [None, None, [-0.7, 0.7]],
+                                                         "stiffness": 1e4})
+
+
 def test_features_round_trip_through_yaml():
     sc = scene(hinges__rest_angle=[0.0, 0.2, -0.3], hinges__locked=[True, False, False],
                rods__rigid=[False, True, False], hinges__latch=[None, 0.4, -0.1],

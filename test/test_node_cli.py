@@ -38,11 +38,17 @@ def error_lines(done: subprocess.CompletedProcess) -> list[str]:
      "(ROS arguments go after --ros-args, e.g. --ros-args -p scene_file:=SCENE.yaml)"),
     (["--ros-args", "-p", "scene_file:=PHI308"],
      "initial.phi: magnitude must be <= 1e+12"),     # refused by the scene validation
+    (["--ros-args", "-p", "scene_file:=HUGE"],          # issue 19 item 5: was a MemoryError
+     "rods.count: a chain of 100000 rods needs about"),  # traceback; simulate's estimate
 ])
 def test_rod_sim_node_refuses_in_one_line(args, message, tmp_path):
     scene = tmp_path / "phi308.yaml"
     scene.write_text(SMALL.read_text().replace("phi: [0.0, 0.1, 0.2]", "phi: [1.0e308, 0.1, 0.2]"))
-    args = [a.replace("PHI308", str(scene)) for a in args]
+    huge = tmp_path / "huge.yaml"
+    huge.write_text("rods: {count: 100000, length: 1.0, mass_per_length: 1.0, "
+                    "bending_stiffness: 100.0}\nnodes: {mass: 1.0}\n"
+                    "hinges: {stiffness: 10.0, damping: 0.1}\n")
+    args = [a.replace("PHI308", str(scene)).replace("HUGE", str(huge)) for a in args]
     done = run(["rod_sim.tools.cli", "node", *args])
     assert done.returncode == 2, done.stderr
     lines = error_lines(done)

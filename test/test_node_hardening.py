@@ -5,7 +5,6 @@ file, /diagnostics, /clock while paused, start_paused, ~/step with a count, the 
 state. ROS_DOMAIN_IDs 100.. (one per context, LOCALHOST)."""
 from __future__ import annotations
 
-import itertools
 import math
 import time
 from pathlib import Path
@@ -37,22 +36,7 @@ PERIOD_NS = base.PERIOD_NS
 force_command, without_loads, stamp_ns = base.force_command, base.without_loads, base.stamp_ns
 
 
-@pytest.fixture
-def harness(monkeypatch):
-    monkeypatch.setattr(base, "DOMAINS", itertools.count(100 + 2 * next(_MODULE_TESTS)))
-    made = []
-
-    def make(**kwargs) -> base.Harness:
-        h = base.Harness(monkeypatch, **kwargs)
-        made.append(h)
-        return h
-
-    yield make
-    for h in made:
-        h.close()
-
-
-_MODULE_TESTS = itertools.count()
+harness = base.harness_fixture(100)
 """Each test gets domains 100 + 2 k and 101 + 2 k (k = its index in this module, < 13)."""
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import sys
 import time
 from collections import defaultdict
 from pathlib import Path
@@ -116,18 +117,32 @@ class Harness:
         self.context.try_shutdown()
 
 
-@pytest.fixture
-def harness(monkeypatch):
-    made = []
+def harness_fixture(first_domain: int | None = None):
+    """A ``harness`` fixture: ``harness(**params)`` makes a :class:`Harness`, closed after the
+    test. With ``first_domain``, test k of the calling module gets ROS domains
+    ``first_domain + 2 k`` and ``first_domain + 2 k + 1`` (else this module's DOMAINS)."""
+    tests = itertools.count()
 
-    def make(**kwargs) -> Harness:
-        h = Harness(monkeypatch, **kwargs)
-        made.append(h)
-        return h
+    @pytest.fixture
+    def harness(monkeypatch):
+        if first_domain is not None:
+            monkeypatch.setattr(sys.modules[__name__], "DOMAINS",
+                                itertools.count(first_domain + 2 * next(tests)))
+        made = []
 
-    yield make
-    for h in made:
-        h.close()
+        def make(**kwargs) -> Harness:
+            h = Harness(monkeypatch, **kwargs)
+            made.append(h)
+            return h
+
+        yield make
+        for h in made:
+            h.close()
+
+    return harness
+
+
+harness = harness_fixture()
 
 
 def test_topics_types_and_sizes(harness):

@@ -110,9 +110,13 @@ def test_repair_refuses_a_corrupt_log(tmp_path, capsys):
     cut[2000] ^= 0x08
     log.write_bytes(bytes(cut))
     capsys.readouterr()
+    # the flip is in the first chunk, which holds the channel definitions of this log without
+    # summary: the warning names the chunk, the error says why the rest cannot be read
     assert rod_sim("repair", log, "--out", tmp_path / "r.mcap") == 2
-    err = capsys.readouterr().err
-    assert "corrupt" in err and "byte" in err and len(err.strip().splitlines()) == 1
+    warning, error = capsys.readouterr().err.strip().splitlines()
+    assert warning.startswith("rod-sim: warning:") and "is damaged" in warning
+    assert error.startswith("rod-sim repair: error:") and "corrupt log: the damaged chunk at" \
+        " byte" in error and "held the definition of channel" in error
     assert not (tmp_path / "r.mcap").exists()
 
 

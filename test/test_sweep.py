@@ -97,7 +97,32 @@ BAD = {
     "scene file missing": ({"scene": "nowhere.yaml"}, "scene"),
     "full model, massless rod": ({"models": ["full"], "parameters": {
         "rods.mass_per_length": [1.0, 0.0]}}, "models"),
+    # issue 19 item 8: refused up front, before the grid is allocated (was exit 1 "out of memory")
+    "1e9-point grid": ({"parameters": {"hinges.stiffness": {"linspace": [1, 2, 10 ** 9]}}},
+                       "parameters.hinges.stiffness.linspace[2]"),
+    "1e6-run grid": ({"parameters": {"hinges.stiffness": {"linspace": [1, 2, 1000]},
+                                     "hinges.damping": {"geomspace": [0.1, 1, 1000]}}},
+                     "parameters"),
+    "1e9 draws": ({"parameters": {"hinges.stiffness": {"uniform": {"low": 1, "high": 2}}},
+                   "draws": 10 ** 9}, "draws"),
+    "lognormal overflow": ({"parameters": {"hinges.stiffness": {"lognormal": {
+        "median": 50.0, "sigma": 1000.0}}}, "draws": 8}, "parameters.hinges.stiffness.lognormal"),
 }
+
+
+@pytest.mark.filterwarnings("error")           # no numpy RuntimeWarning before the clean error
+def test_overflowing_draws_are_refused_without_runtime_warnings(tmp_path):
+    spec = {**TINY, "parameters": {"hinges.stiffness": {"lognormal": {
+        "median": 1e11, "sigma": 800.0}}}, "draws": 16}
+    with pytest.raises(SweepSpecError, match="not finite") as info:
+        expand(load_spec(write_spec(tmp_path, spec)))
+    assert info.value.key == "parameters.hinges.stiffness.lognormal"
+
+
+def test_the_run_limit_is_inclusive(tmp_path):
+    from rod_sim.tools.sweep_spec import MAX_RUNS
+    spec = {**TINY, "parameters": {"hinges.stiffness": {"linspace": [1, 2, MAX_RUNS]}}}
+    assert len(load_spec(write_spec(tmp_path, spec)).parameters[0].values) == MAX_RUNS
 
 
 @pytest.mark.parametrize("case", sorted(BAD))
@@ -369,6 +394,34 @@ def test_sigint_stops_the_process_pool(tmp_path):
     rows = read_table(out)
     assert len(rows) < 400
     assert [r["run"] for r in rows] == sorted(r["run"] for r in rows)
+
+
+def test_a_killed_worker_loses_no_run_of_the_other_workers():
+    # issue 19 item 8: a worker killed (SIGKILL) in the middle of a run broke the pool and
+    # failed the runs of the other worker too; now the lost runs are retried
+    import sweep_crash
+    from rod_sim.tools.sweep import run_local
+
+    with sweep_crash.flag_dir() as flags:
+        tasks = [{"index": i, "flags": str(flags), "params": {}, "model": "rigid"}
+                 for i in range(6)]
+        rows = run_local(tasks, 2, function=sweep_crash.die_once_at_index_2)
+        assert sorted(rows) == list(range(6))
+        assert all(rows[i]["status"] == "ok" for i in range(6)), rows
+        assert sweep_crash.died(flags) == [2]          # it really died once
+        assert sweep_crash.runs(flags, 2) == 2          # and ran again
+
+
+def test_a_run_that_kills_its_worker_every_time_is_one_failed_row():
+    import sweep_crash
+    from rod_sim.tools.sweep import run_local
+
+    with sweep_crash.flag_dir() as flags:
+        tasks = [{"index": i, "flags": str(flags), "params": {}, "model": "rigid", "t_end": 1.0}
+                 for i in range(4)]
+        rows = run_local(tasks, 2, function=sweep_crash.always_die_at_index_1)
+        assert [rows[i]["status"] == "ok" for i in range(4)] == [True, False, True, True]
+        assert "its process died while running it, also when run alone" in rows[1]["status"]
 
 
 @pytest.mark.parametrize("name, runs", [("sweep_example", 32), ("sweep_monte_carlo", 64)])

@@ -330,6 +330,17 @@ class _SceneParser:
                                  f"hinge {h}: the initial hinge angle {theta0[h]:g} rad lies "
                                  f"outside its stops [{out['stop_lower'][h]:g}, "
                                  f"{out['stop_upper'][h]:g}]")
+            latch = out.get("latch_angle")
+            if latch is not None:
+                with np.errstate(invalid="ignore"):
+                    beyond = np.flatnonzero(~np.isnan(latch) & ((latch < out["stop_lower"])
+                                                                | (latch > out["stop_upper"])))
+                if beyond.size:
+                    h = int(beyond[0])
+                    raise SceneError("hinges.latch",
+                                     f"hinge {h}: the latch angle {latch[h]:g} rad lies outside "
+                                     f"its stops [{out['stop_lower'][h]:g}, "
+                                     f"{out['stop_upper'][h]:g}], so it can never latch")
         return out
 
     def _stop(self, stop, n) -> dict[str, np.ndarray]:

@@ -181,9 +181,11 @@ class LogStream:
                                   + ("; the last one at each time is used"
                                      if topic == APPLIED_TOPIC else
                                      " with identical content; merged"))
-        self.truncated = any(r.truncated or not r.complete for r in self._readers)
+        self.truncated = any(r.truncated or not (r.complete or r.damaged) for r in self._readers)
         if self.truncated:
             self.notes.append("the log is truncated: only its readable part is compared")
+        for reader in self._readers:
+            self.notes.extend(w.split(": ", 1)[-1] for w in reader.warnings)
 
     def _group(self, t_ns: int, pending: dict[str, list]) -> Group:
         """Decode the messages of one log time (states first: they fix n) and resolve
@@ -289,7 +291,7 @@ def read_log(path: str | os.PathLike, namespace: str | None = None) -> LogStream
             renamed = sorted(v for k, v in names.items() if v != "/" + k)
             if renamed:
                 stream.notes.append(f"{f.name}: read {', '.join(renamed)}")
-            if not reader.complete:
+            if not reader.complete and not reader.damaged:
                 stream.notes.append(f"{f.name} has no summary (writer stopped before closing "
                                     "it); read by scanning"
                                     + (", last record incomplete" if reader.truncated else ""))

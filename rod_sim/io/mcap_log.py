@@ -18,6 +18,7 @@ import heapq
 import io
 import os
 import struct
+import sys
 import zlib
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
@@ -39,6 +40,7 @@ from rod_sim import __version__
 from rod_sim.core.scene import Scene
 from rod_sim.core.snapshot import Snapshot
 from rod_sim.io import cdr, msgdefs, topics as topic_msgs
+from rod_sim.io.crc_locate import locate_single_bit
 
 METADATA_NAME = "rod_sim"
 REQUIRED_METADATA = ("scene", "model", "integrator")
@@ -253,11 +255,14 @@ _FOOTER_BODY = 8 + 8 + 4
 
 def _chunk_definitions(stream: ReadDataStream, length: int) -> list:
     """The Schema and Channel records of a decompressed chunk (``stream`` of ``length`` bytes,
-    as :func:`mcap.stream_reader.get_chunk_data_stream` returns it); messages are skipped
-    unparsed. Raises ValueError for a record running past the chunk's end."""
+    as :func:`mcap.stream_reader.get_chunk_data_stream` returns it), then a :class:`_Times`
+    of its messages' log times (parsed from the CRC-checked data, not the chunk header);
+    messages are otherwise skipped unparsed. Raises ValueError for a record running past the
+    chunk's end."""
     data = stream.read(length)
     out: list = []
     pos = 0
+    first = last = None
     while pos < length:
         opcode, size = struct.unpack_from("<BQ", data, pos)
         end = pos + 9 + size
@@ -265,8 +270,30 @@ def _chunk_definitions(stream: ReadDataStream, length: int) -> list:
             raise ValueError(f"record of {size} bytes at chunk offset {pos} runs past the chunk")
         if opcode in (Opcode.SCHEMA, Opcode.CHANNEL):
             out.append(_RECORD_READERS[opcode](ReadDataStream(io.BytesIO(data[pos + 9:end]))))
+        elif opcode == Opcode.MESSAGE:
+            t = struct.unpack_from("<Q", data, pos + 9 + 6)[0]
+            first = t if first is None else min(first, t)
+            last = t if last is None else max(last, t)
         pos = end
+    out.append(_Times(first, last))
     return out
+
+
+@dataclass(frozen=True)
+class _Times:
+    first: int | None
+    last: int | None
+
+
+_reported: set = set()
+"""(path, warning) already printed by this process (a log is often opened more than once)."""
+
+
+def _report(path: Path, text: str) -> None:
+    key = (str(path), text)
+    if key not in _reported:
+        _reported.add(key)
+        print(f"rod-sim: warning: {text}", file=sys.stderr, flush=True)
 
 
 @dataclass(frozen=True)
@@ -285,16 +312,33 @@ class LogReader:
     Opening the file checks its integrity in one pass over the data section (bounded memory:
     one chunk at a time): every record's framing, every chunk's CRC (of its uncompressed
     data), the data-section CRC in the DataEnd record and the summary CRC in the footer (each
-    where the writer stored one; 0 means "not computed" in MCAP). Any mismatch raises
-    :class:`LogFormatError` naming the byte offset of the bad record. The summary and indexes
-    of a complete file are used for reading; without them (a writer killed before ``close``)
-    the chunks found by the pass are read, up to the first incomplete record. Message
-    iteration holds at most the chunks whose time ranges overlap (memory independent of the
-    log length). Raises :class:`LogFormatError` for a file that is not MCAP.
+    where the writer stored one; 0 means "not computed" in MCAP). Damage never makes intact
+    data unreachable, and nothing damaged is used:
+
+    - a chunk whose CRC fails (or that cannot be decoded) is skipped; the chunks before and
+      after it are read, and a warning names its byte offset and the gap in log time;
+    - a summary whose CRC fails is ignored (the chunks of the data section are read instead);
+    - a data-section CRC that fails while every chunk's own CRC holds means a damaged byte
+      outside the chunks' data (header, metadata, a chunk's header): one flipped bit there is
+      located from the CRC and corrected in what is read (warning naming it); otherwise the
+      warning says the metadata is not verified.
+
+    Each warning is in ``warnings`` and printed once per process on stderr. Framing damage
+    (a record length, an invalid opcode) still raises :class:`LogFormatError` naming the byte
+    offset. The summary and indexes of an undamaged complete file are used for reading;
+    otherwise (a writer killed before ``close``, or damage) the chunks found by the pass are
+    read, up to the first incomplete record. Message iteration holds at most the chunks whose
+    time ranges overlap (memory independent of the log length). Raises
+    :class:`LogFormatError` for a file that is not MCAP.
 
     Attributes: ``complete`` is True when the file has its summary and indexes (it was closed
-    cleanly); ``truncated`` is True when it ends in an incomplete record.
+    cleanly) and no damage was found; ``truncated`` is True when it ends in an incomplete
+    record; ``damaged`` is True when something was skipped, ignored or corrected.
     """
+
+    MAX_SEARCH_BYTES = 4 << 20
+    """[bytes] outside the chunks' data searched for one flipped bit (a byte-by-byte walk
+    in Python, ~1 us a byte); beyond this only the header, metadata and chunk headers."""
 
     def __init__(self, path: str | os.PathLike):
         self.path = Path(path)
@@ -308,18 +352,48 @@ class LogReader:
             self._reader = make_reader(self._file, validate_crcs=True,
                                        decoder_factories=[DecoderFactory()])
             self.truncated = False
+            self.warnings: list[str] = []
+            self._patches: dict[int, int] = {}
             self._footer_at = self._footer_offset()
             self._data_limit = self._footer_at if self._footer_at is not None else self._size
             self._summary = self._read_summary()
-            self._schemas: dict[int, Schema] = {}
-            self._channels: dict[int, Channel] = {}
-            self._metadata: list[Metadata] = []
-            self._spans: list[_Span] = []
             self._check_data_section()
+            if self._data_crc_mismatch is not None:
+                self._explain_data_crc()
+            if self._bad_records:
+                raise self._bad_records[0]
+            self._report_bad_chunks()
         except BaseException:
             self._file.close()
             raise
+        self.damaged = bool(self.warnings)
+        if self.damaged:
+            for text in self.warnings:
+                _report(self.path, text)
+            if self._summary is not None:       # its channels stand in for a damaged chunk's
+                for cid, channel in self._summary.channels.items():
+                    self._channels.setdefault(cid, channel)
+                for sid, schema in self._summary.schemas.items():
+                    self._schemas.setdefault(sid, schema)
+            self._summary = None                # read the checked chunks, never the indexes
         self.complete = self._summary is not None
+
+    def _read_at(self, pos: int, size: int) -> bytes:
+        """``size`` bytes at ``pos``, with the located bit flips corrected."""
+        self._file.seek(pos)
+        data = self._file.read(size)
+        if self._patches:
+            fixed = None
+            for at, mask in self._patches.items():
+                if pos <= at < pos + len(data):
+                    fixed = bytearray(data) if fixed is None else fixed
+                    fixed[at - pos] ^= mask
+            if fixed is not None:
+                data = bytes(fixed)
+        return data
+
+    def _warn(self, text: str) -> None:
+        self.warnings.append(f"{self.path}: {text}")
 
     def _corrupt(self, pos: int, what: str) -> LogFormatError:
         return LogFormatError(f"{self.path}: corrupt log: {what} at byte {pos}; nothing of it "
@@ -353,7 +427,12 @@ class LogReader:
             self._file.seek(begin)
             data = self._file.read(self._footer_at + 9 + 16 - begin)
             if zlib.crc32(data) != summary_crc:
-                raise self._corrupt(begin, "summary section CRC mismatch")
+                self._warn(f"the summary section (byte {begin}) is damaged (CRC mismatch): "
+                           "ignored, the data section's chunks are read instead "
+                           "(`rod-sim repair` rewrites it)")
+                self._data_limit = (summary_start if len(MAGIC) <= summary_start < self._footer_at
+                                    else self._footer_at)
+                return None
         try:
             summary = self._reader.get_summary()
         except (McapError, struct.error, ValueError, UnicodeDecodeError, MemoryError):
@@ -377,14 +456,13 @@ class LogReader:
     def _records(self) -> Iterator[tuple[int, int, bytes]]:
         """(offset, opcode, body) of the data section's records, up to DataEnd (checked
         against its CRC) or the first incomplete record (``truncated``)."""
-        f, size, pos = self._file, self._data_limit, len(MAGIC)
+        size, pos = self._data_limit, len(MAGIC)
         crc = zlib.crc32(MAGIC)
         complete_file = self._footer_at is not None
         while True:
             if pos + 9 > size:
                 break
-            f.seek(pos)
-            head = f.read(9)
+            head = self._read_at(pos, 9)
             opcode, length = struct.unpack("<BQ", head)
             end = pos + 9 + length
             if _FIRST_RESERVED_OPCODE <= opcode < _FIRST_PRIVATE_OPCODE or opcode == 0:
@@ -393,15 +471,14 @@ class LogReader:
                 break
             if opcode == Opcode.DATA_END:
                 self._readable_end = self._size
-                stored = struct.unpack("<I", f.read(4))[0] if length >= 4 else 0
+                stored = struct.unpack("<I", self._read_at(pos + 9, 4))[0] if length >= 4 else 0
                 if stored and stored != crc:
-                    raise self._corrupt(pos, f"data section CRC mismatch (stored {stored:#010x}, "
-                                             f"computed {crc:#010x})")
+                    self._data_crc_mismatch = (pos, stored, crc)
                 return
             if opcode == Opcode.FOOTER:
                 self._readable_end = pos
                 break
-            body = f.read(length)
+            body = self._read_at(pos + 9, length)
             crc = zlib.crc32(body, zlib.crc32(head, crc))
             yield pos, opcode, body
             pos = end
@@ -432,30 +509,118 @@ class LogReader:
                                      f"{type(exc).__name__}: {text})") from None
 
     def _check_data_section(self) -> None:
+        self._schemas: dict[int, Schema] = {}
+        self._channels: dict[int, Channel] = {}
+        self._metadata: list[Metadata] = []
+        self._spans: list[_Span] = []
+        self._bad_chunks: list[tuple[int, str]] = []       # (offset, why)
+        self._bad_records: list[LogFormatError] = []       # undecodable header / metadata
+        self._chunk_headers: list[tuple[int, int]] = []   # byte ranges outside chunk data
+        self._first_chunk: int | None = None
+        self._data_crc_mismatch: tuple[int, int, int] | None = None
         for pos, opcode, body in self._records():
+            if opcode != Opcode.CHUNK and self._first_chunk is not None:   # message indexes
+                self._outside_chunks(pos, pos + 9 + len(body))
             if opcode == Opcode.MESSAGE:
                 t = self._parse(pos, opcode, body)[0].log_time
                 self._spans.append(_Span(t, t, pos))
                 continue
             if opcode not in _RECORD_READERS:
                 continue
-            for record in self._parse(pos, opcode, body, messages=False):
+            if opcode == Opcode.CHUNK:
+                if self._first_chunk is None:
+                    self._first_chunk = pos
+                # opcode, length, times, sizes, CRC, compression string, records length
+                name_len = struct.unpack_from("<I", body, 28)[0] if len(body) >= 32 else 0
+                self._outside_chunks(pos, pos + 9 + 32 + min(name_len, 64) + 8)
+                try:
+                    parsed = self._parse(pos, opcode, body, messages=False)
+                except LogFormatError as exc:
+                    self._bad_chunks.append((pos, "CRC mismatch" if "CRCValidation" in str(exc)
+                                             else "undecodable"))
+                    continue
+            else:
+                try:
+                    parsed = self._parse(pos, opcode, body, messages=False)
+                except LogFormatError as exc:        # one flipped bit may still be located
+                    self._bad_records.append(exc)
+                    continue
+            for record in parsed:
                 if isinstance(record, Schema):
                     self._schemas[record.id] = record
                 elif isinstance(record, Channel):
                     self._channels[record.id] = record
                 elif isinstance(record, Metadata):
                     self._metadata.append(record)
-            if opcode == Opcode.CHUNK:
-                start, end = struct.unpack_from("<QQ", body)
-                self._spans.append(_Span(start, end, pos))
+                elif isinstance(record, _Times) and record.first is not None:
+                    self._spans.append(_Span(record.first, record.last, pos))
+
+    def _outside_chunks(self, start: int, stop: int) -> None:
+        """Note bytes outside the chunks' data (merged with the previous range when they
+        follow it: two ranges a chunk, whatever the number of its message indexes)."""
+        ranges = self._chunk_headers
+        if ranges and ranges[-1][1] == start:
+            ranges[-1] = (ranges[-1][0], stop)
+        else:
+            ranges.append((start, stop))
+
+    def _explain_data_crc(self) -> None:
+        """Every chunk's CRC holds but the data-section CRC does not: find the one flipped
+        bit outside the chunks' data (header, metadata, chunk headers) and correct it, or
+        say that the metadata is not verified."""
+        pos, stored, computed = self._data_crc_mismatch
+        syndrome = stored ^ computed
+        damaged = bool(self._bad_chunks or self._bad_records)
+        if syndrome & (syndrome - 1) == 0 and not damaged:   # the stored CRC itself
+            self._warn(f"the data-section CRC stored at byte {pos + 9} is damaged (one flipped "
+                       "bit); every record it covers is intact and used")
+            return
+        prefix_end = self._first_chunk if self._first_chunk is not None else pos
+        ranges = self._chunk_headers
+        if sum(b - a for a, b in ranges) > self.MAX_SEARCH_BYTES:    # chunk headers only
+            head = 9 + 32 + 64 + 8            # a range begins or ends with a chunk header
+            ranges = [r for a, b in ranges for r in ((a, min(b, a + head)),
+                                                    (max(a, b - head), b))]
+        found = locate_single_bit(syndrome, pos, [(0, prefix_end), *ranges])
+        if found is not None:
+            at, bit = found
+            self._patches[at] = 1 << bit
+            self._check_data_section()              # again, with the bit corrected
+            if self._data_crc_mismatch is None and not self._bad_chunks and not self._bad_records:
+                what = ("a chunk header or message index" if self._first_chunk is not None
+                        and at >= self._first_chunk else "the header or metadata record")
+                self._warn(f"one flipped bit at byte {at} (bit {bit}, in {what}) was located "
+                           "by the data-section CRC and corrected in what is read; every "
+                           "chunk's own CRC holds (`rod-sim repair` writes a corrected copy)")
+                return
+            self._patches.clear()
+            self._check_data_section()
+        if damaged:
+            return                                 # explained by the damaged records
+        self._warn(f"the data-section CRC (DataEnd at byte {pos}) does not match, and no "
+                   "single flipped bit outside the chunks' data explains it; "
+                   "every chunk's own CRC holds and its messages are used, the metadata "
+                   "(scene) is not verified")
+
+    def _report_bad_chunks(self) -> None:
+        """One warning per damaged chunk: its offset, why, and the gap in log time between
+        the intact messages before and after it."""
+        if not self._bad_chunks:
+            return
+        spans = sorted(self._spans, key=lambda sp: sp.offset)
+        for pos, why in self._bad_chunks:
+            before = max((sp.end for sp in spans if sp.offset < pos), default=None)
+            after = min((sp.start for sp in spans if sp.offset > pos), default=None)
+            gap = ("from the start" if before is None else f"from {before / 1e9:.9g} s") + \
+                  (" to the end" if after is None else f" to {after / 1e9:.9g} s")
+            self._warn(f"the chunk at byte {pos} is damaged ({why}): its messages are skipped, "
+                       f"the chunks before and after it are read; gap in log time {gap}")
 
     # ----- messages of the data section, in log-time order -----
 
     def _span_messages(self, span: _Span) -> list[Message]:
-        self._file.seek(span.offset)
-        opcode, length = struct.unpack("<BQ", self._file.read(9))
-        return [r for r in self._parse(span.offset, opcode, self._file.read(length))
+        opcode, length = struct.unpack("<BQ", self._read_at(span.offset, 9))
+        return [r for r in self._parse(span.offset, opcode, self._read_at(span.offset + 9, length))
                 if isinstance(r, Message)]
 
     def _scan_ordered(self, wanted: set[str] | None) -> Iterator[tuple[Channel, Message]]:
@@ -470,6 +635,12 @@ class LogReader:
                 span = spans[i]
                 for k, record in enumerate(self._span_messages(span)):
                     if record.channel_id not in self._channels:
+                        if self._bad_chunks:
+                            raise LogFormatError(
+                                f"{self.path}: corrupt log: the damaged chunk at byte "
+                                f"{self._bad_chunks[0][0]} held the definition of channel "
+                                f"{record.channel_id}, which later messages use (a log without "
+                                "summary has no other copy)")
                         raise LogFormatError(f"{self.path}: message on unknown channel "
                                              f"{record.channel_id}")
                     if record.channel_id in ids:
@@ -551,8 +722,12 @@ class LogReader:
     def header(self) -> Header:
         """The file's Header record (profile, library)."""
         try:
-            return self._reader.get_header()
-        except (McapError, ValueError, struct.error) as exc:
+            opcode, length = struct.unpack("<BQ", self._read_at(len(MAGIC), 9))
+            if opcode != Opcode.HEADER:
+                raise ValueError(f"opcode {opcode:#x} where the Header record belongs")
+            return Header.read(ReadDataStream(io.BytesIO(self._read_at(len(MAGIC) + 9,
+                                                                       min(length, 1 << 20)))))
+        except (McapError, ValueError, struct.error, UnicodeDecodeError) as exc:
             raise self._corrupt(len(MAGIC), f"unreadable header ({exc})") from None
 
     def definitions(self) -> tuple[dict[int, Schema], dict[int, Channel], list[Metadata]]:

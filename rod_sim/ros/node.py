@@ -75,6 +75,7 @@ from collections import deque
 from pathlib import Path
 
 import numpy as np
+from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
@@ -92,6 +93,8 @@ from rod_sim.io.hinge_events import (HINGE_EVENTS_TOPIC, HINGE_EVENTS_TYPE, even
                                      event_time_ns)
 from rod_sim.io.mcap_log import LogWriter
 from rod_sim.io.scene_yaml import load_scene, scene_to_yaml
+from rod_sim.tools.common import UsageError
+from rod_sim.tools.limits import check_model_memory
 from rod_sim.ros import budget
 from rod_sim.ros.commands import COMMAND_SLACK_BYTES, Command, CommandIntake  # noqa: F401
 from rod_sim.ros.conversions import message_class, message_to_dict, to_message
@@ -105,7 +108,8 @@ from rod_sim.ros.parameters import (NODE_NAME, PARAMETERS, NodeSettings,  # noqa
                                     ParameterSpec, declare_settings, unknown_overrides,
                                     validate_change)
 from rod_sim.ros.qos import (APPLIED_QOS, CLOCK_QOS, CLOCK_RELIABILITY,  # noqa: F401
-                             COMMAND_QOS, EVENTS_QOS, LOCKSTEP_STATE_QOS, STATE_QOS, clock_qos)
+                             COMMAND_QOS, EVENTS_QOS, LOCKSTEP_STATE_QOS, SERVICE_QOS,
+                             SERVICE_QUEUE_DEPTH, STATE_QOS, clock_qos)
 from rod_sim.ros.recording import (MAX_LOG_ROLLS, NodeRecording, create_log,  # noqa: F401
                                    offered_qos)
 
@@ -142,6 +146,18 @@ def has_hinge_events(scene) -> bool:
 
 
 # ----- the node -----
+
+STEP_SLICE_S = 0.1
+"""[s] wall time a ~/step call steps before the executor serves other callbacks (at most
+max_period_cost)."""
+
+
+class _NextTurn:
+    """Awaited in a service coroutine: hands control back to rclpy's executor once (the
+    task stays pending and is resumed on the executor's next turn)."""
+
+    def __await__(self):
+        yield
 
 class RodSimNode(Node):
     """The simulator node. ``node_kwargs`` go to :class:`rclpy.node.Node` (``context``,
@@ -189,13 +205,17 @@ class RodSimNode(Node):
         s = self.settings
         try:
             self.scene = load_scene(s.scene_file)
+            check_model_memory(self.scene.n)      # simulate's estimate, before allocating
             self.model = make_model(s.model, self.scene)
             integrator = make_integrator(s.integrator, rtol=s.rtol)
             self.period_ns = period_ns(s.rate_hz)
         except SceneError as exc:
             raise NodeConfigError(f"scene_file {s.scene_file}: {one_line(exc)}") from None
-        except (ModelError, ValueError) as exc:
+        except (ModelError, ValueError, UsageError) as exc:
             raise NodeConfigError(one_line(exc)) from None
+        except MemoryError:          # beyond the estimate: still one line, not a traceback
+            raise NodeConfigError(f"scene_file {s.scene_file}: out of memory building the "
+                                  f"{s.model} model of {self.scene.n} rods") from None
         self.sim = Simulator(self.model, integrator)
 
     def _start_checked(self) -> None:
@@ -238,6 +258,9 @@ class RodSimNode(Node):
         self._start_hold = self.settings.start_paused
         """Paused by start_paused only: the first valid command resumes."""
         self._step_count = self.settings.step_count
+        self._stepping = False
+        """A ~/step call is in progress (between its slices)."""
+        self._resets = 0
         self._clock_wall_ns = 0
         self._error: str | None = None
         self._sync_queue: deque[Command] = deque()
@@ -281,9 +304,16 @@ class RodSimNode(Node):
         # raw: the length of a command is checked before it is deserialized
         self.create_subscription(Float64MultiArray, self._topic_names[COMMAND_TOPIC],
                                  self._on_command_bytes, COMMAND_QOS, raw=True)
-        self.create_service(Trigger, "~/reset", self._on_reset)
-        self.create_service(Trigger, "~/step", self._on_step)
-        self.create_service(SetBool, "~/pause", self._on_pause)
+        self.create_service(Trigger, "~/reset", self._on_reset, qos_profile=SERVICE_QOS)
+        # Its own reentrant group: between the slices of a long call the node's other
+        # callbacks (default, mutually exclusive group) run, and a second call is answered
+        # "busy". The node is spun by a single-threaded executor (node_main), so callbacks
+        # never run at the same time; they interleave only where _on_step awaits.
+        self.create_service(Trigger, "~/step", self._on_step, qos_profile=SERVICE_QOS,
+                            callback_group=ReentrantCallbackGroup())
+        self.create_service(SetBool, "~/pause", self._on_pause, qos_profile=SERVICE_QOS)
+        # wakes the executor to resume a ~/step call between its slices
+        self._step_wake = self.create_guard_condition(lambda: None)
         self._sync_trigger = self.create_guard_condition(self._on_sync_trigger)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._diag_timer = self.create_timer(DIAGNOSTICS_PERIOD_S, self.publish_diagnostics,
@@ -695,7 +725,9 @@ class RodSimNode(Node):
     # ----- services -----
 
     def _on_reset(self, request, response):
-        """Back to the scene's initial state at t = 0 (commands and errors cleared)."""
+        """Back to the scene's initial state at t = 0 (commands and errors cleared); a
+        ~/step call in progress ends (answered "interrupted")."""
+        self._resets += 1
         self.sim.reset()
         self._events_sent = 0
         self._commands.clear()
@@ -714,18 +746,47 @@ class RodSimNode(Node):
         self.get_logger().info(response.message)
         return response
 
-    def _on_step(self, request, response):
-        """``step_count`` control periods, only while paused."""
+    async def _on_step(self, request, response):
+        """``step_count`` control periods, only while paused, in slices of at most
+        STEP_SLICE_S (or max_period_cost) of wall time: between slices the executor serves
+        the other callbacks (~/pause, ~/reset, diagnostics, commands), and the call is
+        answered when its periods are done. A second call meanwhile is refused "busy";
+        ~/pause false or ~/reset end the call early (answered "interrupted")."""
+        if self._stepping:
+            response.success = False
+            response.message = (f"busy: a ~/step call is in progress (t = {self.sim.t:.9g} s); "
+                                "call again when it has answered")
+            return response
         if not self._paused:
             response.success = False
             response.message = ("~/step works only while paused: call ~/pause with data: true "
                                 "first")
             return response
+        self._stepping = True
+        try:
+            return await self._step_sliced(response)
+        finally:
+            self._stepping = False
+
+    async def _step_sliced(self, response):
+        remaining, resets = self._step_count, self._resets
+        slice_s = min(STEP_SLICE_S, self.settings.max_period_cost)
         ok = True
-        for _ in range(self._step_count):
-            ok = self._step_period(self._held_command(wall_age=False))
-            if not ok:
-                break
+        while remaining and ok:
+            started = time.monotonic()
+            while remaining and ok and time.monotonic() - started < slice_s:
+                ok = self._step_period(self._held_command(wall_age=False))
+                remaining -= 1
+            if remaining and ok:
+                self._step_wake.trigger()
+                await _NextTurn()                # the executor runs what is ready, then us
+                if self._resets != resets or not self._paused:
+                    why = "~/reset" if self._resets != resets else "~/pause false"
+                    response.success = False
+                    response.message = (f"interrupted by {why} after "
+                                        f"{self._step_count - remaining} of {self._step_count} "
+                                        f"periods (t = {self.sim.t:.9g} s)")
+                    return response
         response.success = ok
         response.message = (f"stepped to t = {self.sim.t:.9g} s" if ok else
                             f"step failed: {self._error}")

@@ -28,6 +28,13 @@ EVENTS_QOS = keep_last(100, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 """``hinge_events`` are rare and matter: kept for late subscribers (docs/hinges.md)."""
 
 
+SERVICE_QUEUE_DEPTH = 1000
+SERVICE_QOS = keep_last(SERVICE_QUEUE_DEPTH)
+"""``~/pause``, ``~/step``, ``~/reset``: rclpy's default service QoS keeps 10 requests, so a
+burst of calls lost all but ~10 in the middleware, unanswered. 1000 outstanding requests per
+service are kept (and their responses); each is answered, or refused "busy"."""
+
+
 def clock_qos(reliability: str) -> QoSProfile:
     """``/clock`` (depth 1, volatile) with a :data:`CLOCK_RELIABILITY` name's reliability."""
     return keep_last(1, reliability=CLOCK_RELIABILITY[reliability])

@@ -32,14 +32,15 @@ RATE_HZ = 100.0
 
 
 def configure(parser) -> None:
-    from .common import positive_float
+    from .common import positive_float, positive_int
 
     parser.add_argument("scene", help="scene YAML file")
     parser.add_argument("--tolerance", type=positive_float, required=True,
                         help="largest acceptable max |phi - phi_full_ref| [rad]")
     parser.add_argument("--t-end", type=positive_float, default=1.0,
                         help="length of the trial [s of simulated time] (default 1)")
-    parser.add_argument("--repeats", type=int, default=3, help="timing repeats (minimum taken)")
+    parser.add_argument("--repeats", type=positive_int, default=3,
+                        help="timing repeats, 1 .. 1000 (minimum taken; default 3)")
     parser.add_argument("--json", action="store_true", help="machine-readable output")
 
 
@@ -135,6 +136,6 @@ def run(args) -> int:
     if args.t_end > 100.0:
         raise UsageError("--t-end: a trial longer than 100 s is not a short trial")
     scene = load_scene(args.scene)
-    res = advise(scene, args.tolerance, args.t_end, max(1, args.repeats))
+    res = advise(scene, args.tolerance, args.t_end, args.repeats)
     print(json.dumps(res, indent=1) if args.json else format_text(res))
     return EXIT_OK if res["recommendation"] is not None else EXIT_CHECK_FAILED

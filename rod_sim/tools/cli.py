@@ -11,12 +11,15 @@ and turns library errors into one-line messages on stderr.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import json
 import math
 import pkgutil
 import re
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -129,6 +132,8 @@ def cmd_simulate(args) -> int:
     from ..io.mcap_log import LogWriter
     from ..io.scene_yaml import scene_to_yaml
 
+    if not args.frame_id:                   # as the node's frame_id parameter
+        raise UsageError("--frame-id: must not be empty")
     scene = load_scene(args.scene)
     limits.check_rtol(args.rtol)
     limits.check_sampling(args.t_end, args.rate, scene.n)
@@ -154,8 +159,11 @@ def cmd_simulate(args) -> int:
         raise UsageError(f"--out: cannot write {out}: {err.strerror or err}") from None
     run = _LoggedRun(sim, scene, log, args.frame_id)
     try:
-        with log:
+        try:
             status = run.integrate(args.t_end, args.rate, IntegrationError)
+        finally:
+            with signals_deferred():        # the summary is written whole, even on Ctrl-C
+                log.close()
     except OSError as err:
         print(f"rod-sim simulate: error: writing {out} failed at t = {run.t_logged:g} s: "
               f"{err.strerror or err}; {_salvage(out)}", file=sys.stderr)
@@ -190,9 +198,10 @@ class _LoggedRun:
     def _write(self, t: float, y) -> None:
         snap = self.sim.model.snapshot(t, y)
         self.validity.update(snap.t, y, None, snap.alpha, snap.beta)
-        self.log.write_snapshot(snap, self.scene, frame_id=self.frame_id)
-        self.samples += 1
-        self.t_logged = t
+        with signals_deferred():            # every record of a sample whole, or none
+            self.log.write_snapshot(snap, self.scene, frame_id=self.frame_id)
+            self.samples += 1
+            self.t_logged = t
 
     def _write_traj(self, traj) -> None:
         """The samples of ``traj`` after its first (the previous call's last), then the hinge
@@ -201,7 +210,8 @@ class _LoggedRun:
 
         for i in range(1, traj.t.size):
             self._write(float(traj.t[i]), traj.y[i])
-        self.logged_events += write_events(self.log, self.sim.events[self.logged_events:])
+        with signals_deferred():
+            self.logged_events += write_events(self.log, self.sim.events[self.logged_events:])
 
     def integrate(self, t_end: float, rate_hz: float, failure) -> int:
         """Run to t_end [s]; on ``failure`` (IntegrationError) keep every finite sample, print
@@ -285,8 +295,63 @@ def _error(command: str, err, status: int) -> int:
     return status
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread like Ctrl-C's KeyboardInterrupt, so that the same
+    cleanup runs (a log is closed with its summary, a sweep writes its finished rows)."""
+
+
+_deferring = 0
+_pending: list = []
+
+
+def _on_signal(signum, frame) -> None:
+    """SIGINT raises KeyboardInterrupt, SIGTERM :class:`Terminated`; inside
+    :func:`signals_deferred` (a log write) the exception waits until the write is done. The
+    first SIGTERM interrupts; a second one during the cleanup is ignored (SIGKILL is the way
+    to stop a cleanup that hangs)."""
+    if signum == signal.SIGTERM:
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    stop = Terminated if signum == signal.SIGTERM else KeyboardInterrupt
+    if _deferring:
+        _pending.append(stop)
+        return
+    raise stop
+
+
+@contextlib.contextmanager
+def signals_deferred():
+    """A Ctrl-C or SIGTERM arriving inside the block is raised when the block ends, so that
+    a log record is never left half written (the log could not be closed cleanly then)."""
+    global _deferring
+    _deferring += 1
+    try:
+        yield
+    finally:
+        _deferring -= 1
+    if not _deferring and _pending:
+        stop = _pending[0]
+        _pending.clear()
+        raise stop
+
+
+def handle_sigterm() -> None:
+    """SIGTERM raises :class:`Terminated` (a KeyboardInterrupt) in the main thread, as SIGINT
+    does: ``simulate``, ``compare``, ``sweep`` and the other commands close their files and
+    exit with status 130, as for Ctrl-C (the node and ``replay`` install their own handler).
+    Both wait for the end of a log write (:func:`signals_deferred`)."""
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _on_signal)
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            signal.signal(signal.SIGINT, _on_signal)
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    _pending.clear()
+    handle_sigterm()
+    log_module = sys.modules.get("rod_sim.io.mcap_log")
+    if log_module is not None:          # a log's damage warnings: once per command
+        log_module._reported.clear()
     if argv[:1] == ["node"]:
         # argparse cannot hand "--ros-args ..." through a subparser untouched; the node has
         # its own parser (for --help and typos) and reports bad parameters with status 2.
@@ -306,9 +371,32 @@ def main(argv: list[str] | None = None) -> int:
         return _error(args.command, "out of memory", EXIT_CHECK_FAILED)
     except RuntimeError as err:             # IntegrationError: the run could not go on
         return _error(args.command, err, EXIT_CHECK_FAILED)
-    except KeyboardInterrupt:
-        print("rod-sim: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as err:
+        return _interrupted(args.command, err)
+    except SystemError as err:
+        # a signal handler's exception raised inside a compiled (numba) call comes back as
+        # "SystemError: ... returned a result with an exception set", caused by it
+        stop = _interruption(err)
+        if stop is None:
+            raise
+        return _interrupted(args.command, stop)
+
+
+def _interruption(err: BaseException) -> KeyboardInterrupt | None:
+    """The KeyboardInterrupt (Ctrl-C or SIGTERM) that ``err`` was raised from, if any."""
+    seen = set()
+    while err is not None and id(err) not in seen:
+        if isinstance(err, KeyboardInterrupt):
+            return err
+        seen.add(id(err))
+        err = err.__cause__ or err.__context__
+    return None
+
+
+def _interrupted(command: str, err: KeyboardInterrupt) -> int:
+    how = " (SIGTERM)" if isinstance(err, Terminated) else ""
+    print(f"rod-sim {command}: interrupted{how}", file=sys.stderr)
+    return 130
 
 
 if __name__ == "__main__":

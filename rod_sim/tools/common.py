@@ -30,6 +30,17 @@ class UsageError(ValueError):
     ``rod-sim`` prints its first line and exits with status 2."""
 
 
+def positive_int(text: str, largest: int = 1000) -> int:
+    """argparse type: a whole number 1 .. ``largest``."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {quote(text)}") from None
+    if not 1 <= value <= largest:
+        raise argparse.ArgumentTypeError(f"must be 1 .. {largest} (got {value})")
+    return value
+
+
 def positive_float(text: str) -> float:
     """argparse type: a finite number > 0."""
     try:

@@ -617,8 +617,9 @@ class _Comparison:
             self.rate_change = max(self.rate_change, float(np.max(
                 np.abs(yc[rows, 3 * n:4 * n] - rate_ref))))
         sep = np.max(np.abs(yt[rows, :n] - phi_ref), axis=1)
-        gain = np.maximum.accumulate(np.maximum(np.exp(self.log_gain) * sep / TWIN_DELTA,
-                                                self.gain))
+        with np.errstate(over="ignore"):     # beyond ~240 s of chaos the gain is inf: no
+            gain = np.maximum.accumulate(np.maximum(np.exp(self.log_gain) * sep / TWIN_DELTA,
+                                                    self.gain))     # numpy warnings for it
         self.gain = float(gain[-1])
         self._judge(ts, np.where(np.isfinite(err), err, np.inf), gain, ref_sep, phi_log, phi_ref)
         self._renormalise()

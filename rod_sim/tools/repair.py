@@ -1,11 +1,14 @@
 """``rod-sim repair LOG [--out OUT]``: rewrite a truncated log (its writer was killed before
-closing it, e.g. by SIGKILL or a power cut) with a summary and indexes, keeping every message
-of its complete chunks, so that rosbags, ``ros2 bag`` and other MCAP readers that need the
-summary open it (like ``mcap recover``).
+closing it, e.g. by SIGKILL or a power cut) or a damaged one (a chunk, the summary or the
+data-section CRC does not match) with a new summary, data-end and indexes, keeping every
+message of its intact chunks, so that rosbags, ``ros2 bag`` and other MCAP readers that need
+the summary open it (like ``mcap recover``). A damaged chunk is left out (a warning names it
+and the gap in log time); one flipped bit outside the chunks' data is located by the
+data-section CRC and written corrected.
 
-Exit 0 when the repaired copy was written (or LOG was already complete: nothing written);
-2 with one line for a missing, non-MCAP or corrupt LOG (a CRC mismatch: its bytes are not
-copied) or an existing OUT. LOG itself is never changed.
+Exit 0 when the repaired copy was written (or LOG was already complete and intact: nothing
+written); 2 with one line for a missing or non-MCAP LOG, a LOG whose record framing is damaged,
+or an existing OUT. LOG itself is never changed.
 """
 from __future__ import annotations
 
@@ -15,7 +18,7 @@ from pathlib import Path
 from .common import EXIT_OK, UsageError, new_output_path
 
 COMMAND = "repair"
-HELP = "rewrite a truncated log (writer killed) with its summary and indexes"
+HELP = "rewrite a truncated (writer killed) or damaged log with a new summary and indexes"
 
 
 def configure(parser) -> None:
@@ -42,6 +45,7 @@ def run(args) -> int:
         if reader.complete:
             print(f"{log} is complete (it has its summary and indexes): nothing to repair")
             return EXIT_OK
+        damaged = reader.damaged
     out = new_output_path(args.out if args.out is not None else str(default_out(log)))
     try:
         result = repair_log(log, out)
@@ -50,7 +54,8 @@ def run(args) -> int:
     span = ("no messages" if result.first_ns is None else
             f"log time {result.first_ns / 1e9:.9g}..{result.last_ns / 1e9:.9g} s")
     print(f"{out}: {result.messages} messages on {result.channels} channels ({span}), "
-          f"{result.metadata} metadata record(s); dropped the incomplete last "
-          f"{result.dropped_bytes} bytes of {log}")
+          f"{result.metadata} metadata record(s); "
+          + ("rebuilt from the intact records, as the warnings above say" if damaged else
+             f"dropped the incomplete last {result.dropped_bytes} bytes of {log}"))
     sys.stdout.flush()
     return EXIT_OK

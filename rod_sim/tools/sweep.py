@@ -119,19 +119,54 @@ def _collect(futures: dict, finished, rows: dict, on_row=None) -> None:
             on_row(row)
 
 
-def run_local(tasks: list[dict], workers: int, on_row=None) -> dict:
-    """The tasks on a pool of ``workers`` fresh processes. Returns {index: row}."""
+def _started_marker(marker_dir: str, index: int) -> Path:
+    return Path(marker_dir) / f"{index}.started"
+
+
+def tracked(function, marker_dir: str, task: dict) -> dict:
+    """``function(task)`` in a worker process, with a marker file present while it runs: when
+    the pool breaks (a worker was killed), the parent tells the runs that had started from
+    those that had only been queued."""
+    marker = _started_marker(marker_dir, task["index"])
+    marker.touch()
+    try:
+        return function(task)
+    finally:
+        marker.unlink(missing_ok=True)
+
+
+def _pool_round(tasks: list[dict], workers: int, function, marker_dir: str, rows: dict,
+                on_row) -> tuple[list[dict], list[dict], str]:
+    """The tasks on one pool of ``workers`` fresh processes; rows into ``rows``. When a worker
+    process dies the pool breaks: returns (started, queued, reason), the tasks lost with it
+    that had started and those that had not."""
     from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures.process import BrokenProcessPool
+    from functools import partial
 
-    from .sweep_worker import run_one
+    from .sweep_worker import failed_row
 
-    rows: dict = {}
     executor = ProcessPoolExecutor(max_workers=workers, initializer=_ignore_sigint,
                                    mp_context=_pool_context())
     futures = {}
+    lost: list[dict] = []
+    reason = ""
     try:
-        futures = {executor.submit(run_one, task): task for task in tasks}
-        _collect(futures, as_completed, rows, on_row)
+        job = partial(tracked, function, marker_dir)
+        futures = {executor.submit(job, task): task for task in tasks}
+        for future in as_completed(futures):
+            task = futures[future]
+            try:
+                row = future.result()
+            except BrokenProcessPool as err:
+                lost.append(task)
+                reason = reason or " ".join(str(err).split())
+                continue
+            except Exception as err:                 # noqa: BLE001 - e.g. unpicklable
+                row = failed_row(task, f"worker: {type(err).__name__}: {err}")
+            rows[task["index"]] = row
+            if on_row:
+                on_row(row)
     except KeyboardInterrupt:
         for future in futures:
             future.cancel()
@@ -142,6 +177,50 @@ def run_local(tasks: list[dict], workers: int, on_row=None) -> dict:
         executor.shutdown(wait=True, cancel_futures=True)
         raise SweepInterrupted(rows) from None
     executor.shutdown(wait=True)
+    started = [t for t in lost if _started_marker(marker_dir, t["index"]).exists()]
+    for task in started:
+        _started_marker(marker_dir, task["index"]).unlink(missing_ok=True)
+    queued = [t for t in lost if t not in started]
+    return started, queued, reason
+
+
+def run_local(tasks: list[dict], workers: int, on_row=None, function=None) -> dict:
+    """The tasks on a pool of ``workers`` fresh processes. Returns {index: row}.
+
+    A worker process that dies (killed, out of memory, a crash in compiled code) breaks the
+    pool and every run on it: the runs that had not started go to a fresh pool again; those
+    that had started are retried one at a time in a pool of one process, where a death can
+    only be the run's own: that run alone becomes a failed row ("its worker process died").
+    """
+    import tempfile
+
+    from .sweep_worker import failed_row, run_one
+
+    function = function or run_one
+    rows: dict = {}
+    fresh, suspects = list(tasks), []
+    with tempfile.TemporaryDirectory(prefix="rod-sim-sweep-") as marker_dir:
+        while fresh or suspects:
+            alone = not fresh
+            batch = fresh if fresh else suspects[:1]
+            started, queued, reason = _pool_round(batch, 1 if alone else workers, function,
+                                                  marker_dir, rows, on_row)
+            if alone:
+                suspects = suspects[1:]
+                for task in started + queued:
+                    row = failed_row(task, "worker: its process died while running it, also "
+                                           f"when run alone (killed or out of memory?): {reason}")
+                    rows[task["index"]] = row
+                    if on_row:
+                        on_row(row)
+                continue
+            if queued and not started:               # the pool broke before running anything
+                for task in queued:
+                    rows[task["index"]] = row = failed_row(task, f"worker: {reason}")
+                    if on_row:
+                        on_row(row)
+                queued = []
+            fresh, suspects = queued, suspects + started
     return rows
 
 

@@ -37,6 +37,9 @@ __all__ = ["SweepSpecError", "Parameter", "SweepSpec", "Run", "load_spec", "pars
 TOP_KEYS = {"name", "description", "scene", "models", "integrator", "rtol", "atol", "step",
             "t_end", "rate", "parameters", "draws", "seed"}
 GRID_KINDS = ("values", "linspace", "geomspace")
+MAX_RUNS = 100_000
+"""Largest sweep: grid points x draws x models (and points of one grid parameter, draws),
+refused up front (exit 2) before anything is allocated."""
 RANDOM_KINDS = {"uniform": ("low", "high"), "normal": ("mean", "std"),
                 "lognormal": ("median", "sigma")}
 _SEGMENT = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)((?:\[[0-9]+\])*)$")
@@ -78,7 +81,14 @@ class Parameter:
         elif self.kind == "normal":
             x = rng.normal(a["mean"], a["std"], draws)
         else:
-            x = a["median"] * np.exp(a["sigma"] * rng.standard_normal(draws))
+            with np.errstate(over="ignore"):     # an overflow is refused below, in one line
+                x = a["median"] * np.exp(a["sigma"] * rng.standard_normal(draws))
+        bad = np.flatnonzero(~np.isfinite(x))
+        if bad.size:
+            raise SweepSpecError(f"parameters.{self.path}.{self.kind}",
+                                 f"draw {int(bad[0])} of {draws} is not finite (the "
+                                 f"distribution's numbers are too large: "
+                                 f"{', '.join(f'{k} {v:g}' for k, v in self.args)})")
         return tuple(float(v) for v in x)
 
 
@@ -265,6 +275,8 @@ def _parameter(path: Any, body: Any) -> Parameter:
         start = _number(f"{sub}[0]", arg[0])
         stop = _number(f"{sub}[1]", arg[1])
         num = _whole(f"{sub}[2]", arg[2], 1)
+        if num > MAX_RUNS:
+            raise SweepSpecError(f"{sub}[2]", f"at most {MAX_RUNS} points (got {num})")
         if kind == "geomspace":
             if start <= 0 or stop <= 0:
                 raise SweepSpecError(sub, "start and stop must be > 0")
@@ -374,6 +386,19 @@ def parse_spec(data: Any, base_dir: str | Path = ".", default_name: str = "sweep
     if "draws" in data and not random:
         raise SweepSpecError("draws", "given, but no parameter is a Monte-Carlo distribution")
     draws = _whole("draws", data["draws"], 1) if random else 1
+    if draws > MAX_RUNS:
+        raise SweepSpecError("draws", f"at most {MAX_RUNS} (got {draws})")
+    grid_sizes = {p.path: len(p.values) for p in parameters if not p.random}
+    total = math.prod(grid_sizes.values()) * draws * len(models)
+    if total > MAX_RUNS:
+        largest = max(grid_sizes, key=grid_sizes.get) if grid_sizes else None
+        raise SweepSpecError("parameters", f"the sweep would be {total} runs ("
+                             + " x ".join([*(str(v) for v in grid_sizes.values()),
+                                           *([f"{draws} draws"] if random else []),
+                                           f"{len(models)} model(s)"])
+                             + f"); at most {MAX_RUNS}"
+                             + (f" (largest: parameters.{largest}, {grid_sizes[largest]} "
+                                "values)" if largest else ""))
     spec_seed = _whole("seed", data.get("seed", 0), 0)
     if seed is not None:
         spec_seed = _whole("--seed", seed, 0)
