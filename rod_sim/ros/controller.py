@@ -16,7 +16,8 @@ Gains must fit the scene: with the command held over a control period dt, kd dt 
 well below the smallest effective inertia [kg m^2] of the chain's fast modes, or the loop
 goes unstable.
 
-It publishes one ``nodal_forces`` command per received ``joint_states`` message, so it works
+It publishes one ``nodal_forces`` command per received ``joint_states`` state (a state
+repeated with the same stamp is answered once), so it works
 both at a real-time pace and in the simulator's lockstep mode. In lockstep the simulator waits
 for a first command: while no state has arrived and the simulator listens, the controller sends
 a zero command every ``kickoff_period`` [s] to start it.
@@ -106,6 +107,8 @@ class HingePDController(Node):
         self.n = len(self.lengths) if self.lengths is not None else None
         self.commands_sent = 0
         self._states_seen = 0
+        self._answered: tuple[int, int] | None = None
+        """Stamp of the last state answered (each state gets one command)."""
         self._pub = self.create_publisher(Float64MultiArray, "nodal_forces", 10)
         self.create_subscription(JointState, "joint_states", self._on_joint_states, 10)
         self.create_subscription(PoseArray, "node_poses", self._on_node_poses, 10)
@@ -128,6 +131,10 @@ class HingePDController(Node):
 
     def _on_joint_states(self, msg: JointState) -> None:
         self._states_seen += 1
+        stamp = (msg.header.stamp.sec, msg.header.stamp.nanosec)
+        if stamp == self._answered:
+            return      # a lockstep node waiting for its first command repeats its state
+        self._answered = stamp
         if self.lengths is None or len(msg.position) != self.n or len(msg.velocity) != self.n:
             return
         if self.target.size not in (1, self.n):

@@ -41,10 +41,14 @@ run), the simulator advances, and the states are published stamped at the end of
 Every header stamp and log time is simulated time.
 
 Outputs nobody subscribes to are only built when a log is being recorded (``markers`` is the
-costly one); in lockstep the state topics are transient local (depth 1) and always published,
-the t = 0 state included, so a client can start from the state callback. ``/clock`` (depth 1,
+costly one). The state topics are reliable and transient local in every mode (depth 10, in
+lockstep 1; :mod:`rod_sim.ros.qos`), so default-QoS and transient-local subscribers both match;
+in lockstep they are always published, the t = 0 state included, so a client can start from
+the state callback, and until the first command the waiting state is published again every
+0.5 s (not recorded) for volatile subscribers that joined later. ``/clock`` (depth 1,
 volatile, ``clock_reliability``: reliable by default, which both default-QoS and ClockQoS
-subscribers receive) follows every period and, while nothing advances (paused, waiting,
+subscribers receive) is published for every period *before* that period's outputs and, while
+nothing advances (paused, waiting,
 failed), repeats the frozen time every 0.1 s; it is not recorded: log times already are
 simulated times and players publish their own clock. ``/diagnostics`` is absolute (status
 ``rod_sim: simulation``). ``start_paused`` holds the node at t = 0 until ``~/pause`` false or
@@ -105,9 +109,11 @@ from rod_sim.ros.parameters import (NODE_NAME, PARAMETERS, NodeSettings,  # noqa
                                     ParameterSpec, declare_settings, unknown_overrides,
                                     validate_change)
 from rod_sim.ros.qos import (APPLIED_QOS, CLOCK_QOS, CLOCK_RELIABILITY,  # noqa: F401
-                             COMMAND_QOS, EVENTS_QOS, LOCKSTEP_STATE_QOS, STATE_QOS, clock_qos)
+                             COMMAND_QOS, DIAGNOSTICS_QOS, EVENTS_QOS, LOCKSTEP_STATE_DEPTH,
+                             LOCKSTEP_STATE_QOS, STATE_DEPTH, STATE_QOS, clock_qos)
 from rod_sim.ros.recording import (MAX_LOG_ROLLS, NodeRecording, create_log,  # noqa: F401
                                    offered_qos)
+from rod_sim.ros.scene_path import ScenePathError, resolve_scene_file
 
 COMMAND_TOPIC = "nodal_forces"
 COMMAND_TYPE = "std_msgs/msg/Float64MultiArray"
@@ -123,6 +129,10 @@ IDLE_CLOCK_PERIOD_S = 0.1
 """[s] wall period of ``/clock`` while no period advances (paused, waiting, failed)."""
 WAITING_LOG_PERIOD_S = 3.0
 """[s] wall period of the "waiting for ..." log line at t = 0."""
+WAITING_REPUBLISH_PERIOD_S = 0.5
+"""[s] wall period at which a lockstep node that waits for its first command publishes the
+waiting state again (not recorded), so that a volatile (default-QoS) controller that connects
+later receives a state to answer."""
 NAME_CHECK_DELAY_S = 2.0
 """[s] after start at which the graph is checked for another node of the same name."""
 FAST_TICK_BUDGET_NS = 20_000_000
@@ -188,7 +198,16 @@ class RodSimNode(Node):
     def _build_simulation(self) -> None:
         s = self.settings
         try:
-            self.scene = load_scene(s.scene_file)
+            path, note = resolve_scene_file(s.scene_file, self.get_fully_qualified_name(),
+                                            self._params_files)
+        except ScenePathError as exc:
+            raise NodeConfigError(f"scene_file {exc}") from None
+        if note:
+            self.get_logger().warning(note)
+        self.scene_path = path
+        """The scene file found for ``scene_file`` (:mod:`rod_sim.ros.scene_path`)."""
+        try:
+            self.scene = load_scene(path)
             self.model = make_model(s.model, self.scene)
             integrator = make_integrator(s.integrator, rtol=s.rtol)
             self.period_ns = period_ns(s.rate_hz)
@@ -269,7 +288,7 @@ class RodSimNode(Node):
         self._pubs = {name: self._publisher(
             topics.TOPIC_TYPES[name], self._topic_names[name],
             APPLIED_QOS if name == "applied_forces" else
-            STATE_QOS if name == "diagnostics" else state_qos)
+            DIAGNOSTICS_QOS if name == "diagnostics" else state_qos)
             for name in STATE_TOPICS + ("applied_forces", "diagnostics")}
         self._clock_pub = (self._publisher(topics.TOPIC_TYPES["clock"], "/clock",
                                            clock_qos(self.settings.clock_reliability))
@@ -291,6 +310,9 @@ class RodSimNode(Node):
         if self._clock_pub is not None:
             self.create_timer(IDLE_CLOCK_PERIOD_S, self._on_idle_clock, clock=self._steady)
         self.create_timer(WAITING_LOG_PERIOD_S, self._log_waiting, clock=self._steady)
+        if self.settings.sync_mode:
+            self.create_timer(WAITING_REPUBLISH_PERIOD_S, self._republish_waiting,
+                              clock=self._steady)
         self._name_timer = self.create_timer(NAME_CHECK_DELAY_S, self._check_name_unique,
                                              clock=self._steady)
         self._configure_pacing()
@@ -641,13 +663,24 @@ class RodSimNode(Node):
         t_ns = self.sim.t_ns
         self._max_alpha = max(self._max_alpha, float(np.max(np.abs(snap.alpha), initial=0.0)))
         self._max_beta = max(self._max_beta, float(np.max(np.abs(snap.beta), initial=0.0)))
+        self._publish_clock()       # /clock first: no output is stamped later than it
         wanted = [name for name in STATE_TOPICS if (force or self._wants(name))
                   and (name != "markers" or self._markers_due(t_ns))]
         if wanted:
             for name, data in topics.snapshot_messages(snap, self.scene, self._frame_id,
                                                        wanted).items():
                 self._emit(name, t_ns, data, force)
-        self._publish_clock()
+
+    def _republish_waiting(self) -> None:
+        """Lockstep, before the first valid command (at start and after ``~/reset``): publish
+        the waiting state again, not recorded, for volatile subscribers that joined since."""
+        if self._commands.latest is not None or self._sync_queue or self._error is not None:
+            return
+        wanted = [name for name in STATE_TOPICS
+                  if name != "markers" or self._markers_due(self.sim.t_ns)]
+        for name, data in topics.snapshot_messages(self.sim.snapshot(), self.scene,
+                                                   self._frame_id, wanted).items():
+            self._pubs[name].publish(to_message(topics.TOPIC_TYPES[name], data))
 
     def _publish_clock(self) -> None:
         """Simulated time on /clock (if enabled and someone listens)."""
@@ -760,7 +793,9 @@ class RodSimNode(Node):
                     "rtol": repr(s.rtol), "rate_hz": repr(s.rate_hz),
                     "source": "rod_sim node", "mode": self._mode(),
                     "node": self.get_fully_qualified_name()}
-        latched = ("applied_forces", HINGE_EVENTS_TOPIC) + (STATE_TOPICS if s.sync_mode else ())
+        state_depth = LOCKSTEP_STATE_DEPTH if s.sync_mode else STATE_DEPTH
+        latched = {"applied_forces": 1, HINGE_EVENTS_TOPIC: 100,
+                   **{name: state_depth for name in STATE_TOPICS}}
         return create_log(path, metadata, offered_qos(self._topic_names, latched))
 
     @property
