@@ -3,6 +3,8 @@ command) as a separate process, and a client graph (context, node, executor) in 
 process, both in one ROS domain on localhost."""
 from __future__ import annotations
 
+import itertools
+import os
 import signal
 import sys
 import time
@@ -16,6 +18,13 @@ from procs import Child
 
 STARTUP_S = 40.0
 """[s] allowed for a node process to come up (compiling the kernels on a cold cache)."""
+_NAMESPACES = itertools.count()
+
+
+def unique_namespace() -> str:
+    """A namespace no other test run on this machine uses (``/t<pid>_<k>``): other graphs in
+    the same ROS domain (another developer's tests) cannot cross-talk with this test's."""
+    return f"/t{os.getpid()}_{next(_NAMESPACES)}"
 
 
 def ros_args(params: dict) -> list[str]:
@@ -53,13 +62,13 @@ class NodeProcess(Child):
 
 
 class Client:
-    """A client node ``name`` in its own context in ROS domain ``domain``; :meth:`close` ends
-    it. The environment must already name the domain (monkeypatch ROS_DOMAIN_ID)."""
+    """A client node ``name`` (in ``namespace``) in its own context in ROS domain ``domain``;
+    :meth:`close` ends it. The environment must already name the domain (monkeypatch ROS_DOMAIN_ID)."""
 
-    def __init__(self, domain: int, name: str = "test_client"):
+    def __init__(self, domain: int, name: str = "test_client", namespace: str = ""):
         self.context = rclpy.Context()
         rclpy.init(context=self.context, domain_id=domain)
-        self.node = Node(name, context=self.context)
+        self.node = Node(name, context=self.context, namespace=namespace)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
 

@@ -15,7 +15,7 @@ import yaml
 pytest.importorskip("rclpy")
 
 from procs import ros_env  # noqa: E402
-from ros_graph import NodeProcess  # noqa: E402
+from ros_graph import NodeProcess, unique_namespace  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(240)]
 
@@ -35,35 +35,36 @@ def stepped_to(done: subprocess.CompletedProcess) -> float:
 
 
 def test_ctl_drives_a_namespaced_node(tmp_path):
-    node = NodeProcess(tmp_path, DOMAIN, extra=["-r", "__ns:=/arm1"], scene_file=SCENE)
+    ns = unique_namespace()                  # e.g. /t1234_0: no other graph in this domain
+    node = NodeProcess(tmp_path, DOMAIN, extra=["-r", f"__ns:={ns}"], scene_file=SCENE)
     try:
         node.wait_for_output("commands on")
-        paused = ctl("--ns", "/arm1", "pause")
+        paused = ctl("--ns", ns, "pause")
         assert paused.returncode == 0 and paused.stdout.startswith("pause: ok: paused at t ="), \
             paused.stdout + paused.stderr
-        t1 = stepped_to(ctl("--ns", "arm1", "step"))
-        t2 = stepped_to(ctl("--ns", "/arm1/", "step"))
+        t1 = stepped_to(ctl("--ns", ns.strip("/"), "step"))
+        t2 = stepped_to(ctl("--ns", ns + "/", "step"))
         assert t2 == pytest.approx(t1 + 0.01, abs=1e-9), "one step is one 10 ms period"
 
-        count = ctl("--ns", "/arm1", "param", "step_count", "3")
+        count = ctl("--ns", ns, "param", "step_count", "3")
         assert count.returncode == 0 and count.stdout.strip() == "step_count: set to 3"
-        assert stepped_to(ctl("--ns", "/arm1", "step")) == pytest.approx(t2 + 0.03, abs=1e-9)
-        rtf = ctl("--ns", "/arm1", "param", "real_time_factor", "1")      # int -> double
+        assert stepped_to(ctl("--ns", ns, "step")) == pytest.approx(t2 + 0.03, abs=1e-9)
+        rtf = ctl("--ns", ns, "param", "real_time_factor", "1")      # int -> double
         assert rtf.returncode == 0 and "set to 1.0" in rtf.stdout, rtf.stdout + rtf.stderr
-        got = ctl("--ns", "/arm1", "param", "rate_hz")
+        got = ctl("--ns", ns, "param", "rate_hz")
         assert got.returncode == 0 and got.stdout.strip() == "rate_hz: 100.0"
-        refused = ctl("--ns", "/arm1", "param", "rate_hz", "50.0")
+        refused = ctl("--ns", ns, "param", "rate_hz", "50.0")
         assert refused.returncode == 1 and "refused" in refused.stdout and "read-only" in \
             refused.stdout.lower().replace("read only", "read-only"), refused.stdout
-        unknown = ctl("--ns", "/arm1", "param", "no_such", "1")
+        unknown = ctl("--ns", ns, "param", "no_such", "1")
         assert unknown.returncode == 1 and "no parameter 'no_such'" in unknown.stderr
 
-        resumed = ctl("--ns", "/arm1", "resume")
+        resumed = ctl("--ns", ns, "resume")
         assert resumed.returncode == 0 and "resumed at t =" in resumed.stdout
-        running = ctl("--ns", "/arm1", "step")
+        running = ctl("--ns", ns, "step")
         assert running.returncode == 1 and "refused" in running.stdout
 
-        echo = ctl("--ns", "/arm1", "echo", "rod_states", "--count", "2")
+        echo = ctl("--ns", ns, "echo", "rod_states", "--count", "2")
         assert echo.returncode == 0, echo.stderr
         docs = [d for d in yaml.safe_load_all(echo.stdout) if d is not None]
         assert len(docs) == 2
@@ -72,12 +73,12 @@ def test_ctl_drives_a_namespaced_node(tmp_path):
                   for d in docs]
         assert stamps[1] > stamps[0]
 
-        hz = ctl("--ns", "/arm1", "hz", "rod_states", "--duration", "3.5")
+        hz = ctl("--ns", ns, "hz", "rod_states", "--duration", "3.5")
         assert hz.returncode == 0, hz.stderr
         rates = [float(r) for r in re.findall(r"average rate: ([0-9.]+) Hz", hz.stdout)]
         assert rates and 70.0 < rates[-1] < 130.0, hz.stdout     # 100 Hz at real time
 
-        reset = ctl("--ns", "/arm1", "reset")
+        reset = ctl("--ns", ns, "reset")
         assert reset.returncode == 0 and "reset to the initial state at t = 0 s" in reset.stdout
     finally:
         node.kill()

@@ -16,7 +16,7 @@ from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
 
-from ros_graph import STARTUP_S, Client, NodeProcess, stamp_ns  # noqa: E402
+from ros_graph import STARTUP_S, Client, NodeProcess, stamp_ns, unique_namespace  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
 
@@ -31,13 +31,18 @@ SUBSCRIBER_QOS = {
 
 
 @pytest.fixture
-def client_in(monkeypatch):
+def namespace() -> str:
+    return unique_namespace()
+
+
+@pytest.fixture
+def client_in(monkeypatch, namespace):
     made = []
 
     def make(domain: int) -> Client:
         monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
         monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
-        made.append(Client(domain))
+        made.append(Client(domain, namespace=namespace))
         return made[-1]
 
     yield make
@@ -46,11 +51,12 @@ def client_in(monkeypatch):
 
 
 @pytest.fixture
-def node_in(tmp_path):
+def node_in(tmp_path, namespace):
     started = []
 
     def start(domain: int, **params) -> NodeProcess:
-        started.append(NodeProcess(tmp_path, domain, **params))
+        started.append(NodeProcess(tmp_path, domain, extra=["-r", f"__ns:={namespace}"],
+                                   **params))
         return started[-1]
 
     yield start
@@ -68,7 +74,7 @@ def subscribe(client: Client, qos) -> list[int]:
 
 @pytest.mark.parametrize("sync", [False, True], ids=["real_time", "lockstep"])
 def test_default_and_transient_local_controllers_get_states_in_every_mode(
-        sync, client_in, node_in):
+        sync, client_in, node_in, namespace):
     domain = DOMAIN_LOCKSTEP if sync else DOMAIN_REALTIME
     client = client_in(domain)
     early = {name: subscribe(client, qos) for name, qos in SUBSCRIBER_QOS.items()}
@@ -80,7 +86,7 @@ def test_default_and_transient_local_controllers_get_states_in_every_mode(
     everyone = {**{f"early {k}": v for k, v in early.items()},
                 **{f"late {k}": v for k, v in late.items()}}
 
-    offered = client.node.get_publishers_info_by_topic("/rod_states")
+    offered = client.node.get_publishers_info_by_topic(f"{namespace}/rod_states")
     assert len(offered) == 1
     assert offered[0].qos_profile.reliability == ReliabilityPolicy.RELIABLE
     assert offered[0].qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL

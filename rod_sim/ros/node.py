@@ -96,6 +96,7 @@ from rod_sim.io.hinge_events import (HINGE_EVENTS_TOPIC, HINGE_EVENTS_TYPE, even
                                      event_time_ns)
 from rod_sim.io.mcap_log import LogWriter
 from rod_sim.io.scene_yaml import load_scene, scene_to_yaml
+from rod_sim.io.urdf import scene_urdf
 from rod_sim.ros import budget
 from rod_sim.ros.commands import COMMAND_SLACK_BYTES, Command, CommandIntake  # noqa: F401
 from rod_sim.ros.conversions import message_class, message_to_dict, to_message
@@ -109,7 +110,8 @@ from rod_sim.ros.parameters import (NODE_NAME, PARAMETERS, NodeSettings,  # noqa
                                     ParameterSpec, declare_settings, unknown_overrides,
                                     validate_change)
 from rod_sim.ros.qos import (APPLIED_QOS, CLOCK_QOS, CLOCK_RELIABILITY,  # noqa: F401
-                             COMMAND_QOS, DIAGNOSTICS_QOS, EVENTS_QOS, LOCKSTEP_STATE_DEPTH,
+                             COMMAND_QOS, DIAGNOSTICS_QOS, EVENTS_QOS, LATCHED_QOS,
+                             LOCKSTEP_STATE_DEPTH,
                              LOCKSTEP_STATE_QOS, STATE_DEPTH, STATE_QOS, clock_qos)
 from rod_sim.ros.recording import (MAX_LOG_ROLLS, NodeRecording, create_log,  # noqa: F401
                                    offered_qos)
@@ -119,6 +121,10 @@ COMMAND_TOPIC = "nodal_forces"
 COMMAND_TYPE = "std_msgs/msg/Float64MultiArray"
 STATE_TOPICS = ("joint_states", "rod_states", "bending", "node_poses", "markers")
 """Published at the end of every control period (if subscribed or recorded)."""
+DESCRIPTION_TOPICS = ("robot_description", "scene")
+"""Published once, transient local, and recorded at t = 0 of every log: the chain as URDF
+(:mod:`rod_sim.io.urdf`) and the resolved scene as YAML (a converted log stays
+self-contained)."""
 
 DIAGNOSTICS_TOPIC = "/diagnostics"
 """Absolute, where diagnostic_aggregator listens (as diagnostic_updater publishes)."""
@@ -176,6 +182,7 @@ class RodSimNode(Node):
         except BaseException:
             self.destroy_node()
             raise
+        self._publish_descriptions()
         self._publish_state(self.sim.snapshot(), force=self.settings.sync_mode)
         self._warn_unknown_parameters()
         self.get_logger().info(
@@ -279,7 +286,8 @@ class RodSimNode(Node):
         """Relative topic name -> the resolved name it is published and recorded under
         (namespace and remappings applied, as rosbag2 records)."""
         names = {name: self.resolve_topic_name(name)
-                 for name in STATE_TOPICS + ("applied_forces", COMMAND_TOPIC, HINGE_EVENTS_TOPIC)}
+                 for name in STATE_TOPICS + DESCRIPTION_TOPICS
+                 + ("applied_forces", COMMAND_TOPIC, HINGE_EVENTS_TOPIC)}
         names["diagnostics"] = self.resolve_topic_name(DIAGNOSTICS_TOPIC)
         return names
 
@@ -290,6 +298,9 @@ class RodSimNode(Node):
             APPLIED_QOS if name == "applied_forces" else
             DIAGNOSTICS_QOS if name == "diagnostics" else state_qos)
             for name in STATE_TOPICS + ("applied_forces", "diagnostics")}
+        self._pubs.update({name: self._publisher(topics.TOPIC_TYPES[name],
+                                                 self._topic_names[name], LATCHED_QOS)
+                           for name in DESCRIPTION_TOPICS})
         self._clock_pub = (self._publisher(topics.TOPIC_TYPES["clock"], "/clock",
                                            clock_qos(self.settings.clock_reliability))
                            if self.settings.publish_clock else None)
@@ -389,6 +400,9 @@ class RodSimNode(Node):
                 self._commands.set_timeout(float(p.value))
             elif p.name == "frame_id":
                 self._frame_id = str(p.value)
+                self._pubs["robot_description"].publish(to_message(
+                    topics.TOPIC_TYPES["robot_description"],
+                    {"data": scene_urdf(self.scene, self._frame_id)}))
             elif p.name == "step_count":
                 self._step_count = int(p.value)
 
@@ -671,6 +685,17 @@ class RodSimNode(Node):
                                                        wanted).items():
                 self._emit(name, t_ns, data, force)
 
+    def _publish_descriptions(self) -> None:
+        """``robot_description`` (URDF, root link = ``frame_id``) and ``scene`` (YAML): published
+        (transient local) and recorded at the current simulated time (t = 0 at start and after
+        ``~/reset``)."""
+        texts = {"robot_description": scene_urdf(self.scene, self._frame_id),
+                 "scene": scene_to_yaml(self.scene)}
+        for name, text in texts.items():
+            self._recording.record(self._topic_names[name], topics.TOPIC_TYPES[name],
+                                   self.sim.t_ns, {"data": text})
+            self._pubs[name].publish(to_message(topics.TOPIC_TYPES[name], {"data": text}))
+
     def _republish_waiting(self) -> None:
         """Lockstep, before the first valid command (at start and after ``~/reset``): publish
         the waiting state again, not recorded, for volatile subscribers that joined since."""
@@ -741,6 +766,7 @@ class RodSimNode(Node):
         if self._pacer is not None:
             self._pacer.unanchor()
         note = self._recording.roll()
+        self._publish_descriptions()
         self._publish_state(self.sim.snapshot())
         response.success = True
         response.message = "reset to the initial state at t = 0 s" + note
@@ -795,6 +821,7 @@ class RodSimNode(Node):
                     "node": self.get_fully_qualified_name()}
         state_depth = LOCKSTEP_STATE_DEPTH if s.sync_mode else STATE_DEPTH
         latched = {"applied_forces": 1, HINGE_EVENTS_TOPIC: 100,
+                   **{name: 1 for name in DESCRIPTION_TOPICS},
                    **{name: state_depth for name in STATE_TOPICS}}
         return create_log(path, metadata, offered_qos(self._topic_names, latched))
 

@@ -32,6 +32,9 @@ subscribers match), depth 1: a transient-local client gets the latest state (the
 before the first command) and can answer it."""
 DIAGNOSTICS_QOS = keep_last(10)
 """``/diagnostics``: reliable, volatile, depth 10, as diagnostic_updater publishes."""
+LATCHED_QOS = keep_last(1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+"""``robot_description`` and ``scene``: published once (and after ``~/reset``), kept for late
+subscribers, as robot_state_publisher publishes ``robot_description``."""
 APPLIED_QOS = keep_last(1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 """``applied_forces`` is published only when it changes: late subscribers get the latest one."""
 CLOCK_QOS = keep_last(1, reliability=ReliabilityPolicy.BEST_EFFORT)

@@ -51,10 +51,13 @@ def _scene_for(log, scene_path: str | None):
 
     if scene_path is None:
         logged = metadata_scene(log.metadata, str(log.path))
+        if logged is not None:
+            return logged, "log metadata", None
+        logged = log.topic_scene()
         if logged is None:
-            raise UsageError(f"{log.path} has no rod_sim metadata with a scene; pass --scene "
-                             "SCENE.yaml")
-        return logged, "log metadata", None
+            raise UsageError(f"{log.path} has no rod_sim metadata and no /scene topic with a "
+                             "scene; pass --scene SCENE.yaml")
+        return logged, "the log's /scene topic", None
     scene = load_scene(scene_path)
     note = None
     try:
