@@ -21,10 +21,11 @@ period (zero-order hold). The subscription callback never integrates: it validat
 - Real time (``real_time_factor`` > 0, ``sync_mode`` false): a steady wall-clock timer ticks;
   at each tick a :class:`~rod_sim.ros.pacing.RealTimePacer` compares the simulated time with
   ``real_time_factor`` x the wall time since the clock was anchored and the node advances the
-  whole periods it is behind (a tick is not assumed to be one period). When stepping costs more
-  than the wall time it represents, at most a few periods are advanced per tick and the rest of
-  the backlog is dropped (the clock is re-anchored): the ``diagnostics`` then show a measured
-  real-time factor below the target instead of the executor stalling.
+  whole periods it is behind (a tick is not assumed to be one period). A backlog is caught up
+  as far as the measured wall cost of a period affords it (median of recent ticks, see
+  :meth:`~rod_sim.ros.pacing.RealTimePacer.decide`); only what cannot be caught up is dropped
+  (the clock is re-anchored): the ``diagnostics`` then show a measured real-time factor below
+  the target instead of the executor stalling.
 - As fast as possible (``real_time_factor`` 0): a zero-period timer advances periods for a
   bounded wall-time budget per tick, so commands and services are still served between ticks.
 - Lockstep (``sync_mode`` true): exactly one period per received valid command, then the
@@ -143,6 +144,8 @@ NAME_CHECK_DELAY_S = 2.0
 """[s] after start at which the graph is checked for another node of the same name."""
 FAST_TICK_BUDGET_NS = 20_000_000
 """[ns] wall time one tick may spend stepping when running as fast as possible."""
+PERIOD_COST_TICKS = 50
+"""Ticks whose wall cost per period the pacer's estimate is the median of."""
 SYNC_BATCH = 16
 """Lockstep commands processed per executor callback before yielding to other callbacks."""
 THROTTLE_S = 2.0
@@ -276,6 +279,9 @@ class RodSimNode(Node):
         self._max_alpha = 0.0
         self._max_beta = 0.0
         self._pacer: RealTimePacer | None = None
+        self._period_cost_ns: float | None = None
+        """[ns] estimate of the wall cost of one period (None until measured)."""
+        self._period_costs: deque[float] = deque(maxlen=PERIOD_COST_TICKS)
         self._tick_timer = None
         self._frame_id = self.settings.frame_id
         self._rtf = self.settings.real_time_factor
@@ -549,18 +555,32 @@ class RodSimNode(Node):
             while self._running() and time.monotonic_ns() < deadline:
                 self._step_period(self._held_command(wall_age=False))
             return
-        decision = self._pacer.decide(time.monotonic_ns(), self.sim.t_ns)
+        decision = self._pacer.decide(time.monotonic_ns(), self.sim.t_ns, self._period_cost_ns)
         if decision.dropped:
             self._dropped += decision.dropped
             self._log_throttled(
                 "dropped", "warning",
-                f"stepping is slower than real time x{self._rtf:g}: dropped {decision.dropped} "
-                f"period(s) of backlog ({self._dropped} in all)")
-        deadline = time.monotonic_ns() + self._budget.seconds * NS_PER_S
+                f"cannot keep up with real time x{self._rtf:g}: dropped {decision.dropped} "
+                f"period(s) of backlog ({self._dropped} in all; a period costs "
+                f"{(self._period_cost_ns or 0) / 1e6:.3g} ms of wall time)")
+        start = time.monotonic_ns()
+        deadline = start + self._budget.seconds * NS_PER_S
+        stepped = 0
         for _ in range(decision.periods):       # the rest of a slow tick waits for the next
-            if (not self._step_period(self._held_command(wall_age=True))
-                    or time.monotonic_ns() > deadline):
+            ok = self._step_period(self._held_command(wall_age=True))
+            stepped += ok
+            if not ok or time.monotonic_ns() > deadline:
                 break
+        if stepped:
+            self._note_period_cost((time.monotonic_ns() - start) / stepped)
+
+    def _note_period_cost(self, cost_ns: float) -> None:
+        """Add one tick's wall cost per period [ns] (stepping, publishing, recording) to the
+        estimate the pacer catches up with: the median of the last :data:`PERIOD_COST_TICKS`
+        ticks (a tick that was itself preempted by another process does not inflate it; when
+        every tick is slow, the median is slow too)."""
+        self._period_costs.append(cost_ns)
+        self._period_cost_ns = float(np.median(self._period_costs))
 
     def _on_sync_trigger(self) -> None:
         """Lockstep: one period per queued command, a bounded batch per callback."""
