@@ -99,7 +99,8 @@ def test_the_section_has_the_blocks_this_module_runs():
     assert "rod-sim node" in commands[0] and "record_path:=out/run.mcap" in commands[0]
     assert "__ns:=/arm1" in commands[1] and "sync_mode:=true" in commands[1]
     assert "rod_sim.ros.demo" in commands[2]
-    assert len(code_blocks("python")) == 1
+    blocks = code_blocks("python")     # the lockstep client (run here) and the torque helpers
+    assert len(blocks) == 2 and "hinge_forces" in blocks[1]   # (run by test_controller_api.py)
 
 
 def test_realtime_node_with_the_params_file_records_and_answers_ctl(shell, tmp_path):
