@@ -38,12 +38,12 @@ def ros_args(params: dict) -> list[str]:
 
 class NodeProcess(Child):
     """``rod-sim node --ros-args [extra] -p k:=v ...`` (through ``python -m
-    rod_sim.tools.cli``), stderr in ``tmp_path/<name>.err``."""
+    rod_sim.tools.cli``; ``command`` replaces ``-m rod_sim.tools.cli node``), stderr in
+    ``tmp_path/<name>.err``."""
 
     def __init__(self, tmp_path: Path, domain: int, name: str = "node",
-                 extra: list[str] = (), **params):
-        args = [sys.executable, "-m", "rod_sim.tools.cli", "node", "--ros-args",
-                *extra, *ros_args(params)]
+                 extra: list[str] = (), command=("-m", "rod_sim.tools.cli", "node"), **params):
+        args = [sys.executable, *command, "--ros-args", *extra, *ros_args(params)]
         super().__init__(args, domain, tmp_path / f"{name}.err", tmp_path / f"{name}.out")
 
     def wait_for_output(self, text: str, timeout: float = STARTUP_S) -> None:
