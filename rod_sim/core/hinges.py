@@ -8,10 +8,11 @@ have fired, an (n,) bool array owned by the driver); no model state.
 - stops [lo_h, hi_h] on the rigid hinge angle theta_h (phi_1 for hinge 0, phi_{h+1} - phi_h
   otherwise): a one-sided visco-elastic contact moment, see :func:`contact_moments`.
 - locked hinges (scene or latched) and rigid rods (full model) are linear constraints
-  C x' = 0 on the coordinates x (phi, or [phi, alpha, beta] in the full model). With a basis
-  T of null(C) the accelerations are x'' = T (T^T M T)^{-1} T^T f (:func:`constraint_basis`;
-  T from the reduced row echelon form of C, so it is sparse and passed to the kernels as
-  coordinate lists). Explicit Runge-Kutta keeps C x constant to rounding.
+  C x' = 0 on the coordinates x (phi, or [phi, alpha, beta] in the full model): the kernels
+  solve M x'' = f + C^T lambda, C x'' = 0 in O(n) (a multiplier per locked hinge, the pinned
+  slopes of a rigid rod dropped), which equals the projected equations
+  x'' = T (T^T M T)^{-1} T^T f for any basis T of null(C). Explicit Runge-Kutta keeps C x
+  constant to rounding.
 - latches: a terminal event theta_h = latch_h located by the driver; the hinge joins the
   locked set and the velocities jump by the impulsive constraint x'+ = T (T^T M T)^{-1}
   T^T M x'-.
@@ -80,62 +81,6 @@ def locked_hinges(scene: Scene, mode: np.ndarray | None) -> np.ndarray:
     """Hinges held rigid (n,) bool: locked in the scene or latched (``mode``)."""
     locked = np.array(scene.hinge_locked, dtype=bool)
     return locked if mode is None else locked | np.asarray(mode, dtype=bool)
-
-
-def constraint_matrix(scene: Scene, dof_per_rod: int, locked: np.ndarray) -> np.ndarray:
-    """C (rows, dof): C x' = 0 for the locked hinges (and rigid rods in the full model)."""
-    n = scene.n
-    dof = n * dof_per_rod
-    full = dof_per_rod == 3
-    rows = []
-    for h in np.flatnonzero(locked):
-        r = np.zeros(dof)
-        r[h] = 1.0
-        if full:
-            r[n + h] = 1.0               # Delta_h = phi_h + alpha_h - phi_{h-1} - beta_{h-1}
-        if h > 0:
-            r[h - 1] = -1.0
-            if full:
-                r[2 * n + h - 1] = -1.0
-        rows.append(r)
-    if full:
-        for k in np.flatnonzero(scene.rod_rigid):
-            for off in (n, 2 * n):
-                r = np.zeros(dof)
-                r[off + k] = 1.0
-                rows.append(r)
-    return np.array(rows).reshape(len(rows), dof)
-
-
-def constraint_basis(C: np.ndarray, pivot_order) -> np.ndarray:
-    """T (dof, r), a basis of null(C) from its reduced row echelon form: pivots are tried in
-    ``pivot_order`` (coordinates to eliminate first), every free coordinate gets a column
-    with 1 at itself and minus its pivot-row entries. Sparse for the hinge constraints."""
-    R = np.array(C, dtype=float)
-    rows, dof = R.shape
-    pivots: list[int] = []
-    r = 0
-    for col in pivot_order:
-        if r == rows:
-            break
-        i = r + int(np.argmax(np.abs(R[r:, col])))
-        if abs(R[i, col]) < 1e-12:
-            continue
-        R[[r, i]] = R[[i, r]]
-        R[r] /= R[r, col]
-        for k in range(rows):
-            if k != r and R[k, col] != 0.0:
-                R[k] -= R[k, col] * R[r]
-        pivots.append(col)
-        r += 1
-    free = [j for j in range(dof) if j not in pivots]
-    T = np.zeros((dof, len(free)))
-    for c, j in enumerate(free):
-        T[j, c] = 1.0
-        for k, p in enumerate(pivots):
-            T[p, c] = -R[k, j]
-    T[np.abs(T) < 1e-15] = 0.0
-    return T
 
 
 def event_table(scene: Scene, locked: np.ndarray):

@@ -232,7 +232,7 @@ class JitRadau(JitDop853):
 
     def _workspace(self, model):
         if self._work is None or self._work_model is not model:
-            self._work = radau.radau_workspace(model.state_size)
+            self._work = radau.chain_radau_workspace(model)
             self._work_model = model
         return self._work
 

@@ -1,31 +1,37 @@
-"""Compiled right-hand sides of the three models (the hot path).
+"""Compiled right-hand sides of the three models in O(n) time and memory (the hot path).
 
 All kernels share one calling convention so that the compiled integrators can take any of
 them: ``rhs(t, y, chain, extra, loads, held, t_side, out)`` writes dy/dt into ``out``.
 
-- ``chain`` = (l, m, mu, Kt, kappa, nu, Mt, C): arrays (n,) of rod length [m], mass per
-  length [kg/m], node mass [kg], 4 EI / l [N m/rad], hinge stiffness [N m/rad], hinge damping
-  [N m s/rad], tail mass M_k [kg] and m l^2 / 12 [kg m].
-- ``extra`` = (P_alpha, P_beta, B_inv, work, *hinge): reduced-model constants P =
-  [kappa^{gamma phi}]^T [b^{gamma gamma}]^{-1} split into its alpha and beta halves (n, n)
-  each and B_inv = [b^{gamma gamma}]^{-1} (2n, 2n) (other models: zeros, unused), ``work``, a
-  scratch array of ``workspace_size(n)`` floats so that a call allocates nothing (the
-  kernels are therefore not re-entrant: one model instance per thread), and ``hinge``, the
-  hinge features in the current mode, flat in ``extra[4:]`` (see :data:`HINGE_FIELDS`; all
-  zeros/infinite for a plain chain, which then runs exactly the paper's equations; flat
-  because every read of a nested tuple would reference-count all of its arrays).
+- ``chain`` (:class:`Chain`): the scene's constant per-rod arrays (n,).
+- ``extra`` (:class:`Extra`): the hinge features in the current mode and the kernel's
+  scratch (a call allocates nothing, so the kernels are not re-entrant: one model instance per
+  thread). A plain chain (no rest angle, stop or lock) runs exactly the paper's equations.
 - ``loads`` = (node, axis, shape, amplitude, start, duration) arrays describing scripted loads;
-  ``held`` (n, 2) the held (commanded) nodal forces [N]; ``t_side`` a time strictly inside the
-  current segment between load breakpoints, which decides which side of a jump applies.
+  ``held`` (n, 3): the held (commanded) nodal forces X, Y [N] at nodes 1..n and motor moments
+  T [N m] at hinges 0..n-1 (T_h acts +T on rod h and -T on rod h-1, like a hinge spring whose
+  moment is -T); ``t_side`` a time strictly inside the current segment between load
+  breakpoints, which decides which side of a jump applies.
 
-The mass matrix and velocity terms are assembled entry by entry in O(n^2) without Python
-loops; the linear solve is a small in-place Gaussian elimination (O(n^3)). The helpers are
-inlined into the kernels at numba IR level (``inline="always"``): at n = 8 the array views and
-reference counting of separate calls cost ~20 % of a right-hand side.
+**How the equations are solved in O(n).** The paper's mass matrix is dense but structured:
+with e_k = (cos phi_k, sin phi_k), its entries for rods k < j are products of a vector of
+rod k and a vector of rod j (m^{phi phi}_kj = (l_k e_k).(l_j M_j e_j), m^{phi alpha}_kj =
+(l_k e_k).(C_j e_j), ...): a semiseparable matrix of rank 2 plus 3 x 3 diagonal blocks. So
+every coupling between the rods before and after a node passes through two 2-vectors, the
+node acceleration z = sum_{j<k} l_j e_j phi''_j and the "reaction" R = sum_{j>k} (...) e_j;
+the reduced model adds the hinge-spring band (beta_{k-1} <-> alpha_k) and a locked hinge its
+constraint (a rotation one way, a multiplier the other). :func:`chain_solve` eliminates the
+rods from the tip to the root (each rod's influence on its parent is an affine map of the
+4-vector interface u = (z, rotation-like, rotation-like), as in the articulated-body
+algorithm), then substitutes forward: Gaussian elimination of the exact dense system in a
+tree order, a 3 x 3 solve per rod. The velocity terms g Lambda phi' are prefix and suffix
+sums of the same products. The dense formulation is kept as the test oracle
+(test/dense_kernels.py).
 """
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -33,24 +39,111 @@ from .jit import njit
 
 SHAPE_PULSE, SHAPE_CONSTANT, SHAPE_STEP = 0, 1, 2
 
-HINGE_FIELDS = ("H", "flags", "T_row", "T_col", "T_val", "C_row", "C_col", "C_val", "pivots",
-                "scratch")
-"""``extra[4:14]``. ``H`` (8, n) float, rows: rest-angle generalized forces on phi, alpha,
-beta [N m] (kappa theta_rest dDelta/dq: kr_h - kr_{h+1}, kr_h, -kr_{h+1}); stop angles lower,
-upper [rad] (+-inf: none); contact stiffness [N m/rad] and damping [N m s/rad]; contact
-state (+1 in contact with the upper stop, -1 the lower, 0 free: the contact law applies by
-mode, switched at located crossings, not by the sign of the penetration). ``flags`` int64
-(4,) = [any hinge in contact, constrained, r, rows of C]; the constraint basis T (dof, r)
-and the constraint matrix C (rows, dof) as coordinate lists (row, col int64, value float;
-the full model solves with Lagrange multipliers through its Schur complement, the others
-with T); ``pivots`` int64 (n,) and ``scratch`` floats (3 dof^2 + 2 dof) for those solves."""
+# model kinds of chain_solve
+KIND_REDUCED, KIND_FULL = 0, 1
+
+# columns of Extra.work (n, N_WORK)
+W_C, W_S, W_GP, W_GA, W_FP, W_FA, W_FB, W_X, W_A, W_B, W_COR = range(11)
+W_REC = 11                # 15 columns: v0 (3) and V (3 x 4) of each rod's elimination
+N_WORK = W_REC + 15
+N_SMALL = 64              # Extra.small: the 4-vector P, 4 x 4 K and 3 x 5 systems
+
+
+class Chain(NamedTuple):
+    """Constant per-rod arrays, each (n,), SI units: rod length l [m], mass per length m
+    [kg/m], node mass mu [kg] (nodes 1..n), Kt = 4 EI / l [N m/rad], hinge stiffness kappa
+    [N m/rad] and damping nu [N m s/rad] of hinges 0..n-1, tail mass Mt_k [kg] (the paper's
+    M_k), C = m l^2 / 12 [kg m], A_kk the diagonal of m^{phi phi} [kg m^2], c30 = m l^3 / 30,
+    c20 = m l^3 / 20, c105 = m l^3 / 105, c140 = m l^3 / 140 [kg m^2] (bending inertia
+    coefficients), kappa_tip = kappa of the hinge at the rod's tip (0 for the last rod)."""
+
+    l: np.ndarray
+    m: np.ndarray
+    mu: np.ndarray
+    Kt: np.ndarray
+    kappa: np.ndarray
+    nu: np.ndarray
+    Mt: np.ndarray
+    C: np.ndarray
+    Akk: np.ndarray
+    c30: np.ndarray
+    c20: np.ndarray
+    c105: np.ndarray
+    c140: np.ndarray
+    kappa_tip: np.ndarray
+
+
+class Extra(NamedTuple):
+    """Hinge features in one mode plus scratch; arrays (n,) unless stated.
+
+    rest_phi, rest_alpha, rest_beta [N m]: rest-angle generalized forces kappa theta_rest
+    dDelta/dq on phi, alpha, beta; stop_lower, stop_upper [rad] (+-inf: none), stop_k [N m/rad],
+    stop_c [N m s/rad]; contact (+1 in contact with the upper stop, -1 the lower, 0 free: the
+    contact law applies by mode, switched at located crossings); locked int64 (1: hinge held
+    rigid, C x'' = 0, or with comp != 0 compliant: C x'' = -comp lambda, see
+    :func:`chain_solve`); comp [rad/(N m)] (n,) compliance of locked hinges (0 in the
+    dynamics); gw (n,): weight of a compliant hinge's multiplier on the slope rows of the
+    reduced model (1: the hinge spring's own rows, alpha_h and beta_{h-1}; 0: the phi rows
+    only, as a lock or a stop); pinned int64 (1: the rod's end slopes are zero: rigid rods, every rod of
+    the rigid model); flags int64 (2,) = [any hinge in contact, any hinge locked]; work
+    (n, N_WORK) and small (N_SMALL,) scratch; forces (n, 2) and tau (n + 1,) scratch; kind:
+    KIND_REDUCED (rigid and reduced models) or KIND_FULL."""
+
+    rest_phi: np.ndarray
+    rest_alpha: np.ndarray
+    rest_beta: np.ndarray
+    stop_lower: np.ndarray
+    stop_upper: np.ndarray
+    stop_k: np.ndarray
+    stop_c: np.ndarray
+    contact: np.ndarray
+    locked: np.ndarray
+    comp: np.ndarray
+    gw: np.ndarray
+    pinned: np.ndarray
+    flags: np.ndarray
+    work: np.ndarray
+    small: np.ndarray
+    forces: np.ndarray
+    tau: np.ndarray
+    kind: int
+
+
+def make_chain(l, m, mu, EI, kappa, nu) -> Chain:
+    """:class:`Chain` from the per-rod constants (n,) each [SI]."""
+    l, m, mu, EI, kappa, nu = (np.ascontiguousarray(a, dtype=float)
+                               for a in (l, m, mu, EI, kappa, nu))
+    ml = m * l
+    Mt = np.cumsum((mu + ml)[::-1])[::-1] - ml / 2.0
+    ml3 = m * l**3
+    return Chain(l, m, mu, 4.0 * EI / l, kappa, nu, Mt, m * l**2 / 12.0,
+                 l**2 * (Mt - ml / 2.0) + ml3 / 3.0, ml3 / 30.0, ml3 / 20.0, ml3 / 105.0,
+                 ml3 / 140.0, np.append(kappa[1:], 0.0))
+
+
+def make_extra(rest, stops, contact, locked, pinned, comp=None, kind=KIND_REDUCED,
+               dtype=float) -> Extra:
+    """:class:`Extra` for n rods: ``rest`` (3, n) [N m], ``stops`` (4, n) = lower, upper [rad],
+    stiffness, damping; ``contact`` (n,) int; ``locked``, ``pinned`` (n,) bool; ``comp``
+    (n,) compliance of the locked hinges (default 0: rigid); ``dtype`` of the solve's
+    scratch and compliances (complex for Radau's complex Newton system)."""
+    n = len(locked)
+    f = lambda a: np.ascontiguousarray(a, dtype=float)  # noqa: E731
+    i = lambda a: np.ascontiguousarray(a, dtype=np.int64)  # noqa: E731
+    contact = f(contact)
+    flags = np.array([int(np.any(contact != 0)), int(np.any(locked))], dtype=np.int64)
+    return Extra(f(rest[0]), f(rest[1]), f(rest[2]), f(stops[0]), f(stops[1]), f(stops[2]),
+                 f(stops[3]), contact, i(locked),
+                 np.array(np.zeros(n) if comp is None else comp, dtype=dtype),
+                 np.zeros(n, dtype=dtype), i(pinned), flags, np.zeros((n, N_WORK), dtype=dtype),
+                 np.zeros(N_SMALL, dtype=dtype), np.zeros((n, 2)), np.zeros(n + 1), int(kind))
 
 
 @njit(inline="always")
 def load_forces(t, loads, held, t_side, out):
     """Nodal forces (n, 2) [N] at time t: held forces plus scripted loads."""
     node, axis, shape, amp, start, dur = loads
-    out[:, :] = held
+    out[:, :] = held[:, :2]
     for i in range(node.shape[0]):
         if t_side < start[i]:
             continue
@@ -69,67 +162,58 @@ def load_forces(t, loads, held, t_side, out):
 
 
 @njit(inline="always")
-def generalized_forces(l, c, s, forces, out):
-    """Q_k = l_k (c_k sum_{j>=k} Y_j - s_k sum_{j>=k} X_j) [N m] into out (n,)."""
+def _generalized_forces(l, W, forces):
+    """Q_k = l_k (c_k sum_{j>=k} Y_j - s_k sum_{j>=k} X_j) [N m] into W[:, W_FP]."""
     n = l.shape[0]
     sx = 0.0
     sy = 0.0
     for k in range(n - 1, -1, -1):
         sx += forces[k, 0]
         sy += forces[k, 1]
-        out[k] = l[k] * (c[k] * sy - s[k] * sx)
+        W[k, W_FP] = l[k] * (W[k, W_C] * sy - W[k, W_S] * sx)
 
 
 @njit(inline="always")
-def assemble(c, s, dphi, chain, A, Ma, Mb, g_phi, g_alpha):
-    """One pass over rod pairs, given c = cos(phi), s = sin(phi) (n,) and phi_dot (n,):
-    the inertia blocks m^{phi phi} (A), m^{phi alpha} (Ma), m^{phi beta} (Mb), each (n, n),
-    g^{phi phi} Lambda phi_dot into g_phi (n,) and g^{alpha phi} Lambda phi_dot into
-    g_alpha (n,) (g^{beta phi} Lambda phi_dot = -g_alpha)."""
-    l, m, mu, Kt, kappa, nu, Mt, C = chain
-    n = l.shape[0]
+def _velocity_terms(ch, dphi, W):
+    """g^{phi phi} Lambda phi' into W[:, W_GP] and g^{alpha phi} Lambda phi' into W[:, W_GA]
+    (n,) [N m] (g^{beta phi} Lambda phi' = -g_alpha) from cos/sin in W[:, W_C], W[:, W_S]:
+    sin(phi_k - phi_j) = s_k c_j - c_k s_j turns the pair sums into prefix/suffix sums."""
+    n = dphi.shape[0]
+    sc = 0.0
+    ss = 0.0
     for k in range(n):
-        gp = 0.0
-        ga = 0.0
-        for j in range(n):
-            ckj = c[k] * c[j] + s[k] * s[j]
-            skj = s[k] * c[j] - c[k] * s[j]
-            w = dphi[j] * dphi[j]
-            if j < k:
-                llM = l[k] * l[j] * Mt[k]
-                A[k, j] = llM * ckj
-                gp += llM * skj * w
-                ga += C[k] * l[j] * skj * w
-                Ma[k, j] = 0.0
-                Mb[k, j] = 0.0
-            elif j > k:
-                llM = l[k] * l[j] * Mt[j]
-                A[k, j] = llM * ckj
-                gp += llM * skj * w
-                Ma[k, j] = C[j] * l[k] * ckj
-                Mb[k, j] = -Ma[k, j]
-        ml3 = m[k] * l[k] ** 3
-        A[k, k] = l[k] ** 2 * (Mt[k] - m[k] * l[k] / 2.0) + ml3 / 3.0
-        Ma[k, k] = ml3 / 30.0
-        Mb[k, k] = -ml3 / 20.0
-        g_phi[k] = gp
-        g_alpha[k] = ga
+        c = W[k, W_C]
+        s = W[k, W_S]
+        low = s * sc - c * ss                   # sum_{j<k} l_j sin(phi_k - phi_j) phi_j'^2
+        W[k, W_GP] = ch.l[k] * ch.Mt[k] * low
+        W[k, W_GA] = ch.C[k] * low
+        w = ch.l[k] * dphi[k] * dphi[k]
+        sc += w * c
+        ss += w * s
+    sc = 0.0
+    ss = 0.0
+    for k in range(n - 1, -1, -1):
+        c = W[k, W_C]
+        s = W[k, W_S]
+        W[k, W_GP] += ch.l[k] * (s * sc - c * ss)
+        w = ch.l[k] * ch.Mt[k] * dphi[k] * dphi[k]
+        sc += w * c
+        ss += w * s
 
 
-@njit
-def mass_blocks(phi, chain, A, Ma, Mb):
-    """Inertia blocks m^{phi phi} (A), m^{phi alpha} (Ma), m^{phi beta} (Mb), each (n, n)."""
+@njit(inline="always")
+def _start(t, phi, dphi, ch, ex, loads, held, t_side):
+    """What every kernel computes first: cos/sin, velocity terms, nodal forces, Q (into
+    W[:, W_FP]); returns the work array W (n, N_WORK)."""
+    W = ex.work
     n = phi.shape[0]
-    assemble(np.cos(phi), np.sin(phi), np.zeros(n), chain, A, Ma, Mb, np.empty(n), np.empty(n))
-
-
-@njit
-def rigid_velocity_terms(phi, dphi, chain, g_phi, g_alpha):
-    """g^{phi phi} Lambda phi_dot into g_phi (n,), g^{alpha phi} Lambda phi_dot into g_alpha
-    (n,); g^{beta phi} Lambda phi_dot = -g_alpha."""
-    n = phi.shape[0]
-    assemble(np.cos(phi), np.sin(phi), dphi, chain, np.empty((n, n)), np.empty((n, n)),
-             np.empty((n, n)), g_phi, g_alpha)
+    for k in range(n):
+        W[k, W_C] = math.cos(phi[k])
+        W[k, W_S] = math.sin(phi[k])
+    _velocity_terms(ch, dphi, W)
+    load_forces(t, loads, held, t_side, ex.forces)
+    _generalized_forces(ch.l, W, ex.forces)
+    return W
 
 
 @njit(inline="always")
@@ -141,118 +225,279 @@ def hinge_angle(phi, dphi, h):
 
 
 @njit(inline="always")
-def rigid_hinge_moments(phi, dphi, kappa, nu, out):
-    """Hinge moments with gamma = 0: kappa_h dphi_h + nu_h d(dphi_h)/dt [N m] into out (n,)."""
-    n = phi.shape[0]
-    for h in range(n):
-        d, dd = hinge_angle(phi, dphi, h)
-        out[h] = kappa[h] * d + nu[h] * dd
-
-
-@njit(inline="always")
-def _pivot(A, col):
-    """(row of the largest |A[r, col]| for r >= col, that value): partial pivoting."""
-    piv = col
-    best = abs(A[col, col])
-    for r in range(col + 1, A.shape[0]):
-        v = abs(A[r, col])
-        if v > best:
-            best = v
-            piv = r
-    return piv, best
-
-
-@njit(inline="always")
-def solve_inplace(A, b):
-    """Solve A x = b by Gaussian elimination with partial pivoting; x overwrites b.
-
-    A (n, n) is destroyed. Returns False when A is singular (a zero pivot)."""
-    n = b.shape[0]
-    for col in range(n):
-        piv, best = _pivot(A, col)
-        if best == 0.0:
-            return False
-        if piv != col:
-            for c2 in range(col, n):
-                tmp = A[col, c2]
-                A[col, c2] = A[piv, c2]
-                A[piv, c2] = tmp
-            tmp = b[col]
-            b[col] = b[piv]
-            b[piv] = tmp
-        inv = 1.0 / A[col, col]
-        # Row slices (contiguous 1-D views) let LLVM vectorise the update: 2x faster at
-        # n = 128 than indexing A[r, c2] (same operations in the same order).
-        pivot_row = A[col, col + 1:]
-        b_col = b[col]
-        for r in range(col + 1, n):
-            f = A[r, col] * inv
-            row = A[r, col + 1:]
-            for c2 in range(pivot_row.shape[0]):
-                row[c2] -= f * pivot_row[c2]
-            b[r] -= f * b_col
-    for r in range(n - 1, -1, -1):
-        acc = b[r]
-        for c2 in range(r + 1, n):
-            acc -= A[r, c2] * b[c2]
-        b[r] = acc / A[r, r]
-    return True
-
-
-@njit(inline="always")
-def hinge_forces(phi, dphi, H, flags, out):
-    """Add the rest-angle and stop-contact generalized forces on phi (n,) [N m] to out."""
-    n = phi.shape[0]
-    for k in range(n):
-        out[k] += H[0, k]
-    if flags[0] == 0:
+def _stop_moments(phi, dphi, ex, W):
+    """Add the stop-contact moments (on the rigid hinge angles) to the phi rows W[:, W_FP]."""
+    if ex.flags[0] == 0:
         return
+    n = phi.shape[0]
     for h in range(n):
         th, dth = hinge_angle(phi, dphi, h)
         m = 0.0
-        if H[7, h] > 0.0:
-            m = -max(0.0, H[5, h] * (th - H[4, h]) + H[6, h] * dth)
-        elif H[7, h] < 0.0:
-            m = max(0.0, H[5, h] * (H[3, h] - th) - H[6, h] * dth)
-        out[h] += m
+        side = ex.contact[h]
+        if side > 0.0:
+            m = -max(0.0, ex.stop_k[h] * (th - ex.stop_upper[h]) + ex.stop_c[h] * dth)
+        elif side < 0.0:
+            m = max(0.0, ex.stop_k[h] * (ex.stop_lower[h] - th) - ex.stop_c[h] * dth)
+        W[h, W_FP] += m
         if h > 0:
-            out[h - 1] -= m
+            W[h - 1, W_FP] -= m
 
 
 @njit(inline="always")
-def projected_solve(M, f, r, rows, cols, vals, ws, out):
-    """out = T (T^T M T)^{-1} T^T f for the constraint basis T (d, r) given as coordinate
-    lists (M (d, d) and f (d,) are kept; ws scratch). Returns False when T^T M T is
-    singular."""
-    d = f.shape[0]
-    for i in range(d):
-        out[i] = 0.0
-    if r == 0:
-        return True
-    MT = ws[0:d * r].reshape((d, r))
-    R = ws[d * r:d * r + r * r].reshape((r, r))
-    q = ws[d * r + r * r:d * r + r * r + r]
-    MT[:, :] = 0.0
-    R[:, :] = 0.0
-    q[:] = 0.0
-    for e in range(rows.shape[0]):
-        i = rows[e]
-        c = cols[e]
-        v = vals[e]
-        for a in range(d):
-            MT[a, c] += M[a, i] * v
-    for e in range(rows.shape[0]):
-        i = rows[e]
-        c = cols[e]
-        v = vals[e]
-        q[c] += v * f[i]
-        for c2 in range(r):
-            R[c, c2] += v * MT[i, c2]
-    if not solve_inplace(R, q):
-        return False
-    for e in range(rows.shape[0]):
-        out[rows[e]] += vals[e] * q[cols[e]]
+def _solve3(E, G, ncol):
+    """Solve E X = G in place for E (3, 3) and the first ``ncol`` columns of G (3, 5) by
+    Gaussian elimination with partial pivoting (X overwrites G). False if E is singular."""
+    for col in range(3):
+        piv = col
+        best = abs(E[col, col])
+        for r in range(col + 1, 3):
+            if abs(E[r, col]) > best:
+                best = abs(E[r, col])
+                piv = r
+        if best == 0.0:
+            return False
+        if piv != col:
+            for j in range(3):
+                tmp = E[col, j]
+                E[col, j] = E[piv, j]
+                E[piv, j] = tmp
+            for j in range(ncol):
+                tmp = G[col, j]
+                G[col, j] = G[piv, j]
+                G[piv, j] = tmp
+        inv = 1.0 / E[col, col]
+        for r in range(col + 1, 3):
+            f = E[r, col] * inv
+            if f != 0.0:
+                for j in range(col + 1, 3):
+                    E[r, j] -= f * E[col, j]
+                for j in range(ncol):
+                    G[r, j] -= f * G[col, j]
+    for r in range(2, -1, -1):
+        inv = 1.0 / E[r, r]
+        for j in range(ncol):
+            acc = G[r, j]
+            for c2 in range(r + 1, 3):
+                acc -= E[r, c2] * G[c2, j]
+            G[r, j] = acc * inv
     return True
+
+
+@njit(inline="always")
+def chain_solve(kind, ch, ex, W):
+    """Solve the model's linear system for the accelerations in O(n).
+
+    Inputs in W (n, N_WORK): cos/sin (W_C, W_S) and the right-hand sides of the phi, alpha and
+    beta rows (W_FP, W_FA, W_FB). ``kind`` KIND_REDUCED: unknowns phi'' and the quasi-static
+    end slopes alpha, beta of eq. (14) (the rows are [m^{pp} phi'' + kappa^{p gamma} gamma =
+    F_p; m^{gamma p} phi'' + [b^{gamma gamma}] gamma = F_gamma], i.e. eq. (15) before the
+    elimination of gamma); KIND_FULL: unknowns phi'', alpha'', beta'' of eqs. (9)-(10). Pinned
+    rods have alpha = beta = 0 (their gamma rows dropped); locked hinges add C x'' = 0 with a
+    multiplier (the projected equations T^T M T q = T^T f of a constraint basis T); with a
+    compliance comp_h the hinge's row becomes d_h^T x'' = -comp_h lambda_h, which solves
+    (M + s sum_h kappa'_h d_h d_h^T) x = f for comp_h = -1 / (s kappa'_h) (d_h: the hinge's
+    relative rotation, dDelta_h/dq; used by the eigenvalue and Newton solves). Outputs
+    phi'' (W_X), alpha or alpha'' (W_A), beta or beta'' (W_B). Returns False if singular."""
+    n = W.shape[0]
+    sm = ex.small
+    P = sm[0:4]
+    K = sm[4:20].reshape((4, 4))
+    E = sm[20:29].reshape((3, 3))
+    G = sm[29:44].reshape((3, 5))
+    kx = sm[44:48]
+    kb = sm[48:52]
+    col = sm[52:55]
+    xu = sm[55:60]      # [x0, X (4)] : phi'' of the rod as affine map of u
+    nP = sm[60:64]
+    full = kind == KIND_FULL
+    P[:] = 0.0
+    K[:, :] = 0.0
+    for r in range(n - 1, -1, -1):
+        L = ch.l[r]
+        c = W[r, W_C]
+        s = W[r, W_S]
+        lc0 = L * c
+        lc1 = L * s
+        lM = L * ch.Mt[r]
+        Cr = ch.C[r]
+        # w_{r+1} = P + K u_{r+1}, u_{r+1} = (z + l e x, rho, x or -) : coefficients of x, beta
+        for i in range(4):
+            if full:
+                kx[i] = lc0 * K[i, 0] + lc1 * K[i, 1] + K[i, 2]
+            else:
+                kx[i] = lc0 * K[i, 0] + lc1 * K[i, 1] + K[i, 3]
+            kb[i] = K[i, 2]
+        G[:, :] = 0.0
+        if full:
+            E[0, 0] = ch.Akk[r] + lc0 * kx[0] + lc1 * kx[1] - kx[2]
+            E[0, 1] = ch.c30[r]
+            E[0, 2] = -ch.c20[r] + lc0 * kb[0] + lc1 * kb[1] - kb[2]
+            G[0, 0] = W[r, W_FP] - (lc0 * P[0] + lc1 * P[1] - P[2])
+            G[0, 1] = -(lc0 * K[0, 0] + lc1 * K[1, 0] + lM * c - K[2, 0])
+            G[0, 2] = -(lc0 * K[0, 1] + lc1 * K[1, 1] + lM * s - K[2, 1])
+            E[1, 0] = ch.c30[r]
+            E[1, 1] = ch.c105[r]
+            E[1, 2] = -ch.c140[r]
+            G[1, 0] = W[r, W_FA]
+            G[1, 1] = -Cr * c
+            G[1, 2] = -Cr * s
+            E[2, 0] = -ch.c20[r] - kx[2]
+            E[2, 1] = -ch.c140[r]
+            E[2, 2] = ch.c105[r] - kb[2]
+            G[2, 0] = W[r, W_FB] + P[2]
+            G[2, 1] = Cr * c + K[2, 0]
+            G[2, 2] = Cr * s + K[2, 1]
+        else:
+            ka = ch.kappa[r]
+            kt = ch.kappa_tip[r]
+            E[0, 0] = ch.Akk[r] + lc0 * kx[0] + lc1 * kx[1] - kt * kx[2] - kx[3]
+            E[0, 1] = ka
+            E[0, 2] = lc0 * kb[0] + lc1 * kb[1] + kt - kt * kb[2] - kb[3]
+            G[0, 0] = W[r, W_FP] - (lc0 * P[0] + lc1 * P[1] - kt * P[2] - P[3])
+            G[0, 1] = -(lc0 * K[0, 0] + lc1 * K[1, 0] + lM * c - kt * K[2, 0] - K[3, 0])
+            G[0, 2] = -(lc0 * K[0, 1] + lc1 * K[1, 1] + lM * s - kt * K[2, 1] - K[3, 1])
+            G[0, 3] = ka
+            Ktr = ch.Kt[r]
+            E[1, 0] = ch.c30[r]
+            E[1, 1] = ka + Ktr
+            E[1, 2] = 0.5 * Ktr
+            G[1, 0] = W[r, W_FA]
+            G[1, 1] = -Cr * c
+            G[1, 2] = -Cr * s
+            G[1, 3] = ka
+            # beta row: -kappa_{r+1} alpha_{r+1} - gw_{r+1} lambda_{r+1}
+            gt = ex.gw[r + 1] if r + 1 < n else 0.0
+            E[2, 0] = -ch.c20[r] - kt * kx[2] - gt * kx[3]
+            E[2, 1] = 0.5 * Ktr
+            E[2, 2] = kt + Ktr - kt * kb[2] - gt * kb[3]
+            G[2, 0] = W[r, W_FB] + kt * P[2] + gt * P[3]
+            G[2, 1] = Cr * c + kt * K[2, 0] + gt * K[3, 0]
+            G[2, 2] = Cr * s + kt * K[2, 1] + gt * K[3, 1]
+        locked = ex.locked[r] != 0
+        cr = ex.comp[r]
+        if locked:
+            # phi''_r is given by the rod before (reduced: x_{r-1} = u_3; full: rho - alpha''
+            # with rho = u_2 = x_{r-1} + beta''_{r-1}), less comp * lambda for a compliant
+            # hinge; slot 0 becomes the multiplier lambda
+            for i in range(3):
+                col[i] = E[i, 0]
+            E[0, 0] = 1.0 - cr * col[0]
+            E[1, 0] = (1.0 if full else ex.gw[r]) - cr * col[1]
+            E[2, 0] = -cr * col[2]
+            for i in range(3):
+                if full:
+                    E[i, 1] -= col[i]
+                    G[i, 3] -= col[i]
+                else:
+                    G[i, 4] -= col[i]
+        if ex.pinned[r] != 0:
+            for i in (1, 2):
+                for j in range(3):
+                    E[i, j] = 0.0
+                for j in range(5):
+                    G[i, j] = 0.0
+                E[i, i] = 1.0
+        if not _solve3(E, G, 5):
+            return False
+        rec = W[r, W_REC:W_REC + 15]
+        for i in range(3):
+            for j in range(5):
+                rec[5 * i + j] = G[i, j]
+        # phi''_r as an affine map of u: xu = [x0, X_0..X_3]
+        if not locked:
+            for j in range(5):
+                xu[j] = G[0, j]
+        elif full:
+            for j in range(5):
+                xu[j] = -G[1, j] - cr * G[0, j]
+            xu[3] += 1.0
+        else:
+            for j in range(5):
+                xu[j] = -cr * G[0, j]
+            xu[4] += 1.0
+        # the interface to the rod before: w_r = (R_{r-1}, 2 more) = nP + nK u
+        for i in range(2):
+            e_i = c if i == 0 else s
+            ax = kx[i] + lM * e_i
+            if full:
+                ab = kb[i] - Cr * e_i
+                aa = Cr * e_i
+            else:
+                ab = kb[i]
+                aa = 0.0
+            nP[i] = P[i] + ax * xu[0] + ab * G[2, 0] + aa * G[1, 0]
+            k0 = K[i, 0]
+            k1 = K[i, 1]
+            for j in range(4):
+                K[i, j] = ax * xu[1 + j] + ab * G[2, 1 + j] + aa * G[1, 1 + j]
+            K[i, 0] += k0
+            K[i, 1] += k1
+        for j in range(4):
+            K[3, j] = 0.0
+        if full:
+            nP[2] = G[0, 0] if locked else 0.0
+            for j in range(4):
+                K[2, j] = G[0, 1 + j] if locked else 0.0
+            nP[3] = 0.0
+        else:
+            nP[2] = G[1, 0]
+            for j in range(4):
+                K[2, j] = G[1, 1 + j]
+            nP[3] = G[0, 0] if locked else 0.0
+            if locked:
+                for j in range(4):
+                    K[3, j] = G[0, 1 + j]
+        for i in range(4):
+            P[i] = nP[i]
+    # forward: u = (z, beta_{r-1} or rho_{r-1}, x_{r-1})
+    u0 = 0.0
+    u1 = 0.0
+    u2 = 0.0
+    u3 = 0.0
+    for r in range(n):
+        rec = W[r, W_REC:W_REC + 15]
+        v0 = rec[0] + rec[1] * u0 + rec[2] * u1 + rec[3] * u2 + rec[4] * u3
+        va = rec[5] + rec[6] * u0 + rec[7] * u1 + rec[8] * u2 + rec[9] * u3
+        vb = rec[10] + rec[11] * u0 + rec[12] * u1 + rec[13] * u2 + rec[14] * u3
+        if ex.locked[r] == 0:
+            x = v0
+        elif full:
+            x = u2 - va - ex.comp[r] * v0
+        else:
+            x = u3 - ex.comp[r] * v0
+        W[r, W_X] = x
+        W[r, W_A] = va
+        W[r, W_B] = vb
+        L = ch.l[r]
+        u0 += L * W[r, W_C] * x
+        u1 += L * W[r, W_S] * x
+        if full:
+            u2 = x + vb
+        else:
+            u2 = vb
+            u3 = x
+    return True
+
+
+@njit(inline="always")
+def _hinge_moments(phi, dphi, ch, ex, held, W, tau):
+    """tau_h = kappa_h Delta_h + nu_h Delta_h' - T_h (n + 1,) [N m] with the rigid hinge
+    angles (gamma = 0; tau_n = 0), and the rest-angle forces added to W's right-hand sides."""
+    n = phi.shape[0]
+    for h in range(n):
+        d, dd = hinge_angle(phi, dphi, h)
+        tau[h] = ch.kappa[h] * d + ch.nu[h] * dd - held[h, 2]
+        W[h, W_FA] = ex.rest_alpha[h]
+        W[h, W_FB] = ex.rest_beta[h]
+    tau[n] = 0.0
+
+
+@njit(inline="always")
+def _finish(n, W, dphi, out):
+    """[phi', phi''] (2n,) into out from the solve's W_X column."""
+    for k in range(n):
+        out[k] = dphi[k]
+        out[n + k] = W[k, W_X]
 
 
 @njit(inline="always")
@@ -262,144 +507,57 @@ def _fill_nan(out):
 
 
 @njit
-def workspace_size(n):
-    """Length of the scratch array a kernel needs for n rods (see ``extra``)."""
-    return 5 * n * n + 16 * n
-
-
-@njit(inline="always")
-def _carve(ws, n):
-    """Scratch views: three (n, n) blocks and ten (n,) vectors (no allocation)."""
-    nn = n * n
-    A = ws[0:nn].reshape((n, n))
-    Ma = ws[nn:2 * nn].reshape((n, n))
-    Mb = ws[2 * nn:3 * nn].reshape((n, n))
-    o = 5 * nn
-    return (A, Ma, Mb, ws[3 * nn:4 * nn].reshape((n, n)), ws[4 * nn:5 * nn].reshape((n, n)),
-            ws[o:o + n], ws[o + n:o + 2 * n], ws[o + 2 * n:o + 3 * n], ws[o + 3 * n:o + 4 * n],
-            ws[o + 4 * n:o + 5 * n], ws[o + 5 * n:o + 6 * n], ws[o + 6 * n:o + 7 * n],
-            ws[o + 7 * n:o + 8 * n], ws[o + 8 * n:o + 9 * n], ws[o + 9 * n:o + 11 * n].reshape((n, 2)),
-            ws[o + 11 * n:o + 12 * n + 1])
-
-
-@njit(inline="always")
-def _chain_terms(t, phi, dphi, chain, loads, held, t_side, A, Ma, Mb, c, s, gp, ga, f, Q):
-    """What every kernel computes first at time t [s] from phi [rad], phi_dot [rad/s] (n,):
-    c = cos(phi), s = sin(phi) (n,), the inertia blocks A, Ma, Mb (n, n) and the velocity
-    terms gp, ga (n,) (:func:`assemble`), the nodal forces f (n, 2) [N] (:func:`load_forces`)
-    and the generalised forces Q (n,) [N m] (:func:`generalized_forces`)."""
-    for k in range(phi.shape[0]):
-        c[k] = math.cos(phi[k])
-        s[k] = math.sin(phi[k])
-    assemble(c, s, dphi, chain, A, Ma, Mb, gp, ga)
-    load_forces(t, loads, held, t_side, f)
-    generalized_forces(chain[0], c, s, f, Q)
-
-
-@njit(inline="always")
-def _rigid_terms(t, phi, dphi, chain, work, loads, held, t_side):
-    """What the rigid and reduced kernels share, in scratch views of ``work`` (extra[3]): the
-    inertia blocks, cos/sin of phi, the velocity terms, Q (in ``rhs``) and the gamma = 0 hinge
-    moments (in ``tau``); v1, v2 are free (n,) scratch vectors."""
-    l, m, mu, Kt, kappa, nu, Mt, C = chain
-    n = l.shape[0]
-    A, Ma, Mb, W1, W2, c, s, gp, ga, rhs, tau, v1, v2, v3, f, tau1 = _carve(work, n)
-    _chain_terms(t, phi, dphi, chain, loads, held, t_side, A, Ma, Mb, c, s, gp, ga, f, rhs)
-    rigid_hinge_moments(phi, dphi, kappa, nu, tau)
-    return A, Ma, Mb, c, s, gp, ga, rhs, tau, v1, v2
-
-
-@njit
 def rigid_rhs(t, y, chain, extra, loads, held, t_side, out):
-    """Rigid chain (EI -> infinity): y = [phi, phi_dot] (2n,)."""
-    l, m, mu, Kt, kappa, nu, Mt, C = chain
-    n = l.shape[0]
+    """Rigid chain (EI -> infinity): y = [phi, phi_dot] (2n,); every rod pinned."""
+    n = chain.l.shape[0]
     phi = y[:n]
     dphi = y[n:]
-    A, Ma, Mb, c, s, gp, ga, rhs, tau, v1, v2 = _rigid_terms(t, phi, dphi, chain, extra[3],
-                                                             loads, held, t_side)
+    W = _start(t, phi, dphi, chain, extra, loads, held, t_side)
+    tau = extra.tau
+    _hinge_moments(phi, dphi, chain, extra, held, W, tau)
     for k in range(n):
-        rhs[k] -= gp[k] + tau[k]
-        if k + 1 < n:
-            rhs[k] += tau[k + 1]
-    _finish(phi, dphi, A, rhs, extra[4], extra[5], extra[6], extra[7], extra[8], extra[13],
-            out)
-
-
-@njit(inline="always")
-def _finish(phi, dphi, A, rhs, H, flags, T_row, T_col, T_val, scratch, out):
-    """Rigid and reduced models: add the hinge features' forces, solve A phi_dd = rhs (on
-    the constraint set when hinges are locked), write [phi_dot, phi_dd] into out."""
-    n = phi.shape[0]
-    hinge_forces(phi, dphi, H, flags, rhs)
-    out[:n] = dphi
-    if flags[1]:
-        ok = projected_solve(A, rhs, flags[2], T_row, T_col, T_val, scratch, out[n:])
-    else:
-        ok = solve_inplace(A, rhs)
-        out[n:] = rhs
-    if not ok:
+        W[k, W_FP] += extra.rest_phi[k] - W[k, W_GP] - tau[k] + tau[k + 1]
+    _stop_moments(phi, dphi, extra, W)
+    if not chain_solve(KIND_REDUCED, chain, extra, W):
         _fill_nan(out)
+        return
+    _finish(n, W, dphi, out)
 
 
 @njit
 def reduced_rhs(t, y, chain, extra, loads, held, t_side, out):
-    """Reduced model, eq. (15): y = [phi, phi_dot] (2n,); extra = (P_alpha, P_beta, ...)."""
-    l, m, mu, Kt, kappa, nu, Mt, C = chain
-    Pa = extra[0]
-    Pb = extra[1]
-    n = l.shape[0]
+    """Reduced model, eq. (15) through (14): y = [phi, phi_dot] (2n,); the quasi-static end
+    slopes alpha, beta are left in extra.work[:, W_A], extra.work[:, W_B]."""
+    n = chain.l.shape[0]
     phi = y[:n]
     dphi = y[n:]
-    A, Ma, Mb, c, s, gp, ga, rhs, tau, v1, v2 = _rigid_terms(t, phi, dphi, chain, extra[3],
-                                                             loads, held, t_side)
-    a_al = v1
-    a_be = v2
-    H = extra[4]
+    W = _start(t, phi, dphi, chain, extra, loads, held, t_side)
+    tau = extra.tau
+    _hinge_moments(phi, dphi, chain, extra, held, W, tau)
     for k in range(n):
-        nxt = tau[k + 1] if k + 1 < n else 0.0
-        a_al[k] = ga[k] + tau[k] - H[1, k]
-        a_be[k] = -ga[k] - nxt - H[2, k]
-        rhs[k] -= gp[k] + tau[k] - nxt
-    # M_r = A - P_alpha m^{alpha phi} - P_beta m^{beta phi} with m^{alpha phi} = Ma^T.
-    # Off the diagonal Ma[i, j] = C_j l_i cos(phi_i - phi_j) = -Mb[i, j] (j > i), so
-    # sum_{j>i} (Pa - Pb)[k, j] C_j cos(phi_i - phi_j) = c_i U[k, i] + s_i V[k, i] with
-    # suffix sums U, V: O(n^2) instead of O(n^3).
-    for k in range(n):
-        acc = 0.0
-        for j in range(n):
-            acc += Pa[k, j] * a_al[j] + Pb[k, j] * a_be[j]
-        rhs[k] += acc
-        su = 0.0
-        sv = 0.0
-        for i in range(n - 1, -1, -1):
-            A[k, i] -= (Pa[k, i] * Ma[i, i] + Pb[k, i] * Mb[i, i]
-                        + l[i] * (c[i] * su + s[i] * sv))
-            r = (Pa[k, i] - Pb[k, i]) * C[i]
-            su += r * c[i]
-            sv += r * s[i]
-    _finish(phi, dphi, A, rhs, extra[4], extra[5], extra[6], extra[7], extra[8], extra[13],
-            out)
+        ga = W[k, W_GA]
+        W[k, W_FP] += extra.rest_phi[k] - W[k, W_GP] - tau[k] + tau[k + 1]
+        W[k, W_FA] += -ga - tau[k]
+        W[k, W_FB] += ga + tau[k + 1]
+    _stop_moments(phi, dphi, extra, W)
+    if not chain_solve(KIND_REDUCED, chain, extra, W):
+        _fill_nan(out)
+        return
+    _finish(n, W, dphi, out)
 
 
 @njit
 def full_rhs(t, y, chain, extra, loads, held, t_side, out):
-    """Full model (9)-(10): y = [phi, alpha, beta, phi_dot, alpha_dot, beta_dot] (6n,).
-
-    The 3n x 3n mass matrix is solved through the Schur complement of its constant
-    block-diagonal bending part (one 2 x 2 block per rod)."""
-    l, m, mu, Kt, kappa, nu, Mt, C = chain
-    n = l.shape[0]
+    """Full model (9)-(10): y = [phi, alpha, beta, phi_dot, alpha_dot, beta_dot] (6n,)."""
+    n = chain.l.shape[0]
     phi = y[:n]
     al = y[n:2 * n]
     be = y[2 * n:3 * n]
     dphi = y[3 * n:4 * n]
     dal = y[4 * n:5 * n]
     dbe = y[5 * n:6 * n]
-    A, Ma, Mb, Wa, Wb, c, s, gp, ga, Fp, Fa, Fb, ia, ib, f, tau = _carve(extra[3], n)
-    H = extra[4]
-    flags = extra[5]
-    _chain_terms(t, phi, dphi, chain, loads, held, t_side, A, Ma, Mb, c, s, gp, ga, f, Fp)
+    W = _start(t, phi, dphi, chain, extra, loads, held, t_side)
+    tau = extra.tau
     for h in range(n):
         if h == 0:
             d = phi[0] + al[0]
@@ -407,174 +565,86 @@ def full_rhs(t, y, chain, extra, loads, held, t_side, out):
         else:
             d = phi[h] + al[h] - phi[h - 1] - be[h - 1]
             dd = dphi[h] + dal[h] - dphi[h - 1] - dbe[h - 1]
-        tau[h] = kappa[h] * d + nu[h] * dd
+        tau[h] = chain.kappa[h] * d + chain.nu[h] * dd - held[h, 2]
     tau[n] = 0.0
-    for k in range(n):
-        # 2 [g^{phi alpha}] Lambda alpha_dot + 2 [g^{phi beta}] Lambda beta_dot
-        cor = 0.0
-        for j in range(k + 1, n):
-            skj = s[k] * c[j] - c[k] * s[j]
-            cor += C[j] * l[k] * skj * dphi[j] * (dal[j] - dbe[j])
-        Fp[k] -= gp[k] + 2.0 * cor + tau[k] - tau[k + 1]
-        Fa[k] = -ga[k] - tau[k] - Kt[k] * (al[k] + 0.5 * be[k]) + H[1, k]
-        Fb[k] = ga[k] + tau[k + 1] - Kt[k] * (0.5 * al[k] + be[k]) + H[2, k]
-    hinge_forces(phi, dphi, H, flags, Fp)
-    out[:3 * n] = y[3 * n:]
-    # bending block per rod: [[a, b], [b, a]], a = m l^3/105, b = -m l^3/140
-    for j in range(n):
-        ml3 = m[j] * l[j] ** 3
-        a = ml3 / 105.0
-        b = -ml3 / 140.0
-        det = a * a - b * b
-        ia[j] = a / det
-        ib[j] = -b / det
-    for k in range(n):
-        for j in range(n):
-            Wa[k, j] = Ma[k, j] * ia[j] + Mb[k, j] * ib[j]
-            Wb[k, j] = Ma[k, j] * ib[j] + Mb[k, j] * ia[j]
-    for k in range(n):
-        for i in range(n):
-            acc = 0.0
-            for j in range(max(k, i), n):
-                acc += Wa[k, j] * Ma[i, j] + Wb[k, j] * Mb[i, j]
-            A[k, i] -= acc
-    if flags[1]:
-        _full_lagrange(A, Ma, Mb, Wa, Wb, ia, ib, Fp, Fa, Fb, flags[3], extra[9], extra[10],
-                       extra[11], extra[12], extra[13], out[3 * n:])
-        return
-    x = gp  # g_phi is folded into Fp above; reuse its storage for the solve
-    _schur_rhs(Wa, Wb, Fp, Fa, Fb, x)
-    if not solve_inplace(A, x):
+    # 2 [g^{phi alpha}] Lambda alpha' + 2 [g^{phi beta}] Lambda beta': suffix sums over j > k
+    sc = 0.0
+    ss = 0.0
+    for k in range(n - 1, -1, -1):
+        c = W[k, W_C]
+        s = W[k, W_S]
+        cor = chain.l[k] * (s * sc - c * ss)
+        w = chain.C[k] * dphi[k] * (dal[k] - dbe[k])
+        sc += w * c
+        ss += w * s
+        ga = W[k, W_GA]
+        Kt = chain.Kt[k]
+        W[k, W_FP] += extra.rest_phi[k] - W[k, W_GP] - 2.0 * cor - tau[k] + tau[k + 1]
+        W[k, W_FA] = -ga - tau[k] - Kt * (al[k] + 0.5 * be[k]) + extra.rest_alpha[k]
+        W[k, W_FB] = ga + tau[k + 1] - Kt * (0.5 * al[k] + be[k]) + extra.rest_beta[k]
+    _stop_moments(phi, dphi, extra, W)
+    if not chain_solve(KIND_FULL, chain, extra, W):
         _fill_nan(out)
         return
-    out[3 * n:4 * n] = x
-    _bending_accelerations(Ma, Mb, ia, ib, Fa, Fb, x, out[4 * n:5 * n], out[5 * n:])
-
-
-@njit(inline="always")
-def lu_inplace(A, piv):
-    """LU factorisation with partial pivoting of A (n, n), float64 or complex128, in place
-    (LAPACK's getrf layout: unit-lower L below the diagonal, U on and above; rows swapped
-    whole, piv[k] (n,) int64 = the row swapped with k at step k). Returns False for a zero
-    pivot. Also the factorisation of :mod:`rod_sim.core.radau` (real and complex)."""
-    n = A.shape[0]
-    for col in range(n):
-        p, best = _pivot(A, col)
-        piv[col] = p
-        if best == 0.0:
-            return False
-        if p != col:
-            for c2 in range(n):
-                tmp = A[col, c2]
-                A[col, c2] = A[p, c2]
-                A[p, c2] = tmp
-        inv = 1.0 / A[col, col]
-        # row slices (contiguous 1-D views) let LLVM vectorise the update (see solve_inplace)
-        pivot_row = A[col, col + 1:]
-        for r in range(col + 1, n):
-            f = A[r, col] * inv
-            A[r, col] = f
-            row = A[r, col + 1:]
-            for c2 in range(pivot_row.shape[0]):
-                row[c2] -= f * pivot_row[c2]
-    return True
-
-
-@njit(inline="always")
-def lu_solve(LU, piv, b):
-    """Solve A x = b (b (n,), float64 or complex128) with the factors LU (n, n), piv (n,) of
-    :func:`lu_inplace`; x overwrites b. The row swaps are applied first (the factors' L rows
-    were swapped whole), then the two triangular solves."""
-    n = b.shape[0]
-    for i in range(n):
-        p = piv[i]
-        if p != i:
-            tmp = b[i]
-            b[i] = b[p]
-            b[p] = tmp
-    for i in range(n):
-        acc = b[i]
-        for j in range(i):
-            acc -= LU[i, j] * b[j]
-        b[i] = acc
-    for i in range(n - 1, -1, -1):
-        acc = b[i]
-        for j in range(i + 1, n):
-            acc -= LU[i, j] * b[j]
-        b[i] = acc / LU[i, i]
-
-
-@njit(inline="always")
-def _schur_solve(LU, piv, Ma, Mb, Wa, Wb, ia, ib, gp, ga, gb, out):
-    """Full model: M z = (gp, ga, gb) through the factored Schur complement LU of the
-    bending block; z (3n,) into out (its phi part is solved in place there)."""
-    n = gp.shape[0]
-    x = out[:n]
-    _schur_rhs(Wa, Wb, gp, ga, gb, x)
-    lu_solve(LU, piv, x)
-    _bending_accelerations(Ma, Mb, ia, ib, ga, gb, x, out[n:2 * n], out[2 * n:])
-
-
-@njit(inline="always")
-def _schur_rhs(Wa, Wb, gp, ga, gb, x):
-    """Right-hand side of the Schur-complement system for phi_dd: gp - W (ga, gb) into x."""
-    n = gp.shape[0]
+    for k in range(3 * n):
+        out[k] = y[3 * n + k]
     for k in range(n):
-        acc = gp[k]
-        for j in range(k, n):
-            acc -= Wa[k, j] * ga[j] + Wb[k, j] * gb[j]
-        x[k] = acc
+        out[3 * n + k] = W[k, W_X]
+        out[4 * n + k] = W[k, W_A]
+        out[5 * n + k] = W[k, W_B]
 
 
-@njit(inline="always")
-def _bending_accelerations(Ma, Mb, ia, ib, ga, gb, x, out_a, out_b):
-    """alpha_dd, beta_dd (n,) each from phi_dd = x: the 2 x 2 bending block per rod."""
-    n = x.shape[0]
-    for j in range(n):
-        ra = ga[j]
-        rb = gb[j]
-        for k in range(j + 1):
-            ra -= Ma[k, j] * x[k]
-            rb -= Mb[k, j] * x[k]
-        out_a[j] = ia[j] * ra + ib[j] * rb
-        out_b[j] = ib[j] * ra + ia[j] * rb
+@njit
+def mass_times(kind, phi, v, va, vb, chain, out, out_a, out_b):
+    """out = m^{pp} v + m^{pa} va + m^{pb} vb, out_a = m^{ap} v + m^{aa} va + m^{ab} vb,
+    out_b likewise (each (n,)) in O(n): the paper's inertia blocks times velocities
+    (kind KIND_REDUCED: only out = m^{pp} v; va, vb ignored)."""
+    n = phi.shape[0]
+    full = kind == KIND_FULL
+    zx = 0.0
+    zy = 0.0
+    for k in range(n):
+        c = math.cos(phi[k])
+        s = math.sin(phi[k])
+        ez = c * zx + s * zy                    # e_k . sum_{j<k} l_j e_j v_j
+        out[k] = chain.Akk[k] * v[k] + chain.l[k] * chain.Mt[k] * ez
+        if full:
+            out[k] += chain.c30[k] * va[k] - chain.c20[k] * vb[k]
+            out_a[k] = chain.C[k] * ez + chain.c30[k] * v[k] + chain.c105[k] * va[k] \
+                - chain.c140[k] * vb[k]
+            out_b[k] = -chain.C[k] * ez - chain.c20[k] * v[k] - chain.c140[k] * va[k] \
+                + chain.c105[k] * vb[k]
+        zx += chain.l[k] * c * v[k]
+        zy += chain.l[k] * s * v[k]
+    rx = 0.0
+    ry = 0.0
+    for k in range(n - 1, -1, -1):
+        c = math.cos(phi[k])
+        s = math.sin(phi[k])
+        out[k] += chain.l[k] * (c * rx + s * ry)
+        w = chain.l[k] * chain.Mt[k] * v[k]
+        if full:
+            w += chain.C[k] * (va[k] - vb[k])
+        rx += w * c
+        ry += w * s
 
 
-@njit(inline="always")
-def _full_lagrange(A, Ma, Mb, Wa, Wb, ia, ib, Fp, Fa, Fb, nc, rows, cols, vals, piv, ws, acc):
-    """Full model on the constraint set C x'' = 0 (M symmetric, so equal to the projected
-    equations): x'' = M^{-1} (f + C^T lambda) with (C M^{-1} C^T) lambda = -C M^{-1} f, every
-    solve through the Schur complement A (Schur-reduced on entry) factored once: 1 + rows(C)
-    solves of O(n^2) each instead of a dense 3n x 3n system."""
-    n = Fp.shape[0]
-    d = 3 * n
-    Zt = ws[0:nc * d].reshape((nc, d))
-    o = nc * d
-    g = ws[o:o + d]
-    S = ws[o + d:o + d + nc * nc].reshape((nc, nc))
-    lam = ws[o + d + nc * nc:o + d + nc * nc + nc]
-    if not lu_inplace(A, piv):
-        for i in range(d):
-            acc[i] = np.nan
-        return
-    _schur_solve(A, piv, Ma, Mb, Wa, Wb, ia, ib, Fp, Fa, Fb, acc)
-    for i in range(nc):
-        g[:] = 0.0
-        for e in range(rows.shape[0]):
-            if rows[e] == i:
-                g[cols[e]] = vals[e]
-        _schur_solve(A, piv, Ma, Mb, Wa, Wb, ia, ib, g[:n], g[n:2 * n], g[2 * n:], Zt[i])
-    S[:, :] = 0.0
-    lam[:] = 0.0
-    for e in range(rows.shape[0]):
-        i = rows[e]
-        lam[i] -= vals[e] * acc[cols[e]]
-        for j in range(nc):
-            S[i, j] += vals[e] * Zt[j, cols[e]]
-    if not solve_inplace(S, lam):
-        for i in range(d):
-            acc[i] = np.nan
-        return
-    for j in range(nc):
-        for i in range(d):
-            acc[i] += Zt[j, i] * lam[j]
+@njit
+def solve_with(kind, phi, chain, extra, fp, fa, fb, out, out_a, out_b):
+    """The kernels' solve with given right-hand sides (n,) each: the model's accelerations
+    (reduced: phi'' and the slopes) for the generalized forces fp, fa, fb. False if singular."""
+    n = phi.shape[0]
+    W = extra.work
+    for k in range(n):
+        W[k, W_C] = math.cos(phi[k])
+        W[k, W_S] = math.sin(phi[k])
+        W[k, W_FP] = fp[k]
+        W[k, W_FA] = fa[k]
+        W[k, W_FB] = fb[k]
+    if not chain_solve(kind, chain, extra, W):
+        return False
+    for k in range(n):
+        out[k] = W[k, W_X]
+        out_a[k] = W[k, W_A]
+        out_b[k] = W[k, W_B]
+    return True

@@ -21,7 +21,7 @@ import numpy as np
 
 from . import hinges, kernels
 from .kinematics import node_positions
-from .matrices import ChainParams, reduction_matrices
+from .matrices import ChainParams
 from .scene import LOAD_AXES, Scene
 from .snapshot import Snapshot
 
@@ -52,13 +52,11 @@ class Energies:
 class Plan:
     """What the compiled drivers need in one mode: ``extra`` (kernels' argument, see
     :mod:`rod_sim.core.kernels`), ``events`` (hinge (m,), angle (m,), kind (m,)) of
-    :func:`hinges.event_table`, ``locked`` (n,) bool and the constraint basis ``T``
-    (dof, r) or None when nothing is locked."""
+    :func:`hinges.event_table` and ``locked`` (n,) bool (hinges held rigid)."""
 
-    extra: tuple
+    extra: kernels.Extra
     events: tuple
     locked: np.ndarray
-    T: np.ndarray | None
 
 
 class Model(Protocol):
@@ -104,25 +102,21 @@ class ChainModel:
         self.params = ChainParams.from_scene(scene)
         p = self.params
         self.n = p.n
-        self.chain = (p.l, p.m, p.mu, p.bending_stiffness_diag(), p.kappa, p.nu,
-                      p.tail_mass(), p.m * p.l**2 / 12.0)
+        self.chain = kernels.make_chain(p.l, p.m, p.mu, p.EI, p.kappa, p.nu)
         self.loads = load_table(scene)
         kr = p.kappa * np.asarray(scene.hinge_rest_angle, dtype=float)
         kr_next = np.append(kr[1:], 0.0)
         # rest-angle generalized forces kappa theta_rest dDelta/dq on phi, alpha, beta
-        self._rest = (kr - kr_next, kr, -kr_next)
-        self._base_extra = self._reduction() + (self._workspace(),)
+        self._rest = np.array([kr - kr_next, kr, -kr_next])
+        self._stops = np.array([scene.stop_lower, scene.stop_upper, scene.stop_stiffness,
+                                scene.stop_damping], dtype=float)
         self._plans: dict = {}
         self.has_latches = bool(np.isfinite(scene.latch_angle).any())
         self.extra = self.plan().extra
 
-    def _reduction(self) -> tuple:
-        """(P_alpha, P_beta, B_inv) of the kernels' ``extra`` (zeros: unused)."""
-        z = np.zeros((self.n, self.n))
-        return (z, z, np.zeros((2 * self.n, 2 * self.n)))
-
-    def _workspace(self) -> np.ndarray:
-        return np.zeros(kernels.workspace_size(self.n))
+    def _pinned(self) -> np.ndarray:
+        """Rods whose end slopes are zero (n,) bool: the scene's rigid rods."""
+        return np.asarray(self.scene.rod_rigid, dtype=bool)
 
     # ----- layout -----
     @property
@@ -169,30 +163,9 @@ class ChainModel:
         return plan
 
     def _make_plan(self, locked: np.ndarray, side: np.ndarray) -> Plan:
-        s = self.scene
-        C = hinges.constraint_matrix(s, self.dof_per_rod, locked)
-        n, d = self.n, self.dof
-        T = None
-        if C.shape[0]:
-            order = (list(range(n, 3 * n)) if self.dof_per_rod == 3 else []) + \
-                list(range(n - 1, -1, -1))
-            T = hinges.constraint_basis(C, order)
-        lo = np.array(s.stop_lower, dtype=float)
-        hi = np.array(s.stop_upper, dtype=float)
-        stops = bool(np.any(side != 0))
-        r = T.shape[1] if T is not None else 0
-        rows, cols = np.nonzero(T) if T is not None else (np.zeros(0, int), np.zeros(0, int))
-        vals = T[rows, cols] if T is not None else np.zeros(0)
-        flags = np.array([int(stops), int(T is not None), r, C.shape[0]], dtype=np.int64)
-        c_rows, c_cols = np.nonzero(C)
-        scratch = np.zeros(3 * d * d + 2 * d if T is not None else 1)
-        H = np.ascontiguousarray(np.vstack([*self._rest, lo, hi, s.stop_stiffness,
-                                            s.stop_damping, side.astype(float)]))
-        hinge = (H, flags, rows.astype(np.int64), cols.astype(np.int64),
-                 np.ascontiguousarray(vals, dtype=float), c_rows.astype(np.int64),
-                 c_cols.astype(np.int64), np.ascontiguousarray(C[c_rows, c_cols], dtype=float),
-                 np.zeros(n, dtype=np.int64), scratch)
-        return Plan(self._base_extra + hinge, hinges.event_table(s, locked), locked, T)
+        extra = kernels.make_extra(self._rest, self._stops, side, locked, self._pinned(),
+                                   kind=self._kind)
+        return Plan(extra, hinges.event_table(self.scene, locked), locked)
 
     # ----- evaluation -----
     def forces(self, t: float, held: np.ndarray | None = None) -> np.ndarray:
@@ -202,9 +175,17 @@ class ChainModel:
         return out
 
     def _held(self, held):
+        """The kernels' held inputs (n, 3): nodal forces X, Y [N] and hinge motor moments T
+        [N m], from None (zeros), forces (n, 2) or flat (2n,), or (n, 3)."""
+        out = np.zeros((self.n, 3))
         if held is None:
-            return np.zeros((self.n, 2))
-        return np.ascontiguousarray(held, dtype=float).reshape(self.n, 2)
+            return out
+        h = np.asarray(held, dtype=float)
+        if h.size == 3 * self.n:
+            out[:, :] = h.reshape(self.n, 3)
+        else:
+            out[:, :2] = h.reshape(self.n, 2)
+        return out
 
     def contact_state(self, y: np.ndarray) -> np.ndarray:
         """Stop contacts (n,) int8 implied by the state: +1 above the upper stop (or on it and
@@ -227,27 +208,47 @@ class ChainModel:
                     t, out)
         return out
 
-    def mass_blocks(self, phi: np.ndarray):
-        n = self.n
-        A, Ma, Mb = np.empty((n, n)), np.empty((n, n)), np.empty((n, n))
-        kernels.mass_blocks(np.ascontiguousarray(phi, dtype=float), self.chain, A, Ma, Mb)
-        return A, Ma, Mb
+    _kind = kernels.KIND_REDUCED
 
-    def mass_matrix(self, y: np.ndarray) -> np.ndarray:
-        """M (dof, dof) of the model's equations M x'' = f (reduced: the eliminated M_r)."""
-        return self.mass_blocks(self.phi(y))[0]
+    def mass_times(self, y: np.ndarray, v: np.ndarray | None = None) -> np.ndarray:
+        """M v (dof,) for velocities v (dof,) (default y's own) with M the paper's inertia
+        matrix of the model's coordinates at y (rigid and reduced: m^{phi phi}), in O(n)."""
+        n = self.n
+        phi = np.ascontiguousarray(self.phi(y), dtype=float)
+        v = np.ascontiguousarray(y[self.dof:] if v is None else v, dtype=float)
+        out = np.empty(3 * n)
+        z = np.zeros(n)
+        full = self.dof_per_rod == 3
+        kernels.mass_times(self._kind, phi, v[:n], v[n:2 * n] if full else z,
+                           v[2 * n:] if full else z, self.chain, out[:n], out[n:2 * n],
+                           out[2 * n:])
+        return out[:self.dof]
 
     def project_velocity(self, y: np.ndarray, mode: np.ndarray | None = None) -> np.ndarray:
         """y with its velocities replaced by the impulsive-constraint projection
-        x'+ = T (T^T M T)^{-1} T^T M x'- (M-orthogonal for a symmetric M) in ``mode``."""
-        T = self.plan(mode).T
+        x'+ = T (T^T M T)^{-1} T^T M x'- (M-orthogonal for a symmetric M) in ``mode``, with T
+        a basis of the locked hinges' constraints (the reduced model: M = M_r of eq. (15)),
+        solved in O(n) by the kernels' chain solve with f = M x'-."""
+        plan = self.plan(mode)
         out = np.array(y, dtype=float)
-        if T is None:
+        if not plan.locked.any() and not (self.dof_per_rod == 3 and self._pinned().any()):
             return out
-        d = self.dof
-        M = self.mass_matrix(y)
+        n, d = self.n, self.dof
+        phi = np.ascontiguousarray(self.phi(y), dtype=float)
         v = out[d:]
-        out[d:] = 0.0 if T.shape[1] == 0 else T @ np.linalg.solve(T.T @ M @ T, T.T @ (M @ v))
+        f = np.empty(3 * n)
+        z = np.zeros(n)
+        full = self.dof_per_rod == 3
+        # reduced: (A v, m^{gamma phi} v) as right-hand sides give M_r x = M_r v
+        kernels.mass_times(kernels.KIND_FULL, phi, v[:n], v[n:2 * n] if full else z,
+                           v[2 * n:] if full else z, self.chain, f[:n], f[n:2 * n], f[2 * n:])
+        if self.name == "rigid":
+            f[n:] = 0.0
+        x = np.empty(3 * n)
+        if not kernels.solve_with(self._kind, phi, self.chain, plan.extra, f[:n], f[n:2 * n],
+                                  f[2 * n:], x[:n], x[n:2 * n], x[2 * n:]):
+            raise np.linalg.LinAlgError("singular mass matrix in the velocity projection")
+        out[d:] = x[:d]
         return out
 
     def bending(self, t, y, held=None, mode=None) -> tuple[np.ndarray, np.ndarray]:
@@ -283,9 +284,8 @@ class ChainModel:
         return m
 
     def kinetic_energy(self, t, y, held=None) -> float:
-        A, _, _ = self.mass_blocks(self.phi(y))
-        v = self.phi_rate(y)
-        return 0.5 * float(v @ A @ v)
+        """(1/2) x'^T M x' [J] (rigid and reduced: rod motion only), O(n)."""
+        return 0.5 * float(np.dot(y[self.dof:], self.mass_times(y)))
 
     def energies(self, t: float, y: np.ndarray, held=None, bending=None, mode=None) -> Energies:
         """Kinetic, hinge (springs about their rest angles + stop contacts) and bending energy
@@ -302,7 +302,7 @@ class ChainModel:
         return Energies(self.kinetic_energy(t, y, held), hinge, bend)
 
     def powers(self, t: float, y: np.ndarray, held=None, mode=None) -> tuple[float, float]:
-        """(power of the nodal loads, power dissipated in the hinge dampers and the stop
+        """(power of the nodal loads and hinge motors, power dissipated in the hinge dampers and the stop
         contacts) [W]."""
         phi, dphi = self.phi(y), self.phi_rate(y)
         f = self.forces(t, held)
@@ -311,6 +311,7 @@ class ChainModel:
         vy = np.cumsum(l * np.cos(phi) * dphi)
         load_power = float(np.sum(f[:, 0] * vx + f[:, 1] * vy))
         ddelta = self.hinge_deflection_rate(t, y, held)
+        load_power += float(np.dot(self._held(held)[:, 2], ddelta))    # hinge motors
         damper = float(np.sum(self.params.nu * ddelta**2))
         s = self.scene
         if np.any(np.isfinite(s.stop_lower) | np.isfinite(s.stop_upper)):
@@ -345,6 +346,9 @@ class RigidModel(ChainModel):
     name = "rigid"
     kernel = staticmethod(kernels.rigid_rhs)
 
+    def _pinned(self) -> np.ndarray:
+        return np.ones(self.n, dtype=bool)
+
     def bending(self, t, y, held=None, mode=None):
         return np.zeros(self.n), np.zeros(self.n)
 
@@ -356,40 +360,12 @@ class ReducedModel(ChainModel):
     name = "reduced"
     kernel = staticmethod(kernels.reduced_rhs)
 
-    def _reduction(self) -> tuple:
-        n = self.n
-        K_gp, B = reduction_matrices(self.params)
-        rigid = np.asarray(self.scene.rod_rigid, dtype=bool)
-        if rigid.any():
-            keep = np.flatnonzero(np.concatenate([~rigid, ~rigid]))
-            B_inv = np.zeros((2 * n, 2 * n))
-            B_inv[np.ix_(keep, keep)] = np.linalg.inv(B[np.ix_(keep, keep)])
-        else:
-            B_inv = np.linalg.inv(B)
-        P = K_gp.T @ B_inv                       # (n, 2n), constant
-        return (np.ascontiguousarray(P[:, :n]), np.ascontiguousarray(P[:, n:]), B_inv)
-
-    def mass_matrix(self, y: np.ndarray) -> np.ndarray:
-        A, Ma, Mb = self.mass_blocks(self.phi(y))
-        return A - self.extra[0] @ Ma.T - self.extra[1] @ Mb.T
-
     def bending(self, t, y, held=None, mode=None):
-        """gamma = -[b]^{-1} (m^{gamma phi} phi_ddot + (g Lambda + v) phi_dot + kappa phi
-        - kappa theta_rest dDelta/dgamma)."""
-        n = self.n
-        phi = np.ascontiguousarray(self.phi(y))
-        dphi = np.ascontiguousarray(self.phi_rate(y))
-        phi_dd = self.rhs(t, y, held, mode)[n:]
-        _, Ma, Mb = self.mass_blocks(phi)
-        gp, ga, tau = np.empty(n), np.empty(n), np.empty(n)
-        kernels.rigid_velocity_terms(phi, dphi, self.chain, gp, ga)
-        kernels.rigid_hinge_moments(phi, dphi, self.params.kappa, self.params.nu, tau)
-        tau_next = np.append(tau[1:], 0.0)
-        _, rest_alpha, rest_beta = self._rest
-        a = np.concatenate([Ma.T @ phi_dd + ga + tau - rest_alpha,
-                            Mb.T @ phi_dd - ga - tau_next - rest_beta])
-        gamma = -self.extra[2] @ a
-        return gamma[:n], gamma[n:]
+        """gamma = (alpha, beta) (n,) each [rad] from the quasi-static rows of (14), which the
+        kernel solves together with phi'' (left in its work array)."""
+        self.rhs(t, y, held, mode)
+        W = self.plan(mode, self.contact_state(np.asarray(y, dtype=float))).extra.work
+        return W[:, kernels.W_A].copy(), W[:, kernels.W_B].copy()
 
 
 class FullModel(ChainModel):
@@ -415,21 +391,7 @@ class FullModel(ChainModel):
         n = self.n
         return np.array(y[4 * n:5 * n]), np.array(y[5 * n:6 * n])
 
-    def mass_matrix(self, y: np.ndarray) -> np.ndarray:
-        A, Ma, Mb = self.mass_blocks(self.phi(y))
-        p = self.params
-        ml3 = p.m * p.l**3
-        Da, Db = np.diag(ml3 / 105.0), np.diag(-ml3 / 140.0)
-        return np.block([[A, Ma, Mb], [Ma.T, Da, Db], [Mb.T, Db, Da]])
-
-    def kinetic_energy(self, t, y, held=None) -> float:
-        n = self.n
-        A, Ma, Mb = self.mass_blocks(self.phi(y))
-        p = self.params
-        ml3 = p.m * p.l**3
-        v, va, vb = y[3 * n:4 * n], y[4 * n:5 * n], y[5 * n:]
-        return 0.5 * float(v @ A @ v + 2 * v @ Ma @ va + 2 * v @ Mb @ vb
-                           + np.sum(ml3 / 105 * (va**2 + vb**2) - 2 * ml3 / 140 * va * vb))
+    _kind = kernels.KIND_FULL
 
 
 MODELS = {"full": FullModel, "reduced": ReducedModel, "rigid": RigidModel}

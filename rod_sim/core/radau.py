@@ -40,8 +40,9 @@ from .erk import (STATUS_EVENT, STATUS_EVENTS_FULL, STATUS_NONFINITE, STATUS_MAX
                   STATUS_OK, STATUS_STEP_UNDERFLOW, _all_finite, _event_start, _event_values,
                   _initial_step, _locate, _may_cross, _segment_end)
 from . import kernels as _k
+from . import newton as _nw
 from .jit import njit
-from .kernels import lu_inplace, lu_solve
+from .dense_lu import lu_inplace, lu_solve
 
 # ----------------------------------------------------------------- constants (scipy's radau.py)
 S6 = 6.0 ** 0.5
@@ -98,26 +99,37 @@ def _solve_reduced(LU, piv, J, gamma, r, out):
 
 
 @njit
-def _factor(work, h, stats):
-    """Factorise the real and complex iteration matrices for step h [s]; False if singular."""
+def dense_factor(chain, extra, work, g_real, g_cplx, stats):
+    """Dense Newton matrices: LU of gamma^2 I - gamma D - K at the real and complex shifts."""
     J, LUr, pivr, LUc, pivc = work[0], work[1], work[2], work[3], work[4]
+    _form(J, g_real, LUr)
+    _form(J, g_cplx, LUc)
+    return lu_inplace(LUr, pivr) and lu_inplace(LUc, pivc)
+
+
+@njit
+def dense_solve(chain, extra, J, LU, piv, gamma, r, out):
+    """(gamma I - J)^-1 r through the dense factors (:func:`_solve_reduced`)."""
+    _solve_reduced(LU, piv, J, gamma, r, out)
+
+
+@njit(inline="always")
+def _factor(factor_fn, chain, extra, work, h, stats):
+    """Set up the real and complex iteration matrices for step h [s]; False if singular."""
     ctl = work[11]
-    _form(J, MU_REAL / h, LUr)
-    _form(J, complex(MU_C_RE, MU_C_IM) / h, LUc)
     if stats.shape[0] > 4:
         stats[4] += 1
-    ok = lu_inplace(LUr, pivr) and lu_inplace(LUc, pivc)
+    ok = factor_fn(chain, extra, work, MU_REAL / h, complex(MU_C_RE, MU_C_IM) / h, stats)
     ctl[LU_H] = h if ok else 0.0
     return ok
 
 
 @njit
-def _jacobian(rhs, chain, extra, loads, held, t_side, t, y, f, work, stats):
+def dense_jac(rhs, chain, extra, loads, held, t_side, t, y, f, work, stats):
     """J = [da/dq, da/dv] (m, 2m) at (t, y) by forward differences (f = rhs(t, y))."""
     J = work[0]
     yy = work[9][0]
     fd = work[9][1]
-    ctl = work[11]
     N = y.shape[0]
     m = N // 2
     yy[:] = y
@@ -132,6 +144,13 @@ def _jacobian(rhs, chain, extra, loads, held, t_side, t, y, f, work, stats):
     stats[0] += N
     if stats.shape[0] > 3:
         stats[3] += 1
+
+
+@njit(inline="always")
+def _jacobian(jac_fn, rhs, chain, extra, loads, held, t_side, t, y, f, work, stats):
+    """Renew the Newton matrices' Jacobian at (t, y) and mark the factors stale."""
+    jac_fn(rhs, chain, extra, loads, held, t_side, t, y, f, work, stats)
+    ctl = work[11]
     ctl[HAVE_JAC] = 1.0
     ctl[CURRENT_JAC] = 1.0
     ctl[LU_H] = 0.0
@@ -139,19 +158,26 @@ def _jacobian(rhs, chain, extra, loads, held, t_side, t, y, f, work, stats):
 
 # ----------------------------------------------------------------- workspace
 @njit
-def radau_workspace(size):
-    """Scratch arrays and controller memory of the stepper for a state of ``size`` = 2m:
-    (J (m, 2m), LU_real (m, m), piv_real (m,), LU_complex (m, m) complex, piv_complex (m,),
-    Z (3, size) stage increments, W (3, size), F (3, size) stage derivatives, Q (size, 3)
-    dense-output coefficients, V (8, size) real scratch, CV (2, size) complex scratch,
-    ctl (N_CTL,) controller memory). Allocated once per run; nothing is allocated per step."""
-    m = size // 2
+def _step_arrays(size):
+    """The step's arrays, work[5:12]: Z (3, size) stage increments, W (3, size), F (3, size)
+    stage derivatives, Q (size, 3) dense-output coefficients, V (8, size) real scratch,
+    CV (2, size) complex scratch, ctl (N_CTL,) controller memory."""
     ctl = np.zeros(N_CTL)
     ctl[FACCON] = 1.0
-    return (np.zeros((m, 2 * m)), np.zeros((m, m)), np.zeros(m, dtype=np.int64),
-            np.zeros((m, m), dtype=np.complex128), np.zeros(m, dtype=np.int64),
-            np.zeros((3, size)), np.zeros((3, size)), np.zeros((3, size)), np.zeros((size, 3)),
+    return (np.zeros((3, size)), np.zeros((3, size)), np.zeros((3, size)), np.zeros((size, 3)),
             np.zeros((8, size)), np.zeros((2, size), dtype=np.complex128), ctl)
+
+
+@njit
+def radau_workspace(size):
+    """Workspace of the stepper with dense Newton algebra (:data:`DENSE`) for a state of
+    ``size`` = 2m: (J (m, 2m), LU_real (m, m), piv_real (m,), LU_complex (m, m) complex,
+    piv_complex (m,)) and the step's arrays (:func:`_step_arrays`). Allocated once per run;
+    nothing is allocated per step."""
+    m = size // 2
+    return (np.zeros((m, 2 * m)), np.zeros((m, m)), np.zeros(m, dtype=np.int64),
+            np.zeros((m, m), dtype=np.complex128), np.zeros(m, dtype=np.int64)) + \
+        _step_arrays(size)
 
 
 @njit
@@ -168,15 +194,15 @@ def radau_restart(work):
 
 # ----------------------------------------------------------------- one step
 @njit
-def _newton(rhs, chain, extra, loads, held, t_side, t, y, h, scale, tol, work, stats):
+def _newton(rhs, solve_fn, chain, extra, loads, held, t_side, t, y, h, scale, tol, work,
+            stats):
     """Simplified Newton on the collocation system (scipy's solve_collocation_system, with
     RADAU5's convergence test: |dW| rate / (1 - rate) < tol, the rate of the previous step
     standing in until one is measured, so that one iteration can suffice).
 
     Z (work[5], (3, N)) holds the starting guess on entry and the stage increments on exit.
     Returns (converged, iterations, convergence rate; -1 when unknown)."""
-    J, LUr, pivr, LUc, pivc, Z, W, F = (work[0], work[1], work[2], work[3], work[4], work[5],
-                                        work[6], work[7])
+    Z, W, F = work[5], work[6], work[7]
     V = work[9]
     CV = work[10]
     N = y.shape[0]
@@ -214,8 +240,8 @@ def _newton(rhs, chain, extra, loads, held, t_side, t, y, h, scale, tol, work, s
             fc[j] = (complex(TI[1, 0] * f0 + TI[1, 1] * f1 + TI[1, 2] * f2,
                              TI[2, 0] * f0 + TI[2, 1] * f1 + TI[2, 2] * f2)
                      - m_cplx * complex(W[1, j], W[2, j]))
-        _solve_reduced(LUr, pivr, J, m_real, fr, xr)
-        _solve_reduced(LUc, pivc, J, m_cplx, fc, xc)
+        solve_fn(chain, extra, work[0], work[1], work[2], m_real, fr, xr)
+        solve_fn(chain, extra, work[0], work[3], work[4], m_cplx, fc, xc)
         acc = 0.0
         for j in range(N):
             a = xr[j] / scale[j]
@@ -267,8 +293,8 @@ def _rms_scaled(x, y, y_new, rtol, atol):
 
 
 @njit
-def radau_step(rhs, chain, extra, loads, held, t_side, t, y, f, h, t_bound, rtol, atol, work,
-               y_new, f_new, stats):
+def radau_step(rhs, jac_fn, factor_fn, solve_fn, chain, extra, loads, held, t_side, t, y, f, h, t_bound, rtol, atol,
+               work, y_new, f_new, stats):
     """One accepted Radau IIA step from time t [s], state y (N,), f = rhs(t, y) (N,).
 
     ``h`` [s] > 0 is the proposed step; the step ends at ``t_bound`` if it would reach it
@@ -282,7 +308,6 @@ def radau_step(rhs, chain, extra, loads, held, t_side, t, y, f, h, t_bound, rtol
     Returns (status, t_new, h_next): STATUS_OK, or STATUS_STEP_UNDERFLOW (t_new = t) when
     the step fell below 10 ulp of t, or STATUS_NONFINITE when y_new is not finite."""
     Z, Q, V, ctl = work[5], work[8], work[9], work[11]
-    LUr, pivr, J = work[1], work[2], work[0]
     N = y.shape[0]
     scale = V[4]
     rhs_err = V[5]
@@ -291,7 +316,7 @@ def radau_step(rhs, chain, extra, loads, held, t_side, t, y, f, h, t_bound, rtol
     newton_tol = max(10.0 * EPS / rtol, min(0.03, math.sqrt(rtol)))
     min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
     if ctl[HAVE_JAC] == 0.0:
-        _jacobian(rhs, chain, extra, loads, held, t_side, t, y, f, work, stats)
+        _jacobian(jac_fn, rhs, chain, extra, loads, held, t_side, t, y, f, work, stats)
     h_abs = h
     h_old = ctl[H_OLD]
     err_old = ctl[ERR_OLD]
@@ -324,13 +349,14 @@ def radau_step(rhs, chain, extra, loads, held, t_side, t, y, f, h, t_bound, rtol
         while True:
             ok = True
             if abs(ctl[LU_H] - hs) > 1e-9 * hs:
-                ok = _factor(work, hs, stats)
+                ok = _factor(factor_fn, chain, extra, work, hs, stats)
             if ok:
-                converged, n_iter, rate = _newton(rhs, chain, extra, loads, held, t_side, t, y,
-                                                  hs, scale, newton_tol, work, stats)
+                converged, n_iter, rate = _newton(rhs, solve_fn, chain, extra, loads, held,
+                                                  t_side, t, y, hs, scale, newton_tol, work,
+                                                  stats)
             if converged or ctl[CURRENT_JAC] != 0.0:
                 break
-            _jacobian(rhs, chain, extra, loads, held, t_side, t, y, f, work, stats)
+            _jacobian(jac_fn, rhs, chain, extra, loads, held, t_side, t, y, f, work, stats)
         if not converged:
             h_abs = 0.5 * hs
             stats[2] += 1
@@ -340,7 +366,7 @@ def radau_step(rhs, chain, extra, loads, held, t_side, t, y, f, h, t_bound, rtol
         for j in range(N):
             y_new[j] = y[j] + Z[2, j]
             rhs_err[j] = f[j] + (Z[0, j] * E[0] + Z[1, j] * E[1] + Z[2, j] * E[2]) / hs
-        _solve_reduced(LUr, pivr, J, MU_REAL / hl, rhs_err, err)
+        solve_fn(chain, extra, work[0], work[1], work[2], MU_REAL / hl, rhs_err, err)
         error_norm = _rms_scaled(err, y, y_new, rtol, atol)
         safety = 0.9 * (2 * NEWTON_MAXITER + 1) / (2 * NEWTON_MAXITER + n_iter)
         if rejected and error_norm > 1.0:
@@ -350,7 +376,7 @@ def radau_step(rhs, chain, extra, loads, held, t_side, t, y, f, h, t_bound, rtol
             stats[0] += 1
             for j in range(N):
                 rhs_err[j] += err[j] - f[j]
-            _solve_reduced(LUr, pivr, J, MU_REAL / hl, rhs_err, err)
+            solve_fn(chain, extra, work[0], work[1], work[2], MU_REAL / hl, rhs_err, err)
             error_norm = _rms_scaled(err, y, y_new, rtol, atol)
         if not error_norm <= 1.0:
             if math.isfinite(error_norm):
@@ -374,7 +400,8 @@ def radau_step(rhs, chain, extra, loads, held, t_side, t, y, f, h, t_bound, rtol
     rhs(t_new, y_new, chain, extra, loads, held, t_side, f_new)
     stats[0] += 1
     if recompute_jac:
-        _jacobian(rhs, chain, extra, loads, held, t_side, t_new, y_new, f_new, work, stats)
+        _jacobian(jac_fn, rhs, chain, extra, loads, held, t_side, t_new, y_new, f_new, work,
+                  stats)
     else:
         ctl[CURRENT_JAC] = 0.0
     for j in range(N):
@@ -406,8 +433,8 @@ def radau_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol,
     history is forgotten (:func:`radau_restart`). Writes y(t_out[i]) into Y_out[i] by dense
     output. ``events``: see :mod:`rod_sim.core.erk` (located on the collocation polynomial).
     Returns (y_end, t_end, h_next, status, number of outputs written)."""
-    return radau_run_work(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol,
-                          h_init, max_step, max_steps, Y_out, stats, events,
+    return radau_run_work(rhs, dense_jac, dense_factor, dense_solve, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
+                          atol, h_init, max_step, max_steps, Y_out, stats, events,
                           radau_workspace(y0.shape[0]))
 
 
@@ -426,8 +453,8 @@ def _nested_form(Q, F):
 
 
 @njit
-def radau_run_work(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                   max_step, max_steps, Y_out, stats, events, work):
+def radau_run_work(rhs, jac_fn, factor_fn, solve_fn, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol,
+                   h_init, max_step, max_steps, Y_out, stats, events, work):
     """:func:`radau_run` with the workspace ``work`` (:func:`radau_workspace`) given, so that
     a caller stepping one model period by period keeps its Jacobian between calls (it is
     kept stale: slow Newton convergence still renews it). At an event the history is
@@ -465,9 +492,9 @@ def radau_run_work(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, 
             if m_ev > 0 and events[6][0] + m_ev > cap:
                 return y, t, h, STATUS_EVENTS_FULL, i_out
             h = min(h, max_step)
-            status, t_new, h_next = radau_step(rhs, chain, extra, loads, held, t_side, t, y, f,
-                                               h, seg_end, rtol, atol, work, y_new, f_new,
-                                               stats)
+            status, t_new, h_next = radau_step(rhs, jac_fn, factor_fn, solve_fn, chain, extra, loads, held, t_side, t,
+                                               y, f, h, seg_end, rtol, atol, work, y_new,
+                                               f_new, stats)
             if status != STATUS_OK:
                 return y, t, h_next, status, i_out
             hs = t_new - t
@@ -501,51 +528,41 @@ def radau_run_work(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, 
     return y, t, h, STATUS_OK, i_out
 
 
+def chain_radau_workspace(model):
+    """The Radau workspace of a chain model: the O(n) Newton part and the step's arrays."""
+    return _nw.chain_workspace(model.chain, model.extra, model.state_size) + \
+        _step_arrays(model.state_size)
+
+
 # Module-level entry points, one per model kernel (see erk.py: cached on disk).
-
-
-@njit
-def _radau_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                 max_step, max_steps, Y_out, stats, events):
-    return radau_run(_k.rigid_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
-                     atol, h_init, max_step, max_steps, Y_out, stats, events)
-
-
-@njit
-def _radau_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                   max_step, max_steps, Y_out, stats, events):
-    return radau_run(_k.reduced_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
-                     atol, h_init, max_step, max_steps, Y_out, stats, events)
-
-
-@njit
-def _radau_full(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                max_step, max_steps, Y_out, stats, events):
-    return radau_run(_k.full_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
-                     atol, h_init, max_step, max_steps, Y_out, stats, events)
 
 
 @njit
 def _radau_work_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
                       max_step, max_steps, Y_out, stats, events, work):
-    return radau_run_work(_k.rigid_rhs, chain, extra, loads, held, y0, t0, t_out, breaks,
-                          rtol, atol, h_init, max_step, max_steps, Y_out, stats, events, work)
+    return radau_run_work(_k.rigid_rhs, _nw.chain_jac, _nw.chain_factor,
+                          _nw.chain_solve, chain, extra, loads, held, y0, t0, t_out,
+                          breaks, rtol, atol, h_init, max_step, max_steps, Y_out, stats, events,
+                          work)
 
 
 @njit
 def _radau_work_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
                         max_step, max_steps, Y_out, stats, events, work):
-    return radau_run_work(_k.reduced_rhs, chain, extra, loads, held, y0, t0, t_out, breaks,
-                          rtol, atol, h_init, max_step, max_steps, Y_out, stats, events, work)
+    return radau_run_work(_k.reduced_rhs, _nw.chain_jac, _nw.chain_factor,
+                          _nw.chain_solve, chain, extra, loads, held, y0, t0, t_out,
+                          breaks, rtol, atol, h_init, max_step, max_steps, Y_out, stats, events,
+                          work)
 
 
 @njit
 def _radau_work_full(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
                      max_step, max_steps, Y_out, stats, events, work):
-    return radau_run_work(_k.full_rhs, chain, extra, loads, held, y0, t0, t_out, breaks,
-                          rtol, atol, h_init, max_step, max_steps, Y_out, stats, events, work)
+    return radau_run_work(_k.full_rhs, _nw.chain_jac, _nw.chain_factor,
+                          _nw.chain_solve, chain, extra, loads, held, y0, t0, t_out,
+                          breaks, rtol, atol, h_init, max_step, max_steps, Y_out, stats, events,
+                          work)
 
 
-RADAU = {"rigid": _radau_rigid, "reduced": _radau_reduced, "full": _radau_full}
 RADAU_WORK = {"rigid": _radau_work_rigid, "reduced": _radau_work_reduced,
               "full": _radau_work_full}

@@ -73,46 +73,24 @@ def bending_frequencies(scene) -> np.ndarray:
     return omega / (2.0 * math.pi)
 
 
-def chain_bending_frequency(scene, phi=None, eps: float = 1e-7) -> float:
-    """Lowest eigenfrequency [Hz] of the full model's linearization about ``phi`` (default the
+def chain_bending_frequency(scene, phi=None) -> float:
+    """Lowest eigenfrequency [Hz] of the full model linearized about ``phi`` (default the
     initial angles, at rest, no load) whose mode is mostly bending (more than half of its
     modal kinetic energy in alpha, beta). inf if a rod is massless.
 
-    The linearization is taken numerically: K = -d(accelerations)/dq by central differences of
-    the full model's right-hand side, M from the kinetic energy, modes from eig(K)."""
+    K is the elastic stiffness (hinge springs and bending; the prestress of a bent
+    configuration and the stop contacts left out), M the inertia at phi; the modes come from
+    :func:`rod_sim.core.linearization.lowest_bending_mode`: O(n) per iteration (shift-invert
+    Lanczos on the chain solve), dense only for a few rods."""
+    from .linearization import lowest_bending_mode
     from .models import FullModel  # local: the models import nothing from here
 
     if np.any(np.asarray(scene.mass_per_length) <= 0.0):
         return math.inf
-    model = FullModel(scene)
-    n = model.n
-    y0 = model.initial_state()
-    if phi is not None:
-        y0[:n] = phi
-    y0[3 * n:] = 0.0
-    J = np.empty((3 * n, 3 * n))
-    zero = np.zeros((n, 2))
-    for j in range(3 * n):
-        h = eps * max(1.0, abs(y0[j]))
-        yp, ym = y0.copy(), y0.copy()
-        yp[j] += h
-        ym[j] -= h
-        J[:, j] = (model.rhs(0.0, yp, zero)[3 * n:] - model.rhs(0.0, ym, zero)[3 * n:]) / (2 * h)
-    w2, vecs = np.linalg.eig(-J)
-    order = np.argsort(w2.real)
-    A, Ma, Mb = model.mass_blocks(y0[:n])
-    p = model.params
-    ml3 = p.m * p.l**3
-    Mbb = np.block([[np.diag(ml3 / 105), np.diag(-ml3 / 140)],
-                    [np.diag(-ml3 / 140), np.diag(ml3 / 105)]])
-    M = np.block([[A, Ma, Mb], [np.hstack([Ma, Mb]).T, Mbb]])
-    for k in order:
-        v = vecs[:, k].real
-        total = v @ M @ v
-        bend = v[n:] @ M[n:, n:] @ v[n:]
-        if total > 0 and bend > 0.5 * total and w2[k].real > 0:
-            return float(math.sqrt(w2[k].real) / (2.0 * math.pi))
-    return math.inf
+    model = FullModel(scene.with_changes(loads=()))
+    phi0 = np.asarray(scene.phi0 if phi is None else phi, dtype=float)
+    guess = 2.0 * math.pi * float(np.min(bending_frequencies(scene)))
+    return lowest_bending_mode(model, phi0, guess) / (2.0 * math.pi)
 
 
 def load_frequency(scene) -> float:

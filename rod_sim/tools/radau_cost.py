@@ -1,6 +1,6 @@
 """Where the time of a radau-jit run goes: work counters of one run times the measured unit
-cost of each operation (rhs, finite-difference Jacobian, LU factorisation pair, linear solve
-pair), against the measured CPU time of the whole run.
+cost of each operation (rhs, Jacobian update, Newton matrix set-up pair, O(n) Newton solve
+pair: :mod:`rod_sim.core.newton`), against the measured CPU time of the whole run.
 
 ``python -m rod_sim.tools.radau_cost [SCENE] [--model full] [--rtol 3e-6] [--t-end 2]``
 (docs/bench.md, section "radau-jit"); ``--hard-cases`` instead times dop853-jit against
@@ -16,7 +16,7 @@ import time
 
 import numpy as np
 
-from ..core import radau
+from ..core import newton, radau
 from ..core.integrators import make_integrator
 from ..core.jit import njit
 from ..core.models import make_model
@@ -33,21 +33,23 @@ def _loop_rhs(reps, rhs, y, chain, extra, loads, held, out):
 @njit
 def _loop_jacobian(reps, rhs, y, chain, extra, loads, held, f, work, stats):
     for _ in range(reps):
-        radau._jacobian(rhs, chain, extra, loads, held, 0.1, 0.1, y, f, work, stats)
+        newton.chain_jac(rhs, chain, extra, loads, held, 0.1, 0.1, y, f, work, stats)
 
 
 @njit
-def _loop_factor(reps, work, h, stats):
+def _loop_factor(reps, chain, extra, work, h, stats):
     for r in range(reps):
-        radau._factor(work, h * (1.0 + 1e-6 * r), stats)
+        hr = h * (1.0 + 1e-6 * r)
+        newton.chain_factor(chain, extra, work, radau.MU_REAL / hr,
+                            complex(radau.MU_C_RE, radau.MU_C_IM) / hr, stats)
 
 
 @njit
-def _loop_solve(reps, work, h, fr, xr, fc, xc):
-    J, LUr, pivr, LUc, pivc = work[0], work[1], work[2], work[3], work[4]
+def _loop_solve(reps, chain, extra, work, h, fr, xr, fc, xc):
     for _ in range(reps):
-        radau._solve_reduced(LUr, pivr, J, radau.MU_REAL / h, fr, xr)
-        radau._solve_reduced(LUc, pivc, J, complex(radau.MU_C_RE, radau.MU_C_IM) / h, fc, xc)
+        newton.chain_solve(chain, extra, work[0], work[1], work[2], radau.MU_REAL / h, fr, xr)
+        newton.chain_solve(chain, extra, work[0], work[3], work[4],
+                           complex(radau.MU_C_RE, radau.MU_C_IM) / h, fc, xc)
 
 
 def _unit_cost(fn, reps, *args) -> float:
@@ -75,22 +77,22 @@ def measure(scene, model_name="full", rtol=3e-6, t_end=2.0) -> dict:
     held = np.zeros((model.n, 2))
     args = (model.kernel, y, model.chain, model.extra, model.loads, held)
     n = y.size
-    work = radau.radau_workspace(n)
+    work = radau.chain_radau_workspace(model)
     stats = np.zeros(6, dtype=np.int64)
     f = model.rhs(0.1, y)
     h = t_end / max(integ.stats.steps, 1)
     s = integ.stats
     unit = {"rhs": _unit_cost(_loop_rhs, 20000, *args, np.empty(n)),
             "jacobian": _unit_cost(_loop_jacobian, 300, *args, f, work, stats),
-            "lu_pair": _unit_cost(_loop_factor, 2000, work, h, stats),
-            "solve_pair": _unit_cost(_loop_solve, 20000, work, h, np.random.default_rng(0)
-                                     .random(n), np.empty(n), np.ones(n, complex),
-                                     np.empty(n, complex))}
-    jac_rhs = s.njev * n
-    counts = {"rhs (Newton stages, step ends, error refinements)": (s.nfev - jac_rhs, "rhs"),
-              "Jacobian (n_state rhs each)": (s.njev, "jacobian"),
-              "LU pairs (real + complex, m x m)": (s.nlu, "lu_pair"),
-              "linear solve pairs (per Newton iteration)": (s.newton_iters, "solve_pair")}
+            "lu_pair": _unit_cost(_loop_factor, 2000, model.chain, model.extra, work, h, stats),
+            "solve_pair": _unit_cost(_loop_solve, 20000, model.chain, model.extra, work, h,
+                                     np.random.default_rng(0).random(n), np.empty(n),
+                                     np.ones(n, complex), np.empty(n, complex))}
+    counts = {"rhs (Newton stages, step ends, error refinements)": (s.nfev, "rhs"),
+              "Jacobian updates (the inertia's angles, O(n))": (s.njev, "jacobian"),
+              "Newton matrix set-ups (real + complex, O(n))": (s.nlu, "lu_pair"),
+              "O(n) Newton solve pairs (per Newton iteration)": (s.newton_iters,
+                                                                  "solve_pair")}
     split = {k: {"count": c, "unit_us": unit[u] * 1e6, "total_ms": c * unit[u] * 1e3}
              for k, (c, u) in counts.items()}
     return {"model": model_name, "rtol": rtol, "t_end": t_end, "steps": s.steps,

@@ -1,0 +1,179 @@
+"""Radau's Newton systems for the chain models in O(n): no Jacobian matrix, no dense LU.
+
+Radau IIA needs (g I - J) z = r for the Jacobian J = [[0, I], [K, D]] of y = [q, v] at a real
+g and a complex g (:mod:`rod_sim.core.radau`). Here K = da/dq and D = da/dv are replaced by
+their elastic parts, K ~ -M^{-1} K_el and D ~ -M^{-1} C_el, with M the model's inertia at the
+angles of the last "Jacobian" update, K_el the hinge springs (plus, for the rigid and reduced
+models, the stop contacts in contact) and the bending stiffness, C_el the hinge dampers (plus
+the contacts' damping). Then
+
+    (g^2 M + g C_el + K_el) x = M (r_v + g r_q) + C_el r_q,   z = [x, g x - r_q],
+
+and (M + (C_el / g + K_el / g^2)) is the structure the kernels' chain solve takes: every
+sprung hinge a compliant constraint with compliance -1 / (nu_h / g + kappa_h / g^2) (its
+multiplier acts on the phi rows and, in the reduced model, on the hinge's slope rows), the
+full model's bending stiffness folded into each rod's 2 x 2 bending block. One solve costs
+about one right-hand side. What is left out (the velocity terms, dM/dq times the
+accelerations, the load's dependence on phi, and in the full model the stop contacts) only
+slows the simplified Newton iteration down: docs/bench.md ("radau-jit") gives the measured
+effect.
+
+``work[0:5]`` of the Radau workspace: phi_J (n,) [rad], the real Newton Extra and Chain, the
+complex Newton Extra and Chain (:func:`chain_workspace`).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import kernels as _k
+from .jit import njit
+
+
+def chain_workspace(chain, extra, size):
+    """The Newton part (work[0:5]) of the Radau workspace for a chain model."""
+    n = chain.l.shape[0]
+    zeros3, zeros4 = np.zeros((3, n)), np.zeros((4, n))
+    parts = [np.zeros(n)]
+    for dtype in (float, complex):
+        ex = _k.make_extra(zeros3, zeros4, np.zeros(n), np.zeros(n, bool), np.zeros(n, bool),
+                           kind=extra.kind, dtype=dtype)
+        ch = chain._replace(c105=np.array(chain.c105, dtype=dtype),
+                            c140=np.array(chain.c140, dtype=dtype))
+        parts += [ex, ch]
+    return tuple(parts)
+
+
+@njit
+def chain_jac(rhs, chain, extra, loads, held, t_side, t, y, f, work, stats):
+    """The "Jacobian" update: the inertia is taken at the current angles."""
+    phi_j = work[0]
+    for k in range(phi_j.shape[0]):
+        phi_j[k] = y[k]
+    if stats.shape[0] > 3:
+        stats[3] += 1
+
+
+@njit(inline="always")
+def _setup(chain, extra, g, nex, nch):
+    """Compliances and weights of the Newton Extra ``nex`` and the bending block of ``nch``
+    for the shift g (real or complex) in the mode of ``extra``."""
+    n = chain.l.shape[0]
+    full = extra.kind == _k.KIND_FULL
+    g2 = g * g
+    for h in range(n):
+        nex.pinned[h] = extra.pinned[h]
+        if extra.locked[h] != 0:
+            nex.locked[h] = 1
+            nex.comp[h] = 0.0
+            nex.gw[h] = 0.0
+            continue
+        s_hinge = chain.nu[h] / g + chain.kappa[h] / g2
+        s = s_hinge
+        if not full and extra.contact[h] != 0.0:
+            s = s + extra.stop_c[h] / g + extra.stop_k[h] / g2
+        if s == 0.0:
+            nex.locked[h] = 0
+            nex.comp[h] = 0.0
+            nex.gw[h] = 0.0
+        else:
+            nex.locked[h] = 1
+            nex.comp[h] = -1.0 / s
+            nex.gw[h] = s_hinge / s
+    if full:
+        for k in range(n):
+            nch.c105[k] = chain.c105[k] + chain.Kt[k] / g2
+            nch.c140[k] = chain.c140[k] - 0.5 * chain.Kt[k] / g2
+
+
+@njit
+def chain_factor(chain, extra, work, g_real, g_cplx, stats):
+    """Set up the real and complex Newton systems (O(n)); always succeeds."""
+    _setup(chain, extra, g_real, work[1], work[2])
+    _setup(chain, extra, g_cplx, work[3], work[4])
+    return True
+
+
+@njit
+def chain_solve(chain, extra, phi_j, nex, nch, g, r, out):
+    """out (N,) = (g I - J)^{-1} r (N,) for the approximate J of the module docstring, through
+    the Newton Extra ``nex`` / Chain ``nch`` set up for this g; ``out`` must not alias r."""
+    n = chain.l.shape[0]
+    m = r.shape[0] // 2
+    full = extra.kind == _k.KIND_FULL
+    W = nex.work
+    g2 = g * g
+    # c' = r_v + g r_q into spare columns, then M c' + C r_q into the solve's right-hand side
+    for k in range(n):
+        W[k, _k.W_C] = math.cos(phi_j[k])
+        W[k, _k.W_S] = math.sin(phi_j[k])
+        W[k, _k.W_GP] = r[m + k] + g * r[k]
+        if full:
+            W[k, _k.W_GA] = r[m + n + k] + g * r[n + k]
+            W[k, _k.W_COR] = r[m + 2 * n + k] + g * r[2 * n + k]
+    # inertia product (full kind: the slope rows get m^{gamma phi} c' even for the reduced
+    # model, whose Newton system keeps them)
+    zx = 0.0
+    zy = 0.0
+    for k in range(n):
+        c = W[k, _k.W_C]
+        s = W[k, _k.W_S]
+        v = W[k, _k.W_GP]
+        ez = c * zx + s * zy
+        fp = chain.Akk[k] * v + chain.l[k] * chain.Mt[k] * ez
+        fa = chain.C[k] * ez + chain.c30[k] * v
+        fb = -chain.C[k] * ez - chain.c20[k] * v
+        if full:
+            va = W[k, _k.W_GA]
+            vb = W[k, _k.W_COR]
+            fp += chain.c30[k] * va - chain.c20[k] * vb
+            fa += chain.c105[k] * va - chain.c140[k] * vb
+            fb += -chain.c140[k] * va + chain.c105[k] * vb
+        W[k, _k.W_FP] = fp
+        W[k, _k.W_FA] = fa
+        W[k, _k.W_FB] = fb
+        zx += chain.l[k] * c * v
+        zy += chain.l[k] * s * v
+    rx = 0.0
+    ry = 0.0
+    for k in range(n - 1, -1, -1):
+        c = W[k, _k.W_C]
+        s = W[k, _k.W_S]
+        W[k, _k.W_FP] += chain.l[k] * (c * rx + s * ry)
+        w = chain.l[k] * chain.Mt[k] * W[k, _k.W_GP]
+        if full:
+            w += chain.C[k] * (W[k, _k.W_GA] - W[k, _k.W_COR])
+        rx += w * c
+        ry += w * s
+    # damping C_el r_q
+    for h in range(n):
+        if extra.locked[h] != 0:
+            continue
+        sig = r[h] - (r[h - 1] if h > 0 else 0.0)
+        if full:
+            sig += r[n + h] - (r[2 * n + h - 1] if h > 0 else 0.0)
+        nu = chain.nu[h]
+        cphi = nu
+        if not full and extra.contact[h] != 0.0:
+            cphi += extra.stop_c[h]
+        W[h, _k.W_FP] += cphi * sig
+        W[h, _k.W_FA] += nu * sig
+        if h > 0:
+            W[h - 1, _k.W_FP] -= cphi * sig
+            W[h - 1, _k.W_FB] -= nu * sig
+    for k in range(n):
+        W[k, _k.W_FP] /= g2
+        W[k, _k.W_FA] /= g2
+        W[k, _k.W_FB] /= g2
+    if not _k.chain_solve(extra.kind, nch, nex, W):
+        for i in range(out.shape[0]):
+            out[i] = np.nan
+        return
+    for k in range(n):
+        out[k] = W[k, _k.W_X]
+        if full:
+            out[n + k] = W[k, _k.W_A]
+            out[2 * n + k] = W[k, _k.W_B]
+    for i in range(m):
+        out[m + i] = g * out[i] - r[i]
