@@ -30,11 +30,31 @@ def urdf_cli(*args: str) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, timeout=60)
 
 
+def rotation(axis, angle: float) -> np.ndarray:
+    """4x4 rotation by ``angle`` [rad] about the unit ``axis`` (Rodrigues)."""
+    x, y, z = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    out = np.eye(4)
+    out[:3, :3] = np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * (k @ k)
+    return out
+
+
 def node_positions(robot, joint_names, q) -> np.ndarray:
-    """(n+1, 3) positions [m] of the frames of rod_1..rod_n and tip in ``world``."""
-    robot.update_cfg(dict(zip(joint_names, q)))
+    """(n+1, 3) positions [m] of the frames of rod_1..rod_n and tip in the root frame:
+    forward kinematics over the joints as the parser read them (origin, axis, parent, child).
+    (yourdfpy's own update_cfg/get_transform goes through trimesh's cached scene graph, which
+    left joint angles of ~1e-9 rad unapplied: errors of 1e-8 m at the first periods.)"""
+    angle = dict(zip(joint_names, q))
+    frames = {robot.base_link: np.eye(4)}
+    pending = list(robot.robot.joints)
+    while pending:
+        joint = next(j for j in pending if j.parent in frames)
+        pending.remove(joint)
+        origin = np.eye(4) if joint.origin is None else joint.origin
+        motion = rotation(joint.axis, angle[joint.name]) if joint.type == "revolute" else np.eye(4)
+        frames[joint.child] = frames[joint.parent] @ origin @ motion
     links = [f"rod_{k}" for k in range(1, len(q) + 1)] + ["tip"]
-    return np.array([robot.get_transform(link, "world")[:3, 3] for link in links])
+    return np.array([frames[link][:3, 3] for link in links])
 
 
 def test_rod_sim_urdf_parses_with_the_hand_calculated_masses(tmp_path):
