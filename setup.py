@@ -30,7 +30,7 @@ setup(
     ],
     extras_require={
         "ros": ["ros-jazzy-rclpy[fastrtps]", "ros-jazzy-common-interfaces"],
-        "test": ["pytest", "pytest-timeout", "rosbags", "sympy"],
+        "test": ["pytest", "pytest-timeout", "rosbags", "sympy", "yourdfpy"],
         "plot": ["matplotlib"],
         "peer": ["mujoco", "pin"],              # bench: MuJoCo and Pinocchio side by side
         "sweep": ["dask[distributed]", "pyarrow", "tqdm"],      # rod-sim sweep on a cluster

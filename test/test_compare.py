@@ -445,9 +445,13 @@ def test_rosbag2_directory_with_two_files(tmp_path, full_log, small, capsys):
     assert rep["samples_compared"] == ref.samples
     assert rep["max_abs_error"]["phi"] == ref.quantities["phi"].max
     (bag / "metadata.yaml").write_text(
+        "rosbag2_bagfile_information:\n  storage_identifier: zarr\n"
+        "  relative_file_paths: [bag_0.zarr]\n")
+    assert_clean_error(capsys, bag, "--scene", SMALL, match="only 'mcap' and 'sqlite3' bags")
+    (bag / "metadata.yaml").write_text(
         "rosbag2_bagfile_information:\n  storage_identifier: sqlite3\n"
         "  relative_file_paths: [bag_0.db3]\n")
-    assert_clean_error(capsys, bag, "--scene", SMALL, match="only 'mcap' bags")
+    assert_clean_error(capsys, bag, "--scene", SMALL, match="cannot read the sqlite3 bag")
 
 
 # ----- output -----

@@ -28,7 +28,20 @@ def test_warm_runs_and_skips_only_refused_combinations(monkeypatch):
     lines = []
     ran = jit_warm.warm(log=lines.append)
     assert ran == 2 * len(names.INTEGRATOR_NAMES) - len(names.SCIPY_METHODS)
-    assert f"{ran} compiled drivers" in lines[0]
+    assert f"{ran} compiled drivers" in lines[-1]
+    total = len(jit_warm.drivers())
+    progress = [ln for ln in lines if re.match(r"rod_sim: \[\d+/\d+\] ", ln)]
+    assert [int(re.search(r"\[(\d+)/", ln).group(1)) for ln in progress] == list(
+        range(1, total + 1)), "one progress line per driver, in order"
+    assert all(f"/{total}]" in ln and "s left)" in ln for ln in progress)
+    assert sum("skipped" in ln for ln in progress) == total - ran
+
+
+def test_warm_progress_estimates_the_time_left_from_the_mean_so_far():
+    line = jit_warm.progress_line(3, 12, "full x rk4 on x.yaml", 2.0, 30.0)
+    assert line == ("rod_sim: [3/12] full x rk4 on x.yaml: 2.0 s (30 s so far, ~90 s left)")
+    assert "~0 s left" in jit_warm.progress_line(12, 12, "a", 1.0, 40.0)
+    assert "skipped" in jit_warm.progress_line(1, 2, "a", 0.0, 0.0, skipped=True)
 
 
 def test_make_installs_quietly_and_warms_the_cache():

@@ -172,11 +172,12 @@ def test_namespace_params_file_resolved_names_and_absolute_diagnostics(harness, 
                                                                        monkeypatch):
     """The shipped params file applies under a namespace; topics and the log use resolved
     names; /diagnostics stays absolute; hinge_events exist only for scenes with events."""
-    monkeypatch.chdir(REPO)                       # the params file names a relative scene
+    monkeypatch.chdir(tmp_path)     # the params file's scene is found next to it, not here
     log = tmp_path / "arm1.mcap"
     h = harness(ros_args=["--ros-args", "-r", "__ns:=/arm1", "--params-file", str(PARAMS),
                           "-p", f"record_path:={log}"])
-    assert h.node.settings.scene_file == "config/paper_example.yaml"
+    assert h.node.settings.scene_file == "paper_example.yaml"
+    assert h.node.scene_path == PARAMS.parent / "paper_example.yaml"
     h.subscribe("/diagnostics", DiagnosticArray)
     h.subscribe("rod_states", JointState)            # the client is in /arm1 too
     h.wait_matched("rod_states", "diagnostics")

@@ -178,3 +178,59 @@ def test_diagnostic_levels_and_values():
     level, message, values = report(error="step size too small at t = 1 s").status()
     assert level == DIAGNOSTIC_ERROR and "step size too small" in message
     assert values["error"].startswith("step size")
+
+
+# ----- issue 20 item 5: catch up what stepping can afford -----
+
+def test_cheap_stepping_catches_up_a_scheduling_delay_without_dropping():
+    """A 200 ms delay (the process not scheduled) with 0.15 ms per period: the 20 periods due
+    are caught up in one tick (0.5 x 10 ms / 0.15 ms = 33 per tick), none dropped. Without a
+    cost (the previous pacer) 16 of them were dropped."""
+    cost = 150_000
+    pacer = RealTimePacer(PERIOD, 1.0)
+    assert pacer.per_tick(cost) == 33
+    sim, periods, dropped = run_ticks_costed(pacer, [0, 10 * MS, 210 * MS, 220 * MS], cost)
+    assert periods == [0, 1, 20, 1] and dropped == [0, 0, 0, 0]
+    assert sim == 22 * PERIOD
+    old = RealTimePacer(PERIOD, 1.0)
+    _, _, old_dropped = run_ticks(old, [0, 10 * MS, 210 * MS, 220 * MS])
+    assert sum(old_dropped) == 16
+
+
+def run_ticks_costed(pacer: RealTimePacer, tick_walls, cost_ns: float, sim0: int = 0):
+    sim = sim0
+    periods, dropped = [], []
+    for wall in tick_walls:
+        d = pacer.decide(int(wall), sim, cost_ns)
+        sim += d.periods * pacer.period
+        periods.append(d.periods)
+        dropped.append(d.dropped)
+    return sim, periods, dropped
+
+
+def test_a_backlog_larger_than_one_tick_is_caught_up_over_several():
+    cost = 1 * MS                                    # 5 periods per tick of 10 ms
+    pacer = RealTimePacer(PERIOD, 1.0)
+    walls = [0, 10 * MS, 310 * MS] + [310 * MS + k * 10 * MS for k in range(1, 12)]
+    sim, periods, dropped = run_ticks_costed(pacer, walls, cost)
+    assert sum(dropped) == 0
+    assert periods[2] == 5 and max(periods) == 5
+    assert sim == (walls[-1] // PERIOD) * PERIOD, "on time again after catching up"
+
+
+def test_only_what_stepping_cannot_afford_is_dropped():
+    """Catch-up gains 1/cost - 1/period periods per wall ns: 2 ms per 10 ms period gains 400
+    periods per second (CATCH_UP_S = 1 s), so of a 10 s stall (1000 periods) 600 are dropped."""
+    cost = 2 * MS
+    pacer = RealTimePacer(PERIOD, 1.0)
+    assert pacer.affordable_backlog(cost) == 400
+    sim, periods, dropped = run_ticks_costed(pacer, [0, 10 * MS, 10_010 * MS], cost)
+    assert dropped == [0, 0, 600] and periods[2] == pacer.per_tick(cost) == 4
+    assert pacer.target_ns(10_010 * MS) - sim == (400 - 4) * PERIOD
+
+
+def test_stepping_slower_than_real_time_keeps_the_old_bound():
+    pacer = RealTimePacer(PERIOD, 1.0)
+    assert pacer.affordable_backlog(15 * MS) == pacer.max_periods
+    assert pacer.per_tick(15 * MS) == pacer.max_periods
+    assert pacer.affordable_backlog(None) == pacer.per_tick(None) == pacer.max_periods

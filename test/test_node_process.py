@@ -21,7 +21,8 @@ from rosbags.typesys import Stores, get_typestore  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
 
-from procs import Child, ros_env  # noqa: E402
+import ros_graph  # noqa: E402
+from procs import ros_env  # noqa: E402
 from rod_sim.core.integrators import make_integrator  # noqa: E402
 from rod_sim.core.models import make_model  # noqa: E402
 from rod_sim.core.simulator import Simulator  # noqa: E402
@@ -47,30 +48,12 @@ def compiled_kernels():
     sim.advance(0.01)
 
 
-class NodeProcess(Child):
+class NodeProcess(ros_graph.NodeProcess):
     """``python -m rod_sim.ros.node --ros-args -p k:=v ...`` with output in files."""
 
     def __init__(self, tmp_path: Path, domain: int, **params):
-        args = [sys.executable, "-m", "rod_sim.ros.node", "--ros-args"]
-        for key, value in params.items():
-            text = str(value).lower() if isinstance(value, bool) else str(value)
-            args += ["-p", f"{key}:={text}"]
-        super().__init__(args, domain, tmp_path / f"node_{domain}.err",
-                         tmp_path / f"node_{domain}.out")
-
-    def wait_for_output(self, text: str, timeout: float = STARTUP_S) -> None:
-        deadline = time.monotonic() + timeout
-        while text not in self.stderr:
-            if self.proc.poll() is not None:
-                raise AssertionError(f"node exited ({self.proc.returncode}): {self.stderr}")
-            if time.monotonic() > deadline:
-                raise AssertionError(f"node did not print {text!r} in {timeout} s: {self.stderr}")
-            time.sleep(0.05)
-
-    def stop(self, sig=signal.SIGINT, timeout: float = 15.0) -> int:
-        if self.proc.poll() is None:
-            self.proc.send_signal(sig)
-        return self.proc.wait(timeout=timeout)
+        super().__init__(tmp_path, domain, name=f"node_{domain}",
+                         command=("-m", "rod_sim.ros.node"), **params)
 
 
 @pytest.fixture

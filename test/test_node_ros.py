@@ -28,7 +28,7 @@ from visualization_msgs.msg import MarkerArray  # noqa: E402
 
 from rod_sim.io.mcap_log import LogReader  # noqa: E402
 from rod_sim.io.scene_yaml import load_scene, scene_to_yaml  # noqa: E402
-from rod_sim.ros.node import NodeConfigError, RodSimNode  # noqa: E402
+from rod_sim.ros.node import NodeConfigError, RodSimNode, params_files  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(60)]
 
@@ -73,7 +73,9 @@ class Harness:
         self.nodes.append(self.client)
         self.received = defaultdict(list)
         overrides = [Parameter(k, value=v) for k, v in params.items()]
-        self.node = RodSimNode(context=self.context, parameter_overrides=overrides)
+        # as the node's process does: the params files of the ROS arguments locate scene_file
+        self.node = RodSimNode(params_files(list(ros_args)), context=self.context,
+                               parameter_overrides=overrides)
         self.nodes.append(self.node)
         self.executor = SingleThreadedExecutor(context=self.context)
         for node in self.nodes:

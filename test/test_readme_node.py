@@ -87,19 +87,32 @@ def shell(tmp_path):
         s.kill()
 
 
+def ctl_commands() -> list[str]:
+    """The section's `rod-sim ctl` lines (run against the real-time node)."""
+    return [c for c in shell_commands() if "rod-sim ctl" in c]
+
+
 def test_the_section_has_the_blocks_this_module_runs():
-    commands = shell_commands()
+    commands = [c for c in shell_commands() if "rod-sim ctl" not in c]
     assert len(commands) == 3, commands
+    assert len(ctl_commands()) == 7
     assert "rod-sim node" in commands[0] and "record_path:=out/run.mcap" in commands[0]
     assert "__ns:=/arm1" in commands[1] and "sync_mode:=true" in commands[1]
     assert "rod_sim.ros.demo" in commands[2]
-    assert len(code_blocks("python")) == 1
+    blocks = code_blocks("python")     # the lockstep client (run here) and the torque helpers
+    assert len(blocks) == 2 and "hinge_forces" in blocks[1]   # (run by test_controller_api.py)
 
 
-def test_realtime_node_with_the_params_file_records(shell, tmp_path):
+def test_realtime_node_with_the_params_file_records_and_answers_ctl(shell, tmp_path):
     node = shell(shell_commands()[0], DOMAIN_REALTIME, "realtime")
     node.wait_for("recording to")
     time.sleep(1.0)
+    for command in ctl_commands():         # as the README shows them, each a process
+        done = subprocess.run(["bash", "-c", "exec env " + command.replace(
+            "ROS_DOMAIN_ID=7", f"ROS_DOMAIN_ID={DOMAIN_REALTIME}")], cwd=REPO,
+            env=ros_env(DOMAIN_REALTIME), capture_output=True, text=True, timeout=60)
+        assert done.returncode == 0, f"{command}: {done.stdout}{done.stderr}"
+        assert done.stdout.strip(), command
     assert node.interrupt() == 0, node.stderr
     assert "Traceback" not in node.stderr
     with LogReader(tmp_path / "run.mcap") as reader:

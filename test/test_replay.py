@@ -166,9 +166,13 @@ def test_bag_directory_of_two_files_is_merged_in_time_order(log_path, tmp_path):
         assert source.tracks["/rod_states"].message_count == len(raw)
         assert [(t, d) for _, t, d in source.messages()] == raw
     assert 0 < sum(1 for t, _ in raw if t < NS // 2) < len(raw)
-    info["rosbag2_bagfile_information"]["storage_identifier"] = "sqlite3"
+    info["rosbag2_bagfile_information"]["storage_identifier"] = "zarr"
     (bag / "metadata.yaml").write_text(yaml.safe_dump(info))
-    with pytest.raises(PlaybackError, match="sqlite3"):
+    with pytest.raises(PlaybackError, match="'zarr' is not supported .*rosbags-convert"):
+        open_source(bag)
+    info["rosbag2_bagfile_information"]["storage_identifier"] = "sqlite3"   # no .db3 file
+    (bag / "metadata.yaml").write_text(yaml.safe_dump(info))
+    with pytest.raises(PlaybackError, match="cannot read the sqlite3 bag"):
         open_source(bag)
 
 

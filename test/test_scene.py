@@ -452,7 +452,7 @@ def test_node_params_file_names_a_loadable_scene():
     p = params["/**"]["ros__parameters"]       # any namespace (issue 13)
     assert p["model"] in ("reduced", "full", "rigid")
     assert p["rate_hz"] > 0 and p["frame_id"] == "world"
-    assert load_scene(REPO / p["scene_file"]).n == 8
+    assert load_scene(CONFIG / p["scene_file"]).n == 8   # relative to the params file
 
 
 # ----- round trip ---------------------------------------------------------------------------

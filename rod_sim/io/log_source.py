@@ -1,5 +1,6 @@
 """Read what ``rod-sim compare`` needs from a log, as a stream: one MCAP file or a rosbag2 bag
-directory.
+directory (MCAP storage; sqlite3 storage is copied to a temporary MCAP file first,
+:mod:`rod_sim.io.sqlite_bag`).
 
 A bag directory holds ``metadata.yaml`` (rosbag2's ``rosbag2_bagfile_information`` with
 ``storage_identifier: mcap`` and ``relative_file_paths``) and the ``.mcap`` files it lists; they
@@ -29,6 +30,7 @@ import contextlib
 import heapq
 import io
 import os
+import tempfile
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,12 +39,15 @@ from typing import Any
 import numpy as np
 import yaml
 
-from rod_sim.io.mcap_log import METADATA_NAME, LogFormatError, LogReader
+from rod_sim.io.mcap_log import METADATA_NAME, LogFormatError, LogReader, namespace_of
+from rod_sim.io.sqlite_bag import SQLITE_STORAGE, SqliteBagError, bag_storage, sqlite_bag_to_mcap
 
 STATE_TOPIC = "/rod_states"
 BENDING_TOPIC = "/bending"
 POSES_TOPIC = "/node_poses"
 APPLIED_TOPIC = "/applied_forces"
+SCENE_TOPIC = "/scene"
+"""Latched std_msgs/String with the scene as YAML (not part of :data:`TOPICS`: read once)."""
 TOPICS = (STATE_TOPIC, BENDING_TOPIC, POSES_TOPIC, APPLIED_TOPIC)
 
 
@@ -85,7 +90,9 @@ def log_files(path: str | os.PathLike) -> list[Path]:
                              f"({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})"
                              ) from None
     if storage != "mcap":
-        raise LogFormatError(f"{path}: bag storage is {storage!r}; only 'mcap' bags can be read")
+        raise LogFormatError(f"{path}: bag storage is {storage!r}; only 'mcap' and 'sqlite3' "
+                             "bags can be read (convert it with rosbags-convert --src BAG --dst "
+                             "OUT --dst-storage mcap; pip install rosbags)")
     files = [path / name for name in names]
     missing = [str(f) for f in files if not f.is_file()]
     if missing:
@@ -121,11 +128,31 @@ class LogStream:
     notes: list[str] = field(default_factory=list)
     counts: dict[str, int] = field(default_factory=lambda: {t: 0 for t in TOPICS})
     _readers: list[LogReader] = field(default_factory=list, repr=False)
+    _copy: Any = field(default=None, repr=False)
+    """The temporary directory of a sqlite3 bag's MCAP copy (removed on :meth:`close`)."""
 
     def close(self) -> None:
         for reader in self._readers:
             reader.close()
         self._readers = []
+        if self._copy is not None:
+            self._copy.cleanup()
+            self._copy = None
+
+    def topic_scene(self):
+        """The :class:`~rod_sim.core.scene.Scene` of the log's latched ``scene`` topic (YAML in
+        a std_msgs/String, in the namespace of its ``rod_states``), None without one: what a
+        log converted by rosbag2 tools, which drop MCAP metadata, still holds. Raises
+        LogFormatError for an invalid scene."""
+        for reader, names in zip(self._readers, self.topics):
+            state = names.get(STATE_TOPIC.lstrip("/"))
+            prefix = namespace_of(state).rstrip("/") if state else ""
+            topic = f"{prefix}{SCENE_TOPIC}"
+            if topic not in reader.topics():
+                continue
+            for _, _, msg in reader.messages([topic]):
+                return metadata_scene({"scene": str(msg.data)}, f"{self.path} ({topic})")
+        return None
 
     def __enter__(self) -> "LogStream":
         return self
@@ -270,8 +297,18 @@ def read_log(path: str | os.PathLike, namespace: str | None = None) -> LogStream
     as well as ``/rod_states``); a log holding them under two namespaces needs ``namespace``.
     Raises LogFormatError. Close the result (a context manager) when done."""
     path = Path(path)
-    files = log_files(path)
-    stream = LogStream(path=path, files=files, metadata=None, topics=[], complete=True)
+    copy = None
+    if path.is_dir() and bag_storage(path) == SQLITE_STORAGE:
+        copy = tempfile.TemporaryDirectory(prefix="rod_sim_sqlite_bag_")
+        try:
+            files = [sqlite_bag_to_mcap(path, Path(copy.name) / f"{path.name}.mcap")]
+        except SqliteBagError as exc:
+            copy.cleanup()
+            raise LogFormatError(str(exc)) from None
+    else:
+        files = log_files(path)
+    stream = LogStream(path=path, files=files, metadata=None, topics=[], complete=True,
+                       _copy=copy)
     try:
         for f in files:
             try:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import heapq
 import os
+import tempfile
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,6 +21,7 @@ from pathlib import Path
 import yaml
 
 from rod_sim.io.mcap_log import MAGIC, ChannelInfo, LogFormatError, LogReader
+from rod_sim.io.sqlite_bag import SQLITE_STORAGE, SqliteBagError, bag_storage, sqlite_bag_to_mcap
 
 NS_PER_S = 1_000_000_000
 DEFAULT_DEPTH = 10
@@ -139,8 +141,9 @@ def bag_files(directory: Path) -> list[Path]:
                             f"({' '.join(str(exc).split())})") from None
     storage = str(info.get("storage_identifier", ""))
     if storage != "mcap":
-        raise PlaybackError(f"{directory}: storage {storage!r} is not supported (MCAP bags "
-                            "only; convert with `ros2 bag convert`)")
+        raise PlaybackError(f"{directory}: storage {storage!r} is not supported (MCAP and "
+                            "sqlite3 bags only; convert it with rosbags-convert --src BAG --dst "
+                            "OUT --dst-storage mcap, pip install rosbags)")
     if info.get("compression_mode"):
         raise PlaybackError(f"{directory}: rosbag2 file compression "
                             f"({info.get('compression_format') or info['compression_mode']}) "
@@ -166,7 +169,17 @@ class PlaybackSource:
         self.path = Path(path)
         if not self.path.exists():
             raise PlaybackError(f"{self.path} does not exist")
-        self.files = bag_files(self.path) if self.path.is_dir() else [self.path]
+        self._copy = None
+        if self.path.is_dir() and bag_storage(self.path) == SQLITE_STORAGE:
+            self._copy = tempfile.TemporaryDirectory(prefix="rod_sim_sqlite_bag_")
+            try:
+                self.files = [sqlite_bag_to_mcap(self.path,
+                                                 Path(self._copy.name) / "bag.mcap")]
+            except SqliteBagError as exc:
+                self._copy.cleanup()
+                raise PlaybackError(str(exc)) from None
+        else:
+            self.files = bag_files(self.path) if self.path.is_dir() else [self.path]
         self._readers: list[LogReader] = []
         try:
             for f in self.files:
@@ -228,6 +241,9 @@ class PlaybackSource:
     def close(self) -> None:
         for reader in self._readers:
             reader.close()
+        if self._copy is not None:
+            self._copy.cleanup()
+            self._copy = None
         self._readers = []
 
     def __enter__(self) -> "PlaybackSource":

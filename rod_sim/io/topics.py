@@ -32,6 +32,8 @@ TOPIC_TYPES: dict[str, str] = {
     "applied_forces": "std_msgs/msg/Float64MultiArray",
     "diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
     "clock": "rosgraph_msgs/msg/Clock",
+    "robot_description": "std_msgs/msg/String",
+    "scene": "std_msgs/msg/String",
 }
 """Published topics (relative names; ``clock`` is ``/clock`` on a node) -> ROS type names."""
 

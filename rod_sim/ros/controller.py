@@ -1,4 +1,7 @@
-"""A demo controller node: PD control of the hinge angles, acting through nodal forces.
+"""A demo controller node: PD control of the hinge angles, acting through nodal forces; and the
+documented helpers between hinge torques and nodal forces (:func:`hinge_forces`: torques ->
+``nodal_forces`` command, :func:`hinge_torques`: nodal forces -> equivalent hinge torques,
+:func:`hinge_moments`: the PD law), usable from any controller.
 
 For each hinge h = 0..n-1 it asks for the moment M_h = kp (q_ref_h - q_h) - kd q_dot_h [N m]
 (q_h, q_dot_h from ``joint_states``) and realises it with nodal forces: rod k receives the
@@ -16,7 +19,8 @@ Gains must fit the scene: with the command held over a control period dt, kd dt 
 well below the smallest effective inertia [kg m^2] of the chain's fast modes, or the loop
 goes unstable.
 
-It publishes one ``nodal_forces`` command per received ``joint_states`` message, so it works
+It publishes one ``nodal_forces`` command per received ``joint_states`` state (a state
+repeated with the same stamp is answered once), so it works
 both at a real-time pace and in the simulator's lockstep mode. In lockstep the simulator waits
 for a first command: while no state has arrived and the simulator listens, the controller sends
 a zero command every ``kickoff_period`` [s] to start it.
@@ -55,7 +59,14 @@ def hinge_moments(q, q_rate, q_ref, kp: float, kd: float) -> np.ndarray:
 def hinge_forces(moments, phi, lengths) -> np.ndarray:
     """Nodal forces (n, 2) [N] at nodes 1..n equivalent to hinge moments ``moments`` (n,) [N m]
     acting between consecutive rods (hinge 0 between the ground and rod 1), for rod angles
-    ``phi`` (n,) [rad] and rod lengths ``lengths`` (n,) [m]."""
+    ``phi`` (n,) [rad] and rod lengths ``lengths`` (n,) [m].
+
+    Public API (torques -> forces): a moment M_h at hinge h acts +M_h on rod h+1 and -M_h on
+    rod h (hinge 0: rod 1 against the ground); rod k then carries the couple C_k = M_{k-1} - M_k,
+    realised as the force C_k / l_k perpendicular to rod k at node k and its opposite at node
+    k-1 (none at the ground). The forces do the same virtual work as the moments for every
+    virtual motion of the chord angles (:func:`hinge_torques` of the result gives ``moments``
+    back); flatten the result (``.ravel()``) for a ``nodal_forces`` command."""
     m = np.asarray(moments, dtype=float)
     phi = np.asarray(phi, dtype=float)
     lengths = np.asarray(lengths, dtype=float)
@@ -65,6 +76,25 @@ def hinge_forces(moments, phi, lengths) -> np.ndarray:
     forces = push.copy()
     forces[:-1] -= push[1:]                             # reaction at node k-1, k >= 2
     return forces
+
+
+def hinge_torques(forces, phi, lengths) -> np.ndarray:
+    """The hinge moments (n,) [N m] equivalent to nodal forces ``forces`` (n, 2) or flat (2n,)
+    [N] at nodes 1..n, for rod angles ``phi`` (n,) [rad] and rod lengths ``lengths`` (n,) [m]:
+    the generalized forces of the relative hinge angles q_h (hinges 0..n-1, the ``joint_states``
+    positions), i.e. the Jacobian transpose of the node positions,
+    tau_h = sum_{j > h} l_j (-sin phi_j, cos phi_j) . sum_{k >= j} F_k.
+
+    Public API (forces -> torques), the inverse direction of :func:`hinge_forces`:
+    ``hinge_torques(hinge_forces(M, phi, l), phi, l) == M`` to rounding. Forces along the chords
+    have no hinge moment (they load the inextensible chords)."""
+    f = np.asarray(forces, dtype=float).reshape(-1, 2)
+    phi = np.asarray(phi, dtype=float)
+    lengths = np.asarray(lengths, dtype=float)
+    outboard = np.cumsum(f[::-1], axis=0)[::-1]         # sum_{k >= j} F_k for rod j (row j-1)
+    normal = np.stack([-np.sin(phi), np.cos(phi)], axis=1)
+    rod_moment = lengths * np.einsum("ij,ij->i", normal, outboard)   # generalized force on phi_j
+    return np.cumsum(rod_moment[::-1])[::-1]            # tau_h = sum_{j >= h+1} Q_phi_j
 
 
 def pd_forces(q, q_rate, q_ref, lengths, kp: float, kd: float,
@@ -106,6 +136,8 @@ class HingePDController(Node):
         self.n = len(self.lengths) if self.lengths is not None else None
         self.commands_sent = 0
         self._states_seen = 0
+        self._answered: tuple[int, int] | None = None
+        """Stamp of the last state answered (each state gets one command)."""
         self._pub = self.create_publisher(Float64MultiArray, "nodal_forces", 10)
         self.create_subscription(JointState, "joint_states", self._on_joint_states, 10)
         self.create_subscription(PoseArray, "node_poses", self._on_node_poses, 10)
@@ -128,6 +160,10 @@ class HingePDController(Node):
 
     def _on_joint_states(self, msg: JointState) -> None:
         self._states_seen += 1
+        stamp = (msg.header.stamp.sec, msg.header.stamp.nanosec)
+        if stamp == self._answered:
+            return      # a lockstep node waiting for its first command repeats its state
+        self._answered = stamp
         if self.lengths is None or len(msg.position) != self.n or len(msg.velocity) != self.n:
             return
         if self.target.size not in (1, self.n):

@@ -21,10 +21,11 @@ period (zero-order hold). The subscription callback never integrates: it validat
 - Real time (``real_time_factor`` > 0, ``sync_mode`` false): a steady wall-clock timer ticks;
   at each tick a :class:`~rod_sim.ros.pacing.RealTimePacer` compares the simulated time with
   ``real_time_factor`` x the wall time since the clock was anchored and the node advances the
-  whole periods it is behind (a tick is not assumed to be one period). When stepping costs more
-  than the wall time it represents, at most a few periods are advanced per tick and the rest of
-  the backlog is dropped (the clock is re-anchored): the ``diagnostics`` then show a measured
-  real-time factor below the target instead of the executor stalling.
+  whole periods it is behind (a tick is not assumed to be one period). A backlog is caught up
+  as far as the measured wall cost of a period affords it (median of recent ticks, see
+  :meth:`~rod_sim.ros.pacing.RealTimePacer.decide`); only what cannot be caught up is dropped
+  (the clock is re-anchored): the ``diagnostics`` then show a measured real-time factor below
+  the target instead of the executor stalling.
 - As fast as possible (``real_time_factor`` 0): a zero-period timer advances periods for a
   bounded wall-time budget per tick, so commands and services are still served between ticks.
 - Lockstep (``sync_mode`` true): exactly one period per received valid command, then the
@@ -41,10 +42,14 @@ run), the simulator advances, and the states are published stamped at the end of
 Every header stamp and log time is simulated time.
 
 Outputs nobody subscribes to are only built when a log is being recorded (``markers`` is the
-costly one); in lockstep the state topics are transient local (depth 1) and always published,
-the t = 0 state included, so a client can start from the state callback. ``/clock`` (depth 1,
+costly one). The state topics are reliable and transient local in every mode (depth 10, in
+lockstep 1; :mod:`rod_sim.ros.qos`), so default-QoS and transient-local subscribers both match;
+in lockstep they are always published, the t = 0 state included, so a client can start from
+the state callback, and until the first command the waiting state is published again every
+0.5 s (not recorded) for volatile subscribers that joined later. ``/clock`` (depth 1,
 volatile, ``clock_reliability``: reliable by default, which both default-QoS and ClockQoS
-subscribers receive) follows every period and, while nothing advances (paused, waiting,
+subscribers receive) is published for every period *before* that period's outputs and, while
+nothing advances (paused, waiting,
 failed), repeats the frozen time every 0.1 s; it is not recorded: log times already are
 simulated times and players publish their own clock. ``/diagnostics`` is absolute (status
 ``rod_sim: simulation``). ``start_paused`` holds the node at t = 0 until ``~/pause`` false or
@@ -93,6 +98,7 @@ from rod_sim.io.hinge_events import (HINGE_EVENTS_TOPIC, HINGE_EVENTS_TYPE, even
                                      event_time_ns)
 from rod_sim.io.mcap_log import LogWriter
 from rod_sim.io.scene_yaml import load_scene, scene_to_yaml
+from rod_sim.io.urdf import scene_urdf
 from rod_sim.tools.common import UsageError
 from rod_sim.tools.limits import check_model_memory
 from rod_sim.ros import budget
@@ -108,15 +114,21 @@ from rod_sim.ros.parameters import (NODE_NAME, PARAMETERS, NodeSettings,  # noqa
                                     ParameterSpec, declare_settings, unknown_overrides,
                                     validate_change)
 from rod_sim.ros.qos import (APPLIED_QOS, CLOCK_QOS, CLOCK_RELIABILITY,  # noqa: F401
-                             COMMAND_QOS, EVENTS_QOS, LOCKSTEP_STATE_QOS, SERVICE_QOS,
-                             SERVICE_QUEUE_DEPTH, STATE_QOS, clock_qos)
+                             COMMAND_QOS, DIAGNOSTICS_QOS, EVENTS_QOS, LATCHED_QOS,
+                             LOCKSTEP_STATE_DEPTH, LOCKSTEP_STATE_QOS, SERVICE_QOS,
+                             SERVICE_QUEUE_DEPTH, STATE_DEPTH, STATE_QOS, clock_qos)
 from rod_sim.ros.recording import (MAX_LOG_ROLLS, NodeRecording, create_log,  # noqa: F401
                                    offered_qos)
+from rod_sim.ros.scene_path import ScenePathError, resolve_scene_file
 
 COMMAND_TOPIC = "nodal_forces"
 COMMAND_TYPE = "std_msgs/msg/Float64MultiArray"
 STATE_TOPICS = ("joint_states", "rod_states", "bending", "node_poses", "markers")
 """Published at the end of every control period (if subscribed or recorded)."""
+DESCRIPTION_TOPICS = ("robot_description", "scene")
+"""Published once, transient local, and recorded at t = 0 of every log: the chain as URDF
+(:mod:`rod_sim.io.urdf`) and the resolved scene as YAML (a converted log stays
+self-contained)."""
 
 DIAGNOSTICS_TOPIC = "/diagnostics"
 """Absolute, where diagnostic_aggregator listens (as diagnostic_updater publishes)."""
@@ -127,10 +139,16 @@ IDLE_CLOCK_PERIOD_S = 0.1
 """[s] wall period of ``/clock`` while no period advances (paused, waiting, failed)."""
 WAITING_LOG_PERIOD_S = 3.0
 """[s] wall period of the "waiting for ..." log line at t = 0."""
+WAITING_REPUBLISH_PERIOD_S = 0.5
+"""[s] wall period at which a lockstep node that waits for its first command publishes the
+waiting state again (not recorded), so that a volatile (default-QoS) controller that connects
+later receives a state to answer."""
 NAME_CHECK_DELAY_S = 2.0
 """[s] after start at which the graph is checked for another node of the same name."""
 FAST_TICK_BUDGET_NS = 20_000_000
 """[ns] wall time one tick may spend stepping when running as fast as possible."""
+PERIOD_COST_TICKS = 50
+"""Ticks whose wall cost per period the pacer's estimate is the median of."""
 SYNC_BATCH = 16
 """Lockstep commands processed per executor callback before yielding to other callbacks."""
 THROTTLE_S = 2.0
@@ -182,6 +200,7 @@ class RodSimNode(Node):
         except BaseException:
             self.destroy_node()
             raise
+        self._publish_descriptions()
         self._publish_state(self.sim.snapshot(), force=self.settings.sync_mode)
         self._warn_unknown_parameters()
         self.get_logger().info(
@@ -204,7 +223,16 @@ class RodSimNode(Node):
     def _build_simulation(self) -> None:
         s = self.settings
         try:
-            self.scene = load_scene(s.scene_file)
+            path, note = resolve_scene_file(s.scene_file, self.get_fully_qualified_name(),
+                                            self._params_files)
+        except ScenePathError as exc:
+            raise NodeConfigError(f"scene_file {exc}") from None
+        if note:
+            self.get_logger().warning(note)
+        self.scene_path = path
+        """The scene file found for ``scene_file`` (:mod:`rod_sim.ros.scene_path`)."""
+        try:
+            self.scene = load_scene(path)
             check_model_memory(self.scene.n)      # simulate's estimate, before allocating
             self.model = make_model(s.model, self.scene)
             integrator = make_integrator(s.integrator, rtol=s.rtol)
@@ -273,6 +301,9 @@ class RodSimNode(Node):
         self._max_alpha = 0.0
         self._max_beta = 0.0
         self._pacer: RealTimePacer | None = None
+        self._period_cost_ns: float | None = None
+        """[ns] estimate of the wall cost of one period (None until measured)."""
+        self._period_costs: deque[float] = deque(maxlen=PERIOD_COST_TICKS)
         self._tick_timer = None
         self._frame_id = self.settings.frame_id
         self._rtf = self.settings.real_time_factor
@@ -283,7 +314,8 @@ class RodSimNode(Node):
         """Relative topic name -> the resolved name it is published and recorded under
         (namespace and remappings applied, as rosbag2 records)."""
         names = {name: self.resolve_topic_name(name)
-                 for name in STATE_TOPICS + ("applied_forces", COMMAND_TOPIC, HINGE_EVENTS_TOPIC)}
+                 for name in STATE_TOPICS + DESCRIPTION_TOPICS
+                 + ("applied_forces", COMMAND_TOPIC, HINGE_EVENTS_TOPIC)}
         names["diagnostics"] = self.resolve_topic_name(DIAGNOSTICS_TOPIC)
         return names
 
@@ -292,8 +324,11 @@ class RodSimNode(Node):
         self._pubs = {name: self._publisher(
             topics.TOPIC_TYPES[name], self._topic_names[name],
             APPLIED_QOS if name == "applied_forces" else
-            STATE_QOS if name == "diagnostics" else state_qos)
+            DIAGNOSTICS_QOS if name == "diagnostics" else state_qos)
             for name in STATE_TOPICS + ("applied_forces", "diagnostics")}
+        self._pubs.update({name: self._publisher(topics.TOPIC_TYPES[name],
+                                                 self._topic_names[name], LATCHED_QOS)
+                           for name in DESCRIPTION_TOPICS})
         self._clock_pub = (self._publisher(topics.TOPIC_TYPES["clock"], "/clock",
                                            clock_qos(self.settings.clock_reliability))
                            if self.settings.publish_clock else None)
@@ -321,6 +356,9 @@ class RodSimNode(Node):
         if self._clock_pub is not None:
             self.create_timer(IDLE_CLOCK_PERIOD_S, self._on_idle_clock, clock=self._steady)
         self.create_timer(WAITING_LOG_PERIOD_S, self._log_waiting, clock=self._steady)
+        if self.settings.sync_mode:
+            self.create_timer(WAITING_REPUBLISH_PERIOD_S, self._republish_waiting,
+                              clock=self._steady)
         self._name_timer = self.create_timer(NAME_CHECK_DELAY_S, self._check_name_unique,
                                              clock=self._steady)
         self._configure_pacing()
@@ -397,6 +435,9 @@ class RodSimNode(Node):
                 self._commands.set_timeout(float(p.value))
             elif p.name == "frame_id":
                 self._frame_id = str(p.value)
+                self._pubs["robot_description"].publish(to_message(
+                    topics.TOPIC_TYPES["robot_description"],
+                    {"data": scene_urdf(self.scene, self._frame_id)}))
             elif p.name == "step_count":
                 self._step_count = int(p.value)
 
@@ -543,18 +584,32 @@ class RodSimNode(Node):
             while self._running() and time.monotonic_ns() < deadline:
                 self._step_period(self._held_command(wall_age=False))
             return
-        decision = self._pacer.decide(time.monotonic_ns(), self.sim.t_ns)
+        decision = self._pacer.decide(time.monotonic_ns(), self.sim.t_ns, self._period_cost_ns)
         if decision.dropped:
             self._dropped += decision.dropped
             self._log_throttled(
                 "dropped", "warning",
-                f"stepping is slower than real time x{self._rtf:g}: dropped {decision.dropped} "
-                f"period(s) of backlog ({self._dropped} in all)")
-        deadline = time.monotonic_ns() + self._budget.seconds * NS_PER_S
+                f"cannot keep up with real time x{self._rtf:g}: dropped {decision.dropped} "
+                f"period(s) of backlog ({self._dropped} in all; a period costs "
+                f"{(self._period_cost_ns or 0) / 1e6:.3g} ms of wall time)")
+        start = time.monotonic_ns()
+        deadline = start + self._budget.seconds * NS_PER_S
+        stepped = 0
         for _ in range(decision.periods):       # the rest of a slow tick waits for the next
-            if (not self._step_period(self._held_command(wall_age=True))
-                    or time.monotonic_ns() > deadline):
+            ok = self._step_period(self._held_command(wall_age=True))
+            stepped += ok
+            if not ok or time.monotonic_ns() > deadline:
                 break
+        if stepped:
+            self._note_period_cost((time.monotonic_ns() - start) / stepped)
+
+    def _note_period_cost(self, cost_ns: float) -> None:
+        """Add one tick's wall cost per period [ns] (stepping, publishing, recording) to the
+        estimate the pacer catches up with: the median of the last :data:`PERIOD_COST_TICKS`
+        ticks (a tick that was itself preempted by another process does not inflate it; when
+        every tick is slow, the median is slow too)."""
+        self._period_costs.append(cost_ns)
+        self._period_cost_ns = float(np.median(self._period_costs))
 
     def _on_sync_trigger(self) -> None:
         """Lockstep: one period per queued command, a bounded batch per callback."""
@@ -671,13 +726,35 @@ class RodSimNode(Node):
         t_ns = self.sim.t_ns
         self._max_alpha = max(self._max_alpha, float(np.max(np.abs(snap.alpha), initial=0.0)))
         self._max_beta = max(self._max_beta, float(np.max(np.abs(snap.beta), initial=0.0)))
+        self._publish_clock()       # /clock first: no output is stamped later than it
         wanted = [name for name in STATE_TOPICS if (force or self._wants(name))
                   and (name != "markers" or self._markers_due(t_ns))]
         if wanted:
             for name, data in topics.snapshot_messages(snap, self.scene, self._frame_id,
                                                        wanted).items():
                 self._emit(name, t_ns, data, force)
-        self._publish_clock()
+
+    def _publish_descriptions(self) -> None:
+        """``robot_description`` (URDF, root link = ``frame_id``) and ``scene`` (YAML): published
+        (transient local) and recorded at the current simulated time (t = 0 at start and after
+        ``~/reset``)."""
+        texts = {"robot_description": scene_urdf(self.scene, self._frame_id),
+                 "scene": scene_to_yaml(self.scene)}
+        for name, text in texts.items():
+            self._recording.record(self._topic_names[name], topics.TOPIC_TYPES[name],
+                                   self.sim.t_ns, {"data": text})
+            self._pubs[name].publish(to_message(topics.TOPIC_TYPES[name], {"data": text}))
+
+    def _republish_waiting(self) -> None:
+        """Lockstep, before the first valid command (at start and after ``~/reset``): publish
+        the waiting state again, not recorded, for volatile subscribers that joined since."""
+        if self._commands.latest is not None or self._sync_queue or self._error is not None:
+            return
+        wanted = [name for name in STATE_TOPICS
+                  if name != "markers" or self._markers_due(self.sim.t_ns)]
+        for name, data in topics.snapshot_messages(self.sim.snapshot(), self.scene,
+                                                   self._frame_id, wanted).items():
+            self._pubs[name].publish(to_message(topics.TOPIC_TYPES[name], data))
 
     def _publish_clock(self) -> None:
         """Simulated time on /clock (if enabled and someone listens)."""
@@ -740,6 +817,7 @@ class RodSimNode(Node):
         if self._pacer is not None:
             self._pacer.unanchor()
         note = self._recording.roll()
+        self._publish_descriptions()
         self._publish_state(self.sim.snapshot())
         response.success = True
         response.message = "reset to the initial state at t = 0 s" + note
@@ -821,7 +899,10 @@ class RodSimNode(Node):
                     "rtol": repr(s.rtol), "rate_hz": repr(s.rate_hz),
                     "source": "rod_sim node", "mode": self._mode(),
                     "node": self.get_fully_qualified_name()}
-        latched = ("applied_forces", HINGE_EVENTS_TOPIC) + (STATE_TOPICS if s.sync_mode else ())
+        state_depth = LOCKSTEP_STATE_DEPTH if s.sync_mode else STATE_DEPTH
+        latched = {"applied_forces": 1, HINGE_EVENTS_TOPIC: 100,
+                   **{name: 1 for name in DESCRIPTION_TOPICS},
+                   **{name: state_depth for name in STATE_TOPICS}}
         return create_log(path, metadata, offered_qos(self._topic_names, latched))
 
     @property

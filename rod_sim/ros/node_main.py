@@ -9,6 +9,7 @@ import argparse
 import functools
 import signal
 import sys
+import textwrap
 import threading
 from typing import Any, Callable
 
@@ -21,13 +22,34 @@ from rod_sim.ros.errors import NodeConfigError, one_line
 from rod_sim.ros.parameters import PARAMETERS
 
 
+def parameter_help(specs=PARAMETERS, width: int = 79) -> str:
+    """The parameters for ``--help``: one per line (``name  type, default: ...``), its
+    description wrapped and indented below it."""
+    kinds = {bool: "bool", float: "double", int: "integer", str: "string"}
+    lines = ["parameters (set with --ros-args -p NAME:=VALUE or --params-file FILE):"]
+    for spec in specs:
+        default = (str(spec.default).lower() if isinstance(spec.default, bool)
+                   else repr(spec.default))
+        run_time = "" if spec.read_only else ", settable at run time"
+        lines.append(f"  {spec.name} ({kinds[type(spec.default)]}, default {default}"
+                     f"{run_time})")
+        text = spec.description
+        if spec.range is not None:
+            text += f"; range {spec.range[0]:g} .. {spec.range[1]:g}"
+        if spec.constraints and spec.constraints not in text:
+            text += f"; {spec.constraints}"
+        lines += textwrap.wrap(text, width, initial_indent=" " * 6, subsequent_indent=" " * 6,
+                               break_on_hyphens=False)
+    return "\n".join(lines)
+
+
 def build_parser(prog: str = "sim_node") -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog=prog, description="rod_sim ROS 2 node: a chain of elastic rods driven by "
-        "nodal forces (docs/interface.md section 3). Configure it with ROS arguments, e.g. "
-        "--ros-args --params-file config/sim_node.params.yaml -p scene_file:=SCENE.yaml",
-        epilog="parameters: " + "; ".join(f"{p.name} (default {p.default!r}): {p.description}"
-                                          for p in PARAMETERS))
+        prog=prog, formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="rod_sim ROS 2 node: a chain of elastic rods driven by nodal forces\n"
+        "(docs/interface.md section 3). Configure it with ROS arguments, e.g.\n"
+        "  --ros-args --params-file config/sim_node.params.yaml -p scene_file:=SCENE.yaml",
+        epilog=parameter_help())
     return parser
 
 

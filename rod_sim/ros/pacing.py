@@ -7,11 +7,16 @@ an *anchor* times the real-time factor, and returns the number of whole periods 
 current simulated time and that target. So ticks that come late, early or irregularly do not
 make the simulation drift from the wall clock.
 
-When stepping costs more than the wall time it represents, the backlog would grow without
-bound; the pacer therefore advances at most ``max_periods_per_tick`` periods per tick and,
-when the backlog is larger than that, drops the rest and re-anchors the clock at the current
-wall time (the simulation then runs slower than requested, which the node reports as a
-measured real-time factor below the target, instead of stalling the executor).
+A backlog comes from late ticks (the process was not scheduled: CPU contention) or from
+stepping that costs more than the wall time it represents. Given the measured wall cost of one
+period (``step_cost_ns``), the pacer catches up what stepping can afford and drops only the
+rest: a tick may step up to :data:`TICK_STEP_FRACTION` of a tick's wall time (at least
+``max_periods`` periods), and a backlog is kept as long as it can be caught up within
+:data:`CATCH_UP_S` of wall time while the simulation also keeps pace (stepping must be faster
+than real time x the factor); beyond that the excess is dropped and the clock re-anchored (the
+node reports a measured real-time factor below the target and the dropped periods, instead of
+stalling the executor). Without a cost (none measured yet), or when stepping is slower than
+real time, at most ``max_periods_per_tick`` periods are advanced and the rest is dropped.
 
 All times are integer nanoseconds: wall readings from a monotonic clock, simulated times as
 kept by :class:`rod_sim.core.simulator.Simulator`.
@@ -24,6 +29,11 @@ from dataclasses import dataclass
 NS_PER_S = 1_000_000_000
 MIN_TICK_S = 0.001
 """[s] shortest wall period of the node's pacing timer."""
+TICK_STEP_FRACTION = 0.5
+"""Share of a tick's wall period one tick may spend catching up (the rest serves commands and
+services)."""
+CATCH_UP_S = 1.0
+"""[s] of wall time within which a backlog must be catchable to be kept (else dropped)."""
 
 
 def period_ns(rate_hz: float) -> int:
@@ -109,12 +119,32 @@ class RealTimePacer:
         elapsed = max(int(wall_ns) - self._wall0, 0)
         return self._sim0 + int(elapsed * self.real_time_factor)
 
-    def decide(self, wall_ns: int, sim_ns: int) -> PacingDecision:
-        """Periods to advance at wall reading ``wall_ns`` when the simulation is at ``sim_ns``.
+    def per_tick(self, step_cost_ns: float | None) -> int:
+        """Periods one tick may advance: ``max_periods``, or more when stepping is cheap (as
+        many as fit in :data:`TICK_STEP_FRACTION` of a tick at ``step_cost_ns`` [ns] each)."""
+        if not step_cost_ns or step_cost_ns <= 0:
+            return self.max_periods
+        tick_ns = tick_period_s(self.period, self.real_time_factor) * NS_PER_S
+        return max(self.max_periods, int(TICK_STEP_FRACTION * tick_ns // step_cost_ns))
 
-        Whole periods only: the remainder waits for a later tick. At most ``max_periods``; a
-        larger backlog is dropped and the clock re-anchored so that, after advancing, the
-        simulation is on time again.
+    def affordable_backlog(self, step_cost_ns: float | None) -> int:
+        """The largest backlog [periods] kept rather than dropped: what stepping at
+        ``step_cost_ns`` [ns] per period catches up within :data:`CATCH_UP_S` while keeping
+        pace (each wall ns gains 1/cost - rtf/period periods); ``max_periods`` when no cost is
+        known or stepping is not faster than real time."""
+        if not step_cost_ns or step_cost_ns <= 0:
+            return self.max_periods
+        gain_per_ns = 1.0 / step_cost_ns - self.real_time_factor / self.period
+        return max(self.max_periods, int(CATCH_UP_S * NS_PER_S * gain_per_ns))
+
+    def decide(self, wall_ns: int, sim_ns: int,
+               step_cost_ns: float | None = None) -> PacingDecision:
+        """Periods to advance at wall reading ``wall_ns`` when the simulation is at ``sim_ns``;
+        ``step_cost_ns``: the measured wall cost of one period [ns] (None: unknown).
+
+        Whole periods only: the remainder waits for a later tick. At most :meth:`per_tick` per
+        tick; a backlog beyond :meth:`affordable_backlog` is dropped and the clock re-anchored
+        so that the backlog left is the affordable one.
         """
         if self._wall0 is None:
             self.anchor(wall_ns, sim_ns)
@@ -122,12 +152,14 @@ class RealTimePacer:
         behind = (self.target_ns(wall_ns) - int(sim_ns)) // self.period
         if behind <= 0:
             return PacingDecision(0)
-        if behind <= self.max_periods:
-            return PacingDecision(int(behind))
-        dropped = int(behind) - self.max_periods
+        step = self.per_tick(step_cost_ns)
+        keep = self.affordable_backlog(step_cost_ns)
+        if behind <= keep:
+            return PacingDecision(int(min(behind, step)))
+        dropped = int(behind) - keep
         self.dropped_total += dropped
-        self.anchor(wall_ns, int(sim_ns) + self.max_periods * self.period)
-        return PacingDecision(self.max_periods, dropped)
+        self.anchor(wall_ns, int(sim_ns) + keep * self.period)
+        return PacingDecision(int(min(keep, step)), dropped)
 
 
 class RateMeter:

@@ -47,8 +47,9 @@ class ParameterSpec:
 
 
 PARAMETERS = (
-    ParameterSpec("scene_file", "", "scene YAML file (docs/interface.md section 1), relative to the working "
-                  "directory; required", constraints="an existing, valid scene file"),
+    ParameterSpec("scene_file", "", "scene YAML file (docs/interface.md section 1): absolute, "
+                  "package://PKG/PATH, or relative to the params file that sets it (else to "
+                  "the working directory); required", constraints="an existing, valid scene file"),
     ParameterSpec("model", "reduced", "fidelity level of the chain model",
                   constraints="one of: " + ", ".join(MODELS)),
     ParameterSpec("rate_hz", 100.0, "control and publish rate [Hz]; every control period "

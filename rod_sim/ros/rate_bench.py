@@ -116,7 +116,7 @@ def measure(args) -> dict:
     from rclpy.executors import SingleThreadedExecutor
     from sensor_msgs.msg import JointState
 
-    from rod_sim.ros.qos import STATE_QOS
+    from rod_sim.ros.qos import keep_last
 
     with tempfile.TemporaryDirectory() as tmpdir:
         tmp = Path(tmpdir)
@@ -138,7 +138,7 @@ def measure(args) -> dict:
                 wall.append(time.perf_counter_ns())
                 stamps.append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
 
-            node.create_subscription(JointState, "rod_states", on_state, STATE_QOS)
+            node.create_subscription(JointState, "rod_states", on_state, keep_last(10))
             executor = SingleThreadedExecutor()
             executor.add_node(node)
             deadline = time.monotonic() + 60.0

@@ -6,7 +6,7 @@ reports on diagnostics), never silently."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Callable, Iterable
+from typing import Callable
 
 from rod_sim.io.hinge_events import HINGE_EVENTS_TOPIC
 from rod_sim.io.mcap_log import LogWriteError, LogWriter, offered_qos_yaml
@@ -16,12 +16,15 @@ MAX_LOG_ROLLS = 10_000
 """Names ``<stem>_<k>`` tried after a reset before giving up (existing files are skipped)."""
 
 
-def offered_qos(names: dict[str, str], latched: Iterable[str]) -> dict[str, str]:
+def offered_qos(names: dict[str, str], latched) -> dict[str, str]:
     """``offered_qos_profiles`` of the resolved topics ``names[t]`` for the transient-local
-    topics ``latched`` (``applied_forces``, ``hinge_events``, lockstep's state topics): depth 100
-    for ``hinge_events``, else 1. Other topics get the writer's default."""
-    return {names[t]: offered_qos_yaml(depth=100 if t == HINGE_EVENTS_TOPIC else 1,
-                                       durability="transient_local") for t in latched}
+    topics ``latched``: a mapping topic -> history depth (e.g. ``hinge_events``: 100, the state
+    topics: 10, or 1 in lockstep), or an iterable of topics (depth 100 for ``hinge_events``,
+    else 1). Other topics get the writer's default (reliable, volatile, depth 10)."""
+    depths = (dict(latched) if isinstance(latched, dict) else
+              {t: 100 if t == HINGE_EVENTS_TOPIC else 1 for t in latched})
+    return {names[t]: offered_qos_yaml(depth=depth, durability="transient_local")
+            for t, depth in depths.items()}
 
 
 def create_log(path: Path, metadata: dict[str, str], qos: dict[str, str]) -> LogWriter:

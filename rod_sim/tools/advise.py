@@ -106,10 +106,15 @@ def advise(scene, tolerance: float, t_end: float = 1.0, repeats: int = 3) -> dic
 
 
 def format_text(res: dict) -> str:
+    """The human-readable table: trial, criterion, one row per candidate, recommendation."""
+    criterion = res["margin"] * res["tolerance"]
     lines = [f"{res['scene']} (n = {res['n']}): trial 0..{res['t_end']:g} s, tolerance "
              f"{res['tolerance']:g} rad on max |phi - phi_ref| (full model, rtol 1e-11; "
              f"reference self-check {res['reference']['self_check_rtol_1e-10']:.2g} rad)",
-             f"{'model':8} {'rtol':>7} {'max phi error':>14} {'wall [s]':>10} {'nfev':>9}  meets"]
+             f"criterion: max phi error <= {res['margin']:g} x tolerance = {criterion:g} rad "
+             "(room for runs longer than the trial)",
+             f"{'model':8} {'rtol':>7} {'max phi error':>14} {'wall [s]':>10} {'nfev':>9}  "
+             f"meets (<= {criterion:g} rad)"]
     for r in res["trials"]:
         if r.get("error"):
             lines.append(f"{r['model']:8} {r['rtol']:7.0e}  failed: {r['error']}")

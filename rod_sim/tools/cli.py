@@ -129,7 +129,8 @@ def cmd_simulate(args) -> int:
     from ..core.integrators import IntegrationError, make_integrator
     from ..core.models import make_model
     from ..core.simulator import Simulator
-    from ..io.mcap_log import LogWriter
+    from ..io.log_source import SCENE_TOPIC
+    from ..io.mcap_log import LogWriter, offered_qos_yaml
     from ..io.scene_yaml import scene_to_yaml
 
     if not args.frame_id:                   # as the node's frame_id parameter
@@ -154,7 +155,11 @@ def cmd_simulate(args) -> int:
                 "integrator": integrator.describe(), "version": __version__,
                 "rate_hz": repr(args.rate), "source": "rod-sim simulate"}
     try:
-        log = LogWriter(out, metadata=metadata)
+        log = LogWriter(out, metadata=metadata, qos={SCENE_TOPIC: offered_qos_yaml(
+            depth=1, durability="transient_local")})
+        # the scene also as a latched topic: a log converted by rosbag2 tools (which drop MCAP
+        # metadata records) stays self-contained
+        log.write(SCENE_TOPIC, "std_msgs/msg/String", 0, {"data": metadata["scene"]})
     except OSError as err:
         raise UsageError(f"--out: cannot write {out}: {err.strerror or err}") from None
     run = _LoggedRun(sim, scene, log, args.frame_id)

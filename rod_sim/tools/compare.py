@@ -51,10 +51,13 @@ def _scene_for(log, scene_path: str | None):
 
     if scene_path is None:
         logged = metadata_scene(log.metadata, str(log.path))
+        if logged is not None:
+            return logged, "log metadata", None
+        logged = log.topic_scene()
         if logged is None:
-            raise UsageError(f"{log.path} has no rod_sim metadata with a scene; pass --scene "
-                             "SCENE.yaml")
-        return logged, "log metadata", None
+            raise UsageError(f"{log.path} has no rod_sim metadata and no /scene topic with a "
+                             "scene; pass --scene SCENE.yaml")
+        return logged, "the log's /scene topic", None
     scene = load_scene(scene_path)
     note = None
     try:
@@ -179,7 +182,42 @@ def format_report(report, info: dict) -> str:
         lines += _wrap(f"note: {note}")
     lines.append("")
     lines += _wrap(verdict_line(report))
+    for step in next_steps(report, info):
+        lines += _wrap(f"next: {step}")
     return "\n".join(lines)
+
+
+def next_steps(report, info: dict) -> list[str]:
+    """What to try after a FAIL (empty when the log passed), one suggestion a line; ``info``
+    as for :func:`format_report` (``scene_file``: the --scene given, if any)."""
+    if report.passed:
+        return []
+    scene = info.get("scene_file") or "SCENE.yaml"
+    steps = []
+    e = report.within["max_phi_error"]
+    if not math.isfinite(report.quantities["phi"].max):
+        steps.append("the logged run diverged: run it again with a tighter rtol or a smaller "
+                     "command (the node pauses with the cause on diagnostics)")
+    elif e > report.tolerance:
+        first = report.first_exceeded()
+        if info.get("model") != "full":
+            steps.append(f"this {info.get('model')} model is not accurate enough here: run the "
+                         f"full model (rod-sim simulate {scene} --model full, or the node with "
+                         "-p model:=full)")
+            steps.append(f"or ask rod-sim advise {scene} --tolerance {report.tolerance:g} for "
+                         "the cheapest model and integrator that meets this tolerance")
+        else:
+            steps.append("a full-model log that departs from the full model: check the scene "
+                         "(--scene) and the logged forces, or log with a tighter rtol")
+        steps.append(f"or use a shorter horizon: the error first exceeds the tolerance at t = "
+                     f"{first:.6g} s (a run ending before that passes at this tolerance), or a "
+                     f"looser --tolerance if {e:.3g} rad is acceptable")
+    if report.gap_count:
+        steps.append("states are missing: record in lockstep (-p sync_mode:=true), where no "
+                     "period is dropped, or at a lower rate_hz")
+    if not report.reference["converged"]:
+        steps.append("the full-model reference did not converge: compare a shorter log")
+    return steps
 
 
 def write_plot(report, path: Path, title: str) -> None:
@@ -282,9 +320,10 @@ def run(args) -> int:
         out = report.as_json()
         out["plot"] = str(plot) if plot else None
         out["validity"] = validity
+        out["next_steps"] = next_steps(report, {**info, "scene_file": args.scene})
         print(json.dumps(out, indent=1))
     else:
-        print(format_report(report, info))
+        print(format_report(report, {**info, "scene_file": args.scene}))
         if plot is not None:
             print(f"plot: {plot}")
     sys.stdout.flush()
