@@ -1,4 +1,5 @@
-"""The simulator: owns simulated time, the state and the held nodal forces.
+"""The simulator: owns simulated time, the state and the held inputs (nodal forces and hinge
+motor moments).
 
 Time is kept as integer nanoseconds so that repeated ``advance`` calls land exactly on the
 stamps a ROS node or a log uses (no drift from summing float periods).
@@ -68,7 +69,7 @@ class Simulator:
         self.mode = np.zeros(self.model.n, dtype=bool)    # which latches have fired
         self.y = self.model.initial_state()
         self.contact = self.model.contact_state(self.y)     # stop contacts (+1, -1, 0)
-        self.held = np.zeros((self.model.n, 2))
+        self.held = np.zeros((self.model.n, 3))     # X, Y [N] at nodes 1..n; T [N m], hinges
         self.integrator.reset()
 
     @property
@@ -77,11 +78,25 @@ class Simulator:
         return self.t_ns / NS_PER_S
 
     def set_forces(self, forces) -> None:
-        """Hold nodal forces (n, 2) or flat [X_1, Y_1, ..., X_n, Y_n] [N] from now on."""
+        """Hold nodal forces (n, 2) or flat [X_1, Y_1, ..., X_n, Y_n] [N] from now on (the
+        held hinge torques stay)."""
         f = np.asarray(forces, dtype=float).reshape(self.model.n, 2)
         if not np.all(np.isfinite(f)):
             raise ValueError("forces: non-finite value")
-        self.held = f.copy()
+        held = self.held.copy()
+        held[:, :2] = f
+        self.held = held
+
+    def set_hinge_torques(self, torques) -> None:
+        """Hold motor moments T_h (n,) [N m] at hinges 0..n-1 from now on (the held nodal
+        forces stay): T_h acts +T on rod h+1 and -T on rod h (hinge 0: on rod 1 against the
+        ground), added to the hinge's elastic and viscous moments, in every model."""
+        t = np.asarray(torques, dtype=float).reshape(self.model.n)
+        if not np.all(np.isfinite(t)):
+            raise ValueError("torques: non-finite value")
+        held = self.held.copy()
+        held[:, 2] = t
+        self.held = held
 
     def advance(self, dt: float) -> None:
         """Advance by dt [s] (rounded to whole ns) holding the current forces."""
