@@ -140,7 +140,7 @@ def test_run_stops_at_an_event_located_on_the_collocation_polynomial():
     ev = event_buffers([0], [0.2], [hinges.EV_LATCH])
     y, t, h, status, written = radau.radau_run(
         rhs, chain, extra, loads, held, Y0_LIN, 0.0, t_out, np.zeros(0), 1e-10, 1e-10, 0.0,
-        np.inf, 100_000, Y, np.zeros(6, dtype=np.int64), ev)
+        np.inf, 100_000, 1 << 62, Y, np.zeros(6, dtype=np.int64), ev)
     assert status == erk.STATUS_EVENT and ev[6][0] == 1 and ev[4][0] == 0     # falling
     assert abs(t - exact) < 1e-8, (t, exact)
     assert ev[3][0] == t and abs(y[0] - 0.2) < 1e-10
@@ -157,7 +157,7 @@ def test_run_stops_when_the_event_buffer_is_full():
     ev = event_buffers([0], [0.2], [hinges.EV_LATCH], cap=0)
     y, t, h, status, written = radau.radau_run(
         rhs, chain, extra, loads, held, Y0_LIN, 0.0, t_out, np.zeros(0), 1e-8, 1e-8, 0.0,
-        np.inf, 100_000, Y, np.zeros(6, dtype=np.int64), ev)
+        np.inf, 100_000, 1 << 62, Y, np.zeros(6, dtype=np.int64), ev)
     assert status == erk.STATUS_EVENTS_FULL and t == 0.0 and written == 1
     np.testing.assert_array_equal(y, Y0_LIN)
 
@@ -172,7 +172,7 @@ def test_run_error_falls_with_the_tolerance_on_the_stiff_linear_problem():
         stats = np.zeros(6, dtype=np.int64)
         y, t, h, status, written = radau.radau_run(
             rhs, chain, extra, loads, held, Y0_LIN, 0.0, t_out, np.array([1.5]), rtol, rtol,
-            0.0, np.inf, 100_000, Y, stats, NO_EVENTS)
+            0.0, np.inf, 100_000, 1 << 62, Y, stats, NO_EVENTS)
         assert status == 0 and t == 3.0 and written == t_out.size
         np.testing.assert_array_equal(y, Y[-1])
         errors.append(np.max(np.abs(Y - exact)))

@@ -22,7 +22,10 @@ hinge that leaves a stop and comes back within that step is caught.
 
 Status codes returned: 0 success, 1 step size underflow, 2 too many steps, 3 non-finite state,
 4 a terminal event (stopped at it), 5 the event buffer is full (stopped after a step; drain it
-and call again).
+and call again), 6 the call's work budget is used up (``budget`` right-hand side evaluations:
+stopped after an accepted step, nothing lost; call again from the returned state, so that the
+caller gets control back, e.g. for Ctrl-C, at bounded intervals), 7 the Newton iteration of an
+implicit method failed too many times in a row (:mod:`rod_sim.core.radau`).
 """
 from __future__ import annotations
 
@@ -33,6 +36,7 @@ from .jit import njit
 
 STATUS_OK, STATUS_STEP_UNDERFLOW, STATUS_MAX_STEPS, STATUS_NONFINITE = 0, 1, 2, 3
 STATUS_EVENT, STATUS_EVENTS_FULL = 4, 5
+STATUS_BUDGET, STATUS_NEWTON_FAILED = 6, 7
 EV_LATCH = 0
 STATUS_TEXT = {
     STATUS_OK: "ok",
@@ -40,6 +44,8 @@ STATUS_TEXT = {
                            "enough or it diverges)",
     STATUS_MAX_STEPS: "too many steps",
     STATUS_NONFINITE: "the state became non-finite (NaN/Inf)",
+    STATUS_NEWTON_FAILED: "the Newton iteration failed to converge too many times in a row "
+                          "(the scene is too stiff or not smooth for this integrator)",
 }
 
 # Dormand-Prince 8(5,3) coefficients, Hairer's DOP853, as shipped by scipy.
@@ -276,13 +282,15 @@ def _initial_step(rhs, chain, extra, loads, held, t_side, t0, y0, f0, t_bound, r
 
 @njit
 def dop853_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-               max_step, max_steps, Y_out, stats, events):
+               max_step, max_steps, budget, Y_out, stats, events):
     """Integrate from (t0, y0) through every time of ``t_out`` (sorted, > t0 or == t0).
 
     ``breaks`` (sorted) are times where the forcing jumps: steps end exactly there.
     Writes y(t_out[i]) into Y_out[i]. ``stats`` = [rhs evaluations, accepted steps,
     rejected steps] is accumulated. ``h_init`` <= 0 selects the first step automatically.
-    ``events``: see the module docstring. Returns (y_end, t_end, h_next, status, number of
+    After ``budget`` right-hand side evaluations (counted from the call's start) it returns
+    STATUS_BUDGET after an accepted step: calling again from (y_end, t_end, h_next) continues
+    the same integration. ``events``: see the module docstring. Returns (y_end, t_end, h_next, status, number of
     outputs written).
     """
     n = y0.shape[0]
@@ -301,6 +309,7 @@ def dop853_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol
     m_ev, g0, g1, cap = _event_start(y, events)
     h = h_init
     n_steps = 0
+    nfev0 = stats[0]
     safety = 0.9
     min_factor = 0.2
     max_factor = 10.0
@@ -421,19 +430,24 @@ def dop853_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol
                 return y, t, h, STATUS_NONFINITE, i_out
             if n_steps >= max_steps:
                 return y, t, h, STATUS_MAX_STEPS, i_out
+            if stats[0] - nfev0 >= budget and t < t_final:
+                return y, t, h, STATUS_BUDGET, i_out
     return y, t, h, STATUS_OK, i_out
 
 
 @njit
 def fixed_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c,
-              Y_out, stats, events):
+              budget, Y_out, stats, events):
     """Fixed-step explicit Runge-Kutta with tableau (A, b, c) (c[0] = 0).
 
     Every interval between consecutive output times and breakpoints is split into
     ceil(length / h_max) equal steps, so outputs and breakpoints are hit exactly. Events are
     located on each step's cubic Hermite interpolant (one extra rhs at a sign change).
+    After ``budget`` right-hand side evaluations it returns STATUS_BUDGET at the start of a
+    step (calling again from (y_end, t_end) continues with the same steps).
     Returns (y_end, t_end, status, number of outputs written)."""
     n = y0.shape[0]
+    nfev0 = stats[0]
     ns = b.shape[0]
     K = np.empty((ns, n))
     F = np.zeros((7, n))
@@ -460,6 +474,8 @@ def fixed_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b
             ts = t_start + step * hs
             if m_ev > 0 and events[6][0] + m_ev > cap:
                 return y, ts, STATUS_EVENTS_FULL, i_out
+            if stats[0] - nfev0 >= budget and stats[0] > nfev0:
+                return y, ts, STATUS_BUDGET, i_out
             y_prev[:] = y
             for s in range(ns):
                 _combine(A[s, :s], K, y, hs, yy)
@@ -504,44 +520,44 @@ from . import kernels as _k  # noqa: E402
 
 @njit
 def _dop853_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                  max_step, max_steps, Y_out, stats, events):
+                  max_step, max_steps, budget, Y_out, stats, events):
     return dop853_run(_k.rigid_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
-                      atol, h_init, max_step, max_steps, Y_out, stats, events)
+                      atol, h_init, max_step, max_steps, budget, Y_out, stats, events)
 
 
 @njit
 def _dop853_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                    max_step, max_steps, Y_out, stats, events):
+                    max_step, max_steps, budget, Y_out, stats, events):
     return dop853_run(_k.reduced_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
-                      atol, h_init, max_step, max_steps, Y_out, stats, events)
+                      atol, h_init, max_step, max_steps, budget, Y_out, stats, events)
 
 
 @njit
 def _dop853_full(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                 max_step, max_steps, Y_out, stats, events):
+                 max_step, max_steps, budget, Y_out, stats, events):
     return dop853_run(_k.full_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
-                      atol, h_init, max_step, max_steps, Y_out, stats, events)
+                      atol, h_init, max_step, max_steps, budget, Y_out, stats, events)
 
 
 @njit
-def _fixed_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c, Y_out, stats,
+def _fixed_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c, budget, Y_out, stats,
                  events):
     return fixed_run(_k.rigid_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max,
-                     A, b, c, Y_out, stats, events)
+                     A, b, c, budget, Y_out, stats, events)
 
 
 @njit
-def _fixed_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c, Y_out, stats,
+def _fixed_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c, budget, Y_out, stats,
                    events):
     return fixed_run(_k.reduced_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max,
-                     A, b, c, Y_out, stats, events)
+                     A, b, c, budget, Y_out, stats, events)
 
 
 @njit
-def _fixed_full(chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c, Y_out, stats,
+def _fixed_full(chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c, budget, Y_out, stats,
                 events):
     return fixed_run(_k.full_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max,
-                     A, b, c, Y_out, stats, events)
+                     A, b, c, budget, Y_out, stats, events)
 
 
 DOP853 = {"rigid": _dop853_rigid, "reduced": _dop853_reduced, "full": _dop853_full}

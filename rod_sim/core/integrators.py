@@ -26,6 +26,17 @@ from . import erk, hinges, radau
 DEFAULT_RTOL = 1e-8
 DEFAULT_STEP = 1e-3
 MIN_STEP = 1e-9         # [s]: smallest fixed step (the step count of an interval stays exact)
+CALL_WORK = 1_000_000
+"""Work budget of one compiled driver call, in state components times right-hand side
+evaluations: a call returns to Python (``drive`` calls it again) after CALL_WORK / state size
+evaluations (at least :data:`MIN_CALL_RHS`), every ~0.05 s (DOP853) to ~0.15 s (Radau) for the
+stiff deployment scene, so that Ctrl-C and SIGTERM are seen within that time in every
+integrator. Scenes that need fewer evaluations per call than that never notice it."""
+MIN_CALL_RHS = 200
+COLLAPSE_STEP = 1e-12
+"""[s] (times max(1, |t|)): a compiled call that uses its whole work budget with a mean
+accepted step below this has a collapsed step size (10^12 steps per simulated second):
+``drive`` stops with IntegrationError instead of spinning."""
 from .names import INTEGRATOR_NAMES as INTEGRATORS
 from .names import SCIPY_METHODS
 
@@ -129,6 +140,7 @@ class Stretch:
     t: float
     event: int | None
     crossings: tuple
+    exhausted: bool = False     # the call's work budget ran out (call again from (t, y))
 
 
 def _event_buffers(plan, size: int):
@@ -146,7 +158,29 @@ def _stretch(model, plan, Y, written, y, t, status, ev) -> Stretch:
     k = int(ev[6][0])
     crossings = (ev[3][:k].copy(), ev[4][:k].copy(), ev[5][:k].copy())
     event = int(ev[4][k - 1]) // 2 if status == erk.STATUS_EVENT else None
-    return Stretch(Y, int(written), np.array(y), float(t), event, crossings)
+    return Stretch(Y, int(written), np.array(y), float(t), event, crossings,
+                   status == erk.STATUS_BUDGET)
+
+
+def _compiled(fn, *args):
+    """Call a compiled driver. A signal handler that raises (Ctrl-C: KeyboardInterrupt) while
+    numba's machine code runs a Python helper (it unpickles constants on entry) surfaces as
+    SystemError "returned a result with an exception set" caused by the handler's exception:
+    re-raise that exception, so that an interrupt is an interrupt."""
+    try:
+        return fn(*args)
+    except SystemError as err:
+        if err.__cause__ is not None and "exception set" in str(err):
+            raise err.__cause__ from None
+        raise
+
+
+_RESUMABLE = (erk.STATUS_OK, erk.STATUS_EVENT, erk.STATUS_EVENTS_FULL, erk.STATUS_BUDGET)
+
+
+def call_budget(size: int) -> int:
+    """Right-hand side evaluations one compiled driver call may spend (:data:`CALL_WORK`)."""
+    return max(MIN_CALL_RHS, CALL_WORK // max(1, int(size)))
 
 
 @dataclass
@@ -160,6 +194,7 @@ class Integrator:
     stats: Stats = field(default_factory=Stats)
     order: int = 0
     adaptive: bool = True
+    _drive_steps0: int = field(default=0, repr=False)   # stats.steps when the drive began
 
     @property
     def abs_tol(self) -> float:
@@ -184,6 +219,11 @@ class Integrator:
     def reset(self) -> None:
         """Forget carried step sizes (a new run)."""
 
+    def _steps_left(self) -> int:
+        """Accepted steps the current drive may still take (``max_steps`` bounds a drive)."""
+        return max(1, int(getattr(self, "max_steps", 1 << 62))
+                   - (self.stats.steps - self._drive_steps0))
+
 
 @dataclass
 class JitDop853(Integrator):
@@ -199,17 +239,19 @@ class JitDop853(Integrator):
         Y = np.empty((t_out.size, y0.size))
         stats = np.zeros(3, dtype=np.int64)
         ev = _event_buffers(plan, y0.size)
-        y, t, h, status, written = erk.DOP853[model.name](
+        y, t, h, status, written = _compiled(erk.DOP853[model.name],
             model.chain, plan.extra, model.loads, held, y0, float(t0), t_out, breaks,
-            self.rtol, self.abs_tol, self._h, self.max_step, self.max_steps, Y, stats, ev)
+            self.rtol, self.abs_tol, self._h, self.max_step, self._steps_left(),
+            call_budget(y0.size), Y, stats, ev)
         return self._finish(model, plan, held, Y, stats, ev, y, t, h, status, written)
 
     def _finish(self, model, plan, held, Y, stats, ev, y, t, h, status, written) -> Stretch:
         """Account a compiled run's stats, raise on failure, carry the step size (a fresh
         start after a latch's impact) and wrap the result as a :class:`Stretch`."""
         self.stats.add(stats)
-        if status not in (erk.STATUS_OK, erk.STATUS_EVENT, erk.STATUS_EVENTS_FULL):
-            raise _failure(model, erk.STATUS_TEXT[status], t, y, held)
+        if status not in _RESUMABLE:
+            raise _failure(model, erk.STATUS_TEXT[status] + f" (t = {t:.9g} s, step {h:.3g} s)",
+                           t, y, held)
         latch = status == erk.STATUS_EVENT and plan.events[2][int(ev[4][0]) // 2] == \
             hinges.EV_LATCH
         self._h = 0.0 if latch else h          # a fresh start after an impact
@@ -241,14 +283,14 @@ class JitRadau(JitDop853):
         stats = np.zeros(6, dtype=np.int64)
         ev = _event_buffers(plan, y0.size)
         try:
-            y, t, h, status, written = radau.RADAU_WORK[model.name](
+            y, t, h, status, written = _compiled(radau.RADAU_WORK[model.name],
                 model.chain, plan.extra, model.loads, held, y0, float(t0), t_out, breaks,
-                self.rtol, self.abs_tol, self._h, self.max_step, self.max_steps, Y, stats, ev,
-                self._workspace(model))
+                self.rtol, self.abs_tol, self._h, self.max_step, self._steps_left(),
+                call_budget(y0.size), Y, stats, ev, self._workspace(model))
         except BaseException:
             self._work = self._work_model = None        # no half-updated history kept
             raise
-        if status not in (erk.STATUS_OK, erk.STATUS_EVENT, erk.STATUS_EVENTS_FULL):
+        if status not in _RESUMABLE:
             self._work = self._work_model = None
         return self._finish(model, plan, held, Y, stats, ev, y, t, h, status, written)
 
@@ -276,11 +318,11 @@ class JitFixedStep(Integrator):
         stats = np.zeros(3, dtype=np.int64)
         A, b, c = self._tableau
         ev = _event_buffers(plan, y0.size)
-        y, t, status, written = erk.FIXED[model.name](
+        y, t, status, written = _compiled(erk.FIXED[model.name],
             model.chain, plan.extra, model.loads, held, y0, float(t0), t_out, breaks,
-            float(self.step), A, b, c, Y, stats, ev)
+            float(self.step), A, b, c, call_budget(y0.size), Y, stats, ev)
         self.stats.add(stats)
-        if status not in (erk.STATUS_OK, erk.STATUS_EVENT, erk.STATUS_EVENTS_FULL):
+        if status not in _RESUMABLE:
             raise _failure(model, erk.STATUS_TEXT[status], t, y, held)
         return _stretch(model, plan, Y, written, y, t, status, ev)
 
@@ -416,7 +458,11 @@ def drive(model, integrator: Integrator, y0, t0: float, t_out, held=None, mode=N
     :class:`~rod_sim.core.hinges.HingeEvent` s to ``events`` at their simulated times.
     Every located event ends the integrator's stretch: a latch locks the hinge and projects
     the velocity (outputs at exactly that time are the state before the impact), a stop
-    crossing switches the hinge's contact law; then the integration restarts there.
+    crossing switches the hinge's contact law; then the integration restarts there. A
+    compiled integrator returns after a bounded amount of work (:data:`CALL_WORK`) and is
+    called again, so that signals (Ctrl-C) are handled within a fraction of a second; a call
+    that spent its whole budget with a mean step below :data:`COLLAPSE_STEP` raises
+    IntegrationError (the step size collapsed).
     Returns (states (N, size), modes (N, n) of the samples, mode at the end, state at the
     end (after the impact when a latch fell on the last time), contacts at the end).
     Raises IntegrationError, ValueError (bad output times)."""
@@ -440,13 +486,23 @@ def drive(model, integrator: Integrator, y0, t0: float, t_out, held=None, mode=N
     mode, y = _latch(model, mode, t, y, None, events)
     breaks = np.array(sorted(b for b in model.scene.load_breakpoints() if t < b < t_out[-1]),
                       dtype=float)
+    integrator._drive_steps0 = integrator.stats.steps
     while done < t_out.size:
         plan = model.plan(mode, contact)
+        steps0, t0_call = integrator.stats.steps, t
         s = integrator.advance(model, plan, y, t, t_out[done:], held, breaks)
         Y[done:done + s.written] = s.Y[:s.written]
         modes[done:done + s.written] = mode
         done += s.written
         y, t = np.ascontiguousarray(s.y, dtype=float), s.t
+        if s.exhausted:
+            steps = integrator.stats.steps - steps0
+            mean = (t - t0_call) / steps if steps else 0.0
+            if mean < COLLAPSE_STEP * max(1.0, abs(t)):
+                raise IntegrationError(
+                    f"the step size collapsed: {steps} steps of mean {mean:.3g} s (< "
+                    f"{COLLAPSE_STEP:g} s) up to t = {t:.9g} s; the scene is too stiff or not "
+                    f"smooth for {integrator.describe()}", t)
         if s.event is None:
             continue
         h, kind = int(plan.events[0][s.event]), int(plan.events[2][s.event])

@@ -36,7 +36,8 @@ import math
 
 import numpy as np
 
-from .erk import (STATUS_EVENT, STATUS_EVENTS_FULL, STATUS_NONFINITE, STATUS_MAX_STEPS,
+from .erk import (STATUS_BUDGET, STATUS_EVENT, STATUS_EVENTS_FULL, STATUS_NEWTON_FAILED,
+                  STATUS_NONFINITE, STATUS_MAX_STEPS,
                   STATUS_OK, STATUS_STEP_UNDERFLOW, _all_finite, _event_start, _event_values,
                   _initial_step, _locate, _may_cross, _segment_end)
 from . import kernels as _k
@@ -67,7 +68,11 @@ EPS = np.finfo(float).eps
 
 # controller memory ``ctl`` (float64 array) of the workspace
 H_OLD, ERR_OLD, HAVE_JAC, CURRENT_JAC, LU_H, HAVE_DENSE, H_DENSE, FACCON = 0, 1, 2, 3, 4, 5, 6, 7
-N_CTL = 8
+RESUME_T = 8        # time [s] a call stopped at on its work budget (NaN: none): resume there
+N_CTL = 9
+NEWTON_FAILURES = 30
+"""Newton non-convergences in a row (each halving the step) after which a step gives up
+(STATUS_NEWTON_FAILED) instead of shrinking further."""
 JAC_RATE = 0.1      # recompute the Jacobian after a step whose Newton rate exceeded this
 
 
@@ -164,6 +169,7 @@ def _step_arrays(size):
     CV (2, size) complex scratch, ctl (N_CTL,) controller memory."""
     ctl = np.zeros(N_CTL)
     ctl[FACCON] = 1.0
+    ctl[RESUME_T] = np.nan
     return (np.zeros((3, size)), np.zeros((3, size)), np.zeros((3, size)), np.zeros((size, 3)),
             np.zeros((8, size)), np.zeros((2, size), dtype=np.complex128), ctl)
 
@@ -190,6 +196,7 @@ def radau_restart(work):
     ctl[ERR_OLD] = 0.0
     ctl[HAVE_DENSE] = 0.0
     ctl[CURRENT_JAC] = 0.0
+    ctl[RESUME_T] = np.nan
 
 
 # ----------------------------------------------------------------- one step
@@ -306,7 +313,9 @@ def radau_step(rhs, jac_fn, factor_fn, solve_fn, chain, extra, loads, held, t_si
     output coefficients Q = work[8] (N, 3): for x in [0, 1],
     y(t + x (t_new - t)) = y + Q[:, 0] x + Q[:, 1] x^2 + Q[:, 2] x^3 (:func:`radau_dense`).
     Returns (status, t_new, h_next): STATUS_OK, or STATUS_STEP_UNDERFLOW (t_new = t) when
-    the step fell below 10 ulp of t, or STATUS_NONFINITE when y_new is not finite."""
+    the step fell below 10 ulp of t, STATUS_NEWTON_FAILED (t_new = t) after
+    :data:`NEWTON_FAILURES` Newton failures in a row, or STATUS_NONFINITE when y_new is not
+    finite."""
     Z, Q, V, ctl = work[5], work[8], work[9], work[11]
     N = y.shape[0]
     scale = V[4]
@@ -327,6 +336,7 @@ def radau_step(rhs, jac_fn, factor_fn, solve_fn, chain, extra, loads, held, t_si
     safety = 0.9
     t_new = t
     hs = h
+    n_fail = 0
     while True:
         if not h_abs >= min_step:
             return STATUS_STEP_UNDERFLOW, t, h_abs
@@ -361,6 +371,9 @@ def radau_step(rhs, jac_fn, factor_fn, solve_fn, chain, extra, loads, held, t_si
             h_abs = 0.5 * hs
             stats[2] += 1
             rejected = True
+            n_fail += 1
+            if n_fail >= NEWTON_FAILURES:
+                return STATUS_NEWTON_FAILED, t, h_abs
             continue
         hl = ctl[LU_H]
         for j in range(N):
@@ -425,7 +438,7 @@ def radau_dense(y_old, Q, x, out):
 # ----------------------------------------------------------------- the driver
 @njit
 def radau_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-              max_step, max_steps, Y_out, stats, events):
+              max_step, max_steps, budget, Y_out, stats, events):
     """Integrate from (t0, y0) through every time of ``t_out`` (sorted, >= t0): the same
     arguments, return and status codes as :func:`rod_sim.core.erk.dop853_run`.
 
@@ -434,7 +447,7 @@ def radau_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol,
     output. ``events``: see :mod:`rod_sim.core.erk` (located on the collocation polynomial).
     Returns (y_end, t_end, h_next, status, number of outputs written)."""
     return radau_run_work(rhs, dense_jac, dense_factor, dense_solve, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
-                          atol, h_init, max_step, max_steps, Y_out, stats, events,
+                          atol, h_init, max_step, max_steps, budget, Y_out, stats, events,
                           radau_workspace(y0.shape[0]))
 
 
@@ -454,12 +467,15 @@ def _nested_form(Q, F):
 
 @njit
 def radau_run_work(rhs, jac_fn, factor_fn, solve_fn, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol,
-                   h_init, max_step, max_steps, Y_out, stats, events, work):
+                   h_init, max_step, max_steps, budget, Y_out, stats, events, work):
     """:func:`radau_run` with the workspace ``work`` (:func:`radau_workspace`) given, so that
     a caller stepping one model period by period keeps its Jacobian between calls (it is
     kept stale: slow Newton convergence still renews it). At an event the history is
     forgotten and the Jacobian dropped (the caller changes the mode: a latch jumps the
-    velocity, a stop contact switches the rhs), so the next call starts afresh."""
+    velocity, a stop contact switches the rhs), so the next call starts afresh. After
+    ``budget`` right-hand side evaluations (Jacobian columns included) it returns
+    STATUS_BUDGET after an accepted step, keeping the step history in ``work``: a call from
+    the returned (y_end, t_end, h_next) with the same ``work`` continues the same integration."""
     n = y0.shape[0]
     n_out = t_out.shape[0]
     t_final = t_out[n_out - 1]
@@ -479,6 +495,10 @@ def radau_run_work(rhs, jac_fn, factor_fn, solve_fn, chain, extra, loads, held, 
     f_new = np.empty(n)
     h = h_init
     n_steps = 0
+    nfev0 = stats[0]
+    ctl = work[11]
+    resume = ctl[RESUME_T] == t0 and h > 0.0
+    ctl[RESUME_T] = np.nan
     while t < t_final:
         seg_end = _segment_end(breaks, t, t_final)
         t_side = 0.5 * (t + seg_end)
@@ -487,7 +507,9 @@ def radau_run_work(rhs, jac_fn, factor_fn, solve_fn, chain, extra, loads, held, 
         if h <= 0.0:
             h = _initial_step(rhs, chain, extra, loads, held, t_side, t, y, f, seg_end,
                               rtol, atol, stats)
-        radau_restart(work)
+        if not resume:
+            radau_restart(work)
+        resume = False
         while t < seg_end:
             if m_ev > 0 and events[6][0] + m_ev > cap:
                 return y, t, h, STATUS_EVENTS_FULL, i_out
@@ -525,6 +547,9 @@ def radau_run_work(rhs, jac_fn, factor_fn, solve_fn, chain, extra, loads, held, 
             n_steps += 1
             if n_steps >= max_steps:
                 return y, t, h, STATUS_MAX_STEPS, i_out
+            if stats[0] - nfev0 >= budget and t < t_final:
+                ctl[RESUME_T] = t
+                return y, t, h, STATUS_BUDGET, i_out
     return y, t, h, STATUS_OK, i_out
 
 
@@ -539,29 +564,29 @@ def chain_radau_workspace(model):
 
 @njit
 def _radau_work_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                      max_step, max_steps, Y_out, stats, events, work):
+                      max_step, max_steps, budget, Y_out, stats, events, work):
     return radau_run_work(_k.rigid_rhs, _nw.chain_jac, _nw.chain_factor,
                           _nw.chain_solve, chain, extra, loads, held, y0, t0, t_out,
-                          breaks, rtol, atol, h_init, max_step, max_steps, Y_out, stats, events,
-                          work)
+                          breaks, rtol, atol, h_init, max_step, max_steps, budget, Y_out, stats,
+                          events, work)
 
 
 @njit
 def _radau_work_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                        max_step, max_steps, Y_out, stats, events, work):
+                        max_step, max_steps, budget, Y_out, stats, events, work):
     return radau_run_work(_k.reduced_rhs, _nw.chain_jac, _nw.chain_factor,
                           _nw.chain_solve, chain, extra, loads, held, y0, t0, t_out,
-                          breaks, rtol, atol, h_init, max_step, max_steps, Y_out, stats, events,
-                          work)
+                          breaks, rtol, atol, h_init, max_step, max_steps, budget, Y_out, stats,
+                          events, work)
 
 
 @njit
 def _radau_work_full(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                     max_step, max_steps, Y_out, stats, events, work):
+                     max_step, max_steps, budget, Y_out, stats, events, work):
     return radau_run_work(_k.full_rhs, _nw.chain_jac, _nw.chain_factor,
                           _nw.chain_solve, chain, extra, loads, held, y0, t0, t_out,
-                          breaks, rtol, atol, h_init, max_step, max_steps, Y_out, stats, events,
-                          work)
+                          breaks, rtol, atol, h_init, max_step, max_steps, budget, Y_out, stats,
+                          events, work)
 
 
 RADAU_WORK = {"rigid": _radau_work_rigid, "reduced": _radau_work_reduced,

@@ -15,8 +15,10 @@ Pure (numpy only). Three checks, each giving :class:`Finding` records:
   jump of the forces (step loads, held commands changing at a control rate) excites every
   mode: the bending vibration it starts has the amplitude of the quasi-static slope jump, which
   :func:`force_jump_slopes` computes and :data:`JUMP_SLOPE_WARN_RAD` judges.
-- **energy balance**: E - E0 - integral(P_load - P_damper) dt relative to the energy scale
-  above :data:`ENERGY_RESIDUAL_WARN`. The rigid model conserves it to the integrator's
+- **energy balance**: E - E0 - integral(P_load - P_damper) dt + (kinetic energy lost in latch
+  impacts) relative to the energy scale above :data:`ENERGY_RESIDUAL_WARN`
+  (:class:`EnergyBalance`; E includes the stop contacts' elastic energy, P_damper their
+  damping, both with the latched hinges locked). The rigid model conserves it to the integrator's
   tolerance; the bending models only to first order in the bending (see test_physics), so a
   growing residual means the bending is no longer small or the integration is inaccurate.
 
@@ -232,11 +234,62 @@ class ValidityMonitor:
         return "; ".join(parts)
 
 
-def assess_trajectory(model, t, y, held=None, command_rate_hz: float | None = None
-                      ) -> ValidityMonitor:
+def latch_losses(events, t_after: float = -math.inf, t_upto: float = math.inf) -> float:
+    """[J] kinetic energy lost in the latch impacts among ``events`` (HingeEvent) with
+    t_after <= t < t_upto (a sample at the latch's time is the state before the impact)."""
+    return float(sum(e.data.get("kinetic_energy_loss", 0.0) for e in events
+                     if e.kind == "latch" and t_after <= e.t < t_upto))
+
+
+def balance_terms(model, t: float, y, held=None, mode=None, bending=None) -> tuple[float, float]:
+    """(total mechanical energy [J], net power P_load - P_damper [W]) at (t, y) with the
+    latched hinges ``mode`` locked (stop contacts included in both)."""
+    energy = model.energies(t, y, held, bending=bending, mode=mode).total
+    load, damper = model.powers(t, y, held, mode=mode)
+    return energy, load - damper
+
+
+class EnergyBalance:
+    """Mechanical energy balance of a run: ``residual`` = E - E0 - W + D [J] with W the
+    trapezoid integral of the net power (loads and motors minus hinge and stop dampers) and D
+    the kinetic energy dissipated in latch impacts; ~0 (integration and quadrature error) for
+    an accurate run of an energy-consistent model. ``scale`` = max(|E0|, |E|, sum |P| dt, D)."""
+
+    def __init__(self, energy0: float = 0.0):
+        self.start(energy0)
+
+    def start(self, energy0: float) -> None:
+        self.energy0 = self.energy = float(energy0)
+        self.work = self.abs_work = self.impacts = 0.0
+
+    def add_period(self, dt: float, p_start: float, p_end: float, energy_end: float,
+                   impacts: float = 0.0) -> None:
+        """One period of ``dt`` [s]: net powers [W] at its ends, energy [J] at its end and the
+        kinetic energy [J] lost in latch impacts inside it."""
+        self.work += 0.5 * float(dt) * (float(p_start) + float(p_end))
+        self.abs_work += 0.5 * float(dt) * abs(float(p_start) + float(p_end))
+        self.impacts += float(impacts)
+        self.energy = float(energy_end)
+
+    def add_impact(self, loss: float) -> None:
+        self.impacts += float(loss)
+
+    @property
+    def scale(self) -> float:
+        return max(abs(self.energy0), abs(self.energy), self.abs_work, self.impacts)
+
+    @property
+    def residual(self) -> float:
+        return self.energy - self.energy0 - self.work + self.impacts
+
+
+def assess_trajectory(model, t, y, held=None, command_rate_hz: float | None = None,
+                      modes=None, events=()) -> ValidityMonitor:
     """Run every check over samples ``t`` (N,) [s], states ``y`` (N, state_size) with held
     forces ``held`` ((n, 2), or (N, n, 2) per sample); the energy balance uses the trapezoid
-    rule over the samples. Returns the monitor (``findings()``, ``summary()``)."""
+    rule over the samples, ``modes`` (N, n) are the latches fired at each sample and
+    ``events`` the run's hinge events (latch impacts dissipate energy). Returns the monitor
+    (``findings()``, ``summary()``)."""
     mon = ValidityMonitor(model, command_rate_hz)
     t = np.asarray(t, float)
     n = model.n
@@ -244,17 +297,17 @@ def assess_trajectory(model, t, y, held=None, command_rate_hz: float | None = No
         held = np.zeros((n, 2))
     held = np.asarray(held, float)
     per_sample = held.ndim == 3
-    energy, power = np.empty(t.size), np.empty(t.size)
+    energy, power, lost = np.empty(t.size), np.empty(t.size), np.zeros(t.size)
     for i in range(t.size):
         h = held[i] if per_sample else held
+        mode = None if modes is None else modes[i]
         mon.update(t[i], y[i], h)
-        energy[i] = model.energies(t[i], y[i], h).total
-        load, damp = model.powers(t[i], y[i], h)
-        power[i] = load - damp
+        energy[i], power[i] = balance_terms(model, t[i], y[i], h, mode)
+        lost[i] = latch_losses(events, t[0], t[i])
     if t.size > 1:
         work = np.concatenate([[0.0], np.cumsum(0.5 * np.diff(t) * (power[1:] + power[:-1]))])
-        residual = energy - energy[0] - work
-        scale = max(float(np.max(np.abs(energy))),
+        residual = energy - energy[0] - work + lost
+        scale = max(float(np.max(np.abs(energy))), float(lost[-1]),
                     float(np.sum(0.5 * np.diff(t) * np.abs(power[1:] + power[:-1]))))
         i = int(np.argmax(np.abs(residual)))
         mon.update_energy(t[i], float(residual[i]), scale)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from rod_sim.core.validity import SMALL_BENDING_RAD
+from rod_sim.core.validity import SMALL_BENDING_RAD, EnergyBalance
 from rod_sim.io.topics import DIAGNOSTIC_ERROR, DIAGNOSTIC_OK, DIAGNOSTIC_WARN
 
 BENDING_WARN_RAD = SMALL_BENDING_RAD
@@ -22,41 +22,12 @@ MIN_RTF_WINDOW_S = 0.5
 """[s] of wall time a window needs before its measured real-time factor is judged."""
 
 
-class EnergyLedger:
-    """Mechanical energy balance of the chain over simulated time.
-
-    ``start(E0)`` at t = 0 (or after a reset); for each control period of length dt [s]
-    ``add_period(dt, p_start, p_end, energy_end)`` with the net power P = P_load - P_damper [W]
-    at the start and end of the period (same held forces) and the energy at its end [J].
-    ``residual`` = E - E0 - W [J], W the trapezoid integral of P: close to 0 for an accurate
-    integration of an energy-consistent model.
-    """
-
-    def __init__(self, energy0: float = 0.0):
-        self.start(energy0)
-
-    def start(self, energy0: float) -> None:
-        """Begin a new balance at energy ``energy0`` [J]."""
-        self.energy0 = float(energy0)
-        self.energy = float(energy0)
-        self.work = 0.0
-        self.abs_work = 0.0
-
-    def add_period(self, dt: float, p_start: float, p_end: float, energy_end: float) -> None:
-        """Account one period of ``dt`` [s]: net powers [W] at its ends, energy [J] at its end."""
-        self.work += 0.5 * float(dt) * (float(p_start) + float(p_end))
-        self.abs_work += 0.5 * float(dt) * abs(float(p_start) + float(p_end))
-        self.energy = float(energy_end)
-
-    @property
-    def scale(self) -> float:
-        """[J] the energy scale the residual is judged against: max(|E0|, |E|, sum |P| dt)."""
-        return max(abs(self.energy0), abs(self.energy), self.abs_work)
-
-    @property
-    def residual(self) -> float:
-        """E - E0 - integral of the net power [J]."""
-        return self.energy - self.energy0 - self.work
+class EnergyLedger(EnergyBalance):
+    """Mechanical energy balance of the chain over simulated time: the core's
+    :class:`~rod_sim.core.validity.EnergyBalance` (the same balance ``simulate`` judges), fed
+    per control period: ``add_period(dt, p_start, p_end, energy_end, impacts)`` with the net
+    power [W] at the period's ends, the energy at its end [J] and the kinetic energy lost in
+    the latch impacts of the period [J]; ``residual`` = E - E0 - W + D [J]."""
 
 
 @dataclass

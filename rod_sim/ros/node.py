@@ -92,7 +92,7 @@ from rod_sim.core.integrators import IntegrationError, make_integrator
 from rod_sim.core.models import ModelError, make_model
 from rod_sim.core.scene import SceneError
 from rod_sim.core.simulator import Simulator
-from rod_sim.core.validity import ValidityMonitor
+from rod_sim.core.validity import ValidityMonitor, latch_losses
 from rod_sim.io import topics
 from rod_sim.io.hinge_events import (HINGE_EVENTS_TOPIC, HINGE_EVENTS_TYPE, event_message,
                                      event_time_ns)
@@ -648,7 +648,8 @@ class RodSimNode(Node):
         self._meter.add_step(self.period_ns, time.perf_counter_ns() - start)
         snap = sim.snapshot()
         self._ledger.add_period(self.period_ns / NS_PER_S, p_start, self._net_power(held),
-                                self._energy(held, bending=(snap.alpha, snap.beta)))
+                                self._energy(held, bending=(snap.alpha, snap.beta)),
+                                latch_losses(sim.events[self._events_sent:]))
         self._validity.update(sim.t, sim.y, held, snap.alpha, snap.beta)
         self._validity.update_energy(sim.t, self._ledger.residual, self._ledger.scale)
         self._publish_state(snap)
@@ -667,10 +668,11 @@ class RodSimNode(Node):
         self._events_sent = len(self.sim.events)
 
     def _energy(self, held: np.ndarray, bending=None) -> float:
-        return self.model.energies(self.sim.t, self.sim.y, held, bending=bending).total
+        return self.model.energies(self.sim.t, self.sim.y, held, bending=bending,
+                                   mode=self.sim.mode).total
 
     def _net_power(self, held: np.ndarray) -> float:
-        load, damper = self.model.powers(self.sim.t, self.sim.y, held)
+        load, damper = self.model.powers(self.sim.t, self.sim.y, held, mode=self.sim.mode)
         return load - damper
 
     def _fail(self, exc: Exception) -> None:

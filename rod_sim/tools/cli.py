@@ -191,18 +191,37 @@ class _LoggedRun:
     CHUNK_SECONDS = 0.5          # simulated seconds integrated per call at most
 
     def __init__(self, sim, scene, log, frame_id: str):
-        from ..core.validity import ValidityMonitor
+        from ..core.validity import EnergyBalance, ValidityMonitor
 
         self.sim, self.scene, self.log, self.frame_id = sim, scene, log, frame_id
         self.validity = ValidityMonitor(sim.model)
+        self.balance = None             # the energy balance (the node judges the same one)
+        self._last = None               # (t, net power) of the previous sample
+        self.balanced_events = 0
         self.samples = 0
         self.logged_events = 0
         self.wall = 0.0
         self.t_logged = 0.0
 
-    def _write(self, t: float, y) -> None:
-        snap = self.sim.model.snapshot(t, y)
+    def _write(self, t: float, y, mode=None) -> None:
+        from ..core.validity import EnergyBalance, balance_terms, latch_losses
+
+        model = self.sim.model
+        snap = model.snapshot(t, y, None, mode)
         self.validity.update(snap.t, y, None, snap.alpha, snap.beta)
+        energy, power = balance_terms(model, t, y, None, mode, (snap.alpha, snap.beta))
+        if self.balance is None:
+            self.balance = EnergyBalance(energy)
+        else:
+            events = self.sim.events
+            k = self.balanced_events
+            while k < len(events) and events[k].t < t:    # a sample at a latch's time: before it
+                k += 1
+            loss = latch_losses(events[self.balanced_events:k])
+            self.balanced_events = k
+            self.balance.add_period(t - self._last[0], self._last[1], power, energy, loss)
+            self.validity.update_energy(t, self.balance.residual, self.balance.scale)
+        self._last = (t, power)
         with signals_deferred():            # every record of a sample whole, or none
             self.log.write_snapshot(snap, self.scene, frame_id=self.frame_id)
             self.samples += 1
@@ -214,7 +233,8 @@ class _LoggedRun:
         from ..io.hinge_events import write_events
 
         for i in range(1, traj.t.size):
-            self._write(float(traj.t[i]), traj.y[i])
+            self._write(float(traj.t[i]), traj.y[i],
+                        None if traj.modes is None else traj.modes[i])
         with signals_deferred():
             self.logged_events += write_events(self.log, self.sim.events[self.logged_events:])
 
@@ -222,7 +242,7 @@ class _LoggedRun:
         """Run to t_end [s]; on ``failure`` (IntegrationError) keep every finite sample, print
         one line and return EXIT_CHECK_FAILED."""
         sim = self.sim
-        self._write(sim.t, sim.y)
+        self._write(sim.t, sim.y, sim.mode)
         end_ns = round(t_end * 1e9)
         per_chunk = max(1, min(self.CHUNK_SAMPLES, math.floor(self.CHUNK_SECONDS * rate_hz)))
         k = 0
