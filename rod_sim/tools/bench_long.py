@@ -53,7 +53,7 @@ def uniform_chain(n: int, load: bool = True):
 
 
 def tether(n: int = TETHER_N):
-    """A stiff tether: n rods of 5 cm (0.1 kg/m, EI 0.5 N m^2: first bending mode ~5 kHz,
+    """A stiff tether: n rods of 5 cm (0.1 kg/m, EI 0.5 N m^2: first bending mode 1.56 kHz,
     growing as 1/l^2), soft damped hinges, hanging straight along x, a 0.2 s sideways pulse
     of 2 N at the tip."""
     from ..core.scene import Scene
