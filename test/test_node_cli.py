@@ -18,9 +18,12 @@ SMALL = REPO / "config" / "small_chain.yaml"
 DOMAIN_BAD, DOMAIN_CONTROLLER = 132, 133
 
 
-def run(args: list[str], timeout: float = 120.0) -> subprocess.CompletedProcess:
+def run(args: list[str], timeout: float = 120.0, limit: int | None = None
+        ) -> subprocess.CompletedProcess:
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
                ROS_DOMAIN_ID=str(DOMAIN_BAD), PYTHONUNBUFFERED="1")
+    if limit is not None:
+        env["ROD_SIM_MEMORY_LIMIT"] = str(limit)
     return subprocess.run([sys.executable, "-m", *args], cwd=REPO, env=env,
                           capture_output=True, text=True, timeout=timeout)
 
@@ -49,8 +52,8 @@ def test_rod_sim_node_refuses_in_one_line(args, message, tmp_path):
                     "bending_stiffness: 100.0}\nnodes: {mass: 1.0}\n"
                     "hinges: {stiffness: 10.0, damping: 0.1}\n")
     args = [a.replace("PHI308", str(scene)).replace("HUGE", str(huge)) for a in args]
-    done = run(["rod_sim.tools.cli", "node", *args])
-    assert done.returncode == 2, done.stderr
+    done = run(["rod_sim.tools.cli", "node", *args], limit=1024 ** 3)   # 1 GiB: 100000 rods
+    assert done.returncode == 2, done.stderr                           # need ~1.9 GiB
     lines = error_lines(done)
     assert len(lines) == 1 and message in lines[0], done.stderr
     assert lines[0].startswith("rod-sim node: error:")

@@ -56,8 +56,22 @@ def check_sampling(t_end: float, rate_hz: float, n: int) -> int:
     return samples
 
 
+MEMORY_LIMIT_ENV = "ROD_SIM_MEMORY_LIMIT"
+"""Environment variable: a cap [bytes] on the memory rod_sim may count on (e.g. several
+instances on one machine); the smaller of it and the machine's available memory is used."""
+
+
 def available_memory() -> int | None:
-    """Bytes of memory available to a new allocation (Linux MemAvailable; None if unknown)."""
+    """Bytes of memory available to a new allocation: Linux MemAvailable (None if unknown),
+    capped by ``$ROD_SIM_MEMORY_LIMIT`` when that is a whole number of bytes."""
+    have = _machine_memory()
+    cap = os.environ.get(MEMORY_LIMIT_ENV, "").strip()
+    if cap.isdigit():
+        return int(cap) if have is None else min(have, int(cap))
+    return have
+
+
+def _machine_memory() -> int | None:
     try:
         with open("/proc/meminfo", encoding="ascii") as fh:
             for line in fh:
