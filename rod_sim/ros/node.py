@@ -60,8 +60,16 @@ Work per period is bounded (:mod:`rod_sim.ros.budget`): the integrator's steps p
 a period that would take seconds (a 1e12 N command) fails fast with a named cause. Commands
 are taken as serialized bytes and refused by their length before they are decoded.
 
-Recording (``record_path``): the log of docs/interface.md section 4 with the commands as received (``/nodal_forces``
-at the simulated time of reception, rejected ones included), ``/applied_forces``, every output
+Commands: ``nodal_forces`` (2n values [N]) and ``hinge_torques`` (n values [N m], joint order
+hinge_0..hinge_{n-1}), one :class:`~rod_sim.ros.commands.CommandIntake` each (validation,
+counts, hold, timeout per topic); the held input of a period is (n, 3) = [X, Y, T]. In
+lockstep a valid command on either topic advances one period with the other topic's last
+valid command held; ``applied_torques`` (the held torques) is published on change and
+recorded every period beside ``applied_forces``.
+
+Recording (``record_path``): the log of docs/interface.md section 4 with the commands as received (``/nodal_forces``,
+``/hinge_torques`` at the simulated time of reception, rejected ones included), ``/applied_forces``,
+``/applied_torques``, every output
 topic and ``/diagnostics`` (which carries wall-clock measurements and so differs between
 otherwise identical runs), under their resolved names (namespace and remappings applied, as
 rosbag2 records). ``~/reset`` sends simulated time back to 0, so the recording goes on in the
