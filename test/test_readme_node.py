@@ -1,7 +1,8 @@
 """Every runnable code block of the README's node section, run as a user would (issue 13):
 the shell commands (real-time node with the shipped params file, the same in a namespace in
 lockstep, the one-process demo) and the lockstep Python client against the namespaced node.
-Only the domain id and the output directory are replaced. ROS_DOMAIN_IDs 129..131 (LOCALHOST)."""
+Only the domain id and the output directory are replaced. ROS_DOMAIN_IDs 129..131 and 215
+(LOCALHOST)."""
 from __future__ import annotations
 
 import re
@@ -22,7 +23,7 @@ pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]
 
 REPO = Path(__file__).resolve().parents[1]
 SECTION = "## The ROS 2 node"
-DOMAIN_REALTIME, DOMAIN_LOCKSTEP, DOMAIN_DEMO = 129, 130, 131
+DOMAIN_REALTIME, DOMAIN_LOCKSTEP, DOMAIN_DEMO, DOMAIN_TORQUES = 129, 130, 131, 215
 STARTUP_S = 60.0
 
 
@@ -99,8 +100,9 @@ def test_the_section_has_the_blocks_this_module_runs():
     assert "rod-sim node" in commands[0] and "record_path:=out/run.mcap" in commands[0]
     assert "__ns:=/arm1" in commands[1] and "sync_mode:=true" in commands[1]
     assert "rod_sim.ros.demo" in commands[2]
-    blocks = code_blocks("python")     # the lockstep client (run here) and the torque helpers
-    assert len(blocks) == 2 and "hinge_forces" in blocks[1]   # (run by test_controller_api.py)
+    blocks = code_blocks("python")     # the lockstep clients (run here) and the torque helpers
+    assert len(blocks) == 3 and "hinge_forces" in blocks[2]   # (run by test_controller_api.py)
+    assert '"hinge_torques"' in blocks[1]
 
 
 def test_realtime_node_with_the_params_file_records_and_answers_ctl(shell, tmp_path):
@@ -152,3 +154,27 @@ def test_demo_command_runs(shell, tmp_path):
     assert demo.proc.wait(timeout=150) == 0, demo.stderr
     with LogReader(tmp_path / "demo.mcap") as reader:
         assert reader.complete
+
+
+def test_hinge_torque_controller_drives_the_namespaced_node(shell, tmp_path):
+    """The README's joint-space controller: 300 hinge_torques commands, one lockstep period
+    each, recorded with the applied torques of every period; the PD law damps the chain."""
+    node = shell(shell_commands()[1], DOMAIN_TORQUES, "lockstep")
+    node.wait_for("/arm1/hinge_torques")
+    script = tmp_path / "torque_client.py"
+    script.write_text(code_blocks("python")[1])
+    client = subprocess.run([sys.executable, str(script), "--ros-args", "-r", "__ns:=/arm1"],
+                            cwd=REPO, env=ros_env(DOMAIN_TORQUES), capture_output=True,
+                            text=True, timeout=150)
+    assert client.returncode == 0, client.stderr
+    assert "sent 300 hinge_torques commands" in client.stdout
+    assert node.interrupt() == 0, node.stderr
+    with LogReader(tmp_path / "arm1.mcap") as reader:
+        msgs = [(topic, t, m) for topic, t, m in reader.messages()]
+    topics = [topic for topic, _, _ in msgs]
+    assert topics.count("/arm1/hinge_torques") == 300
+    assert topics.count("/arm1/rod_states") == 301              # t = 0 and one per command
+    applied = [list(m.data) for topic, _, m in msgs if topic == "/arm1/applied_torques"]
+    commands = [list(m.data) for topic, _, m in msgs if topic == "/arm1/hinge_torques"]
+    assert len(applied) == 300 and applied == commands         # each period applies its own
+    assert all(len(a) == 8 for a in applied) and max(abs(v) for a in applied for v in a) > 1.0

@@ -160,7 +160,8 @@ def frequency_findings(scene, model_name: str, command_rate_hz: float | None = N
 
 class ValidityMonitor:
     """Incremental validity checks of one run. Feed it every state with :meth:`update`
-    (``t`` [s], state ``y``, held forces (n, 2) [N]); :meth:`findings` lists the first
+    (``t`` [s], state ``y``, held forces (n, 2) [N], or held inputs (n, 3) with the hinge
+    torques [N m]); :meth:`findings` lists the first
     occurrence of each kind of problem (per rod). ``energy_residual`` [J] and ``energy_scale``
     [J] come from the caller's energy ledger (optional)."""
 
@@ -182,9 +183,10 @@ class ValidityMonitor:
     def update(self, t: float, y, held=None, alpha=None, beta=None) -> None:
         """Check one state (alpha, beta [rad] may be given to save recomputing them)."""
         n = self.model.n
-        held = np.zeros((n, 2)) if held is None else np.asarray(held, float).reshape(n, 2)
+        held = np.zeros((n, 2)) if held is None else np.asarray(held, float).reshape(n, -1)
         if alpha is None or beta is None:
             alpha, beta = self.model.bending(t, y, held)
+        held = held[:, :2]        # the jump check is of the nodal forces ((n, 3): + torques)
         a, b = np.abs(alpha), np.abs(beta)
         self.max_abs_alpha = max(self.max_abs_alpha, float(np.max(a, initial=0.0)))
         self.max_abs_beta = max(self.max_abs_beta, float(np.max(b, initial=0.0)))

@@ -14,7 +14,9 @@ What is read (n rods; times in integer ns of simulated time), under any one name
 - ``bending``: alpha, beta (n,) [rad] (optional topic);
 - ``node_poses``: node positions (n+1, 2) [m] (optional topic);
 - ``applied_forces``: forces (n, 2) [N] = scripted loads + held command, valid from the
-  message time on (a zero-order hold of the command part).
+  message time on (a zero-order hold of the command part);
+- ``applied_torques``: hinge motor moments (n,) [N m] = the held ``hinge_torques`` command,
+  valid from the message time on (optional topic: a log without it had no torques).
 
 :meth:`LogStream.groups` yields them one log time at a time, so memory does not grow with the
 log's length (each file's reader holds only the chunks whose time ranges overlap). The time of
@@ -46,22 +48,28 @@ STATE_TOPIC = "/rod_states"
 BENDING_TOPIC = "/bending"
 POSES_TOPIC = "/node_poses"
 APPLIED_TOPIC = "/applied_forces"
+TORQUES_TOPIC = "/applied_torques"
 SCENE_TOPIC = "/scene"
 """Latched std_msgs/String with the scene as YAML (not part of :data:`TOPICS`: read once)."""
-TOPICS = (STATE_TOPIC, BENDING_TOPIC, POSES_TOPIC, APPLIED_TOPIC)
+TOPICS = (STATE_TOPIC, BENDING_TOPIC, POSES_TOPIC, APPLIED_TOPIC, TORQUES_TOPIC)
+HOLD_TOPICS = (APPLIED_TOPIC, TORQUES_TOPIC)
+"""Topics without a header whose messages hold from their log time on (the last one at a
+repeated time is used)."""
 
 
 @dataclass
 class Group:
     """The messages of one log time ``t_ns`` [ns], at most one per topic (duplicates resolved):
     ``state`` (phi (n,), phi_rate (n,)), ``bending`` (alpha (n,), beta (n,)), ``nodes``
-    (n+1, 2), ``applied`` (n, 2); None where the topic has no message at this time."""
+    (n+1, 2), ``applied`` (n, 2), ``torques`` (n,); None where the topic has no message at
+    this time."""
 
     t_ns: int
     state: tuple[np.ndarray, np.ndarray] | None = None
     bending: tuple[np.ndarray, np.ndarray] | None = None
     nodes: np.ndarray | None = None
     applied: np.ndarray | None = None
+    torques: np.ndarray | None = None
 
 
 def log_files(path: str | os.PathLike) -> list[Path]:
@@ -206,7 +214,7 @@ class LogStream:
             if count:
                 self.notes.append(f"{count} {topic} message(s) repeat the time of an earlier one"
                                   + ("; the last one at each time is used"
-                                     if topic == APPLIED_TOPIC else
+                                     if topic in HOLD_TOPICS else
                                      " with identical content; merged"))
         self.truncated = any(r.truncated or not (r.complete or r.damaged) for r in self._readers)
         if self.truncated:
@@ -224,7 +232,7 @@ class LogStream:
                 if topic in values:
                     same = all(np.array_equal(a, b) for a, b in
                                zip(np.atleast_1d(values[topic]), np.atleast_1d(value)))
-                    if not same and topic != APPLIED_TOPIC:
+                    if not same and topic not in HOLD_TOPICS:
                         raise LogFormatError(f"two different {topic} messages at t = "
                                              f"{t_ns / 1e9:.9g} s (a tampered or merged log?)")
                     self._dup[topic] += 1
@@ -232,13 +240,16 @@ class LogStream:
         applied = values.get(APPLIED_TOPIC)
         if applied is not None and applied.ndim == 1 and self.n is not None:
             applied = self.applied_array(t_ns, applied)
+        torques = values.get(TORQUES_TOPIC)
+        if torques is not None and self.n is not None:
+            torques = self.torque_array(t_ns, torques)
         return Group(t_ns, state=values.get(STATE_TOPIC), bending=values.get(BENDING_TOPIC),
-                     nodes=values.get(POSES_TOPIC), applied=applied)
+                     nodes=values.get(POSES_TOPIC), applied=applied, torques=torques)
 
     def _decode(self, topic: str, log_ns: int, msg: Any):
         """The arrays of one message, checked against the first state message's n."""
         t = f"{log_ns / 1e9:.9g}"
-        if topic != APPLIED_TOPIC and _stamp_ns(msg) != log_ns:
+        if topic not in HOLD_TOPICS and _stamp_ns(msg) != log_ns:
             raise LogFormatError(
                 f"{topic}: a message whose log time differs from the header stamp (log {t} s, "
                 f"stamp {_stamp_ns(msg) / 1e9:.9g} s); the log times are not simulated time (a "
@@ -259,6 +270,9 @@ class LogStream:
                 raise LogFormatError(f"{STATE_TOPIC} at t = {t} s has {len(names)} names, "
                                      f"{pos.size} positions, {vel.size} velocities (expected {n})")
             return pos, vel
+        if topic == TORQUES_TOPIC:
+            data = np.asarray(msg.data, dtype=float)     # checked once n is known
+            return data if self.n is None else self.torque_array(log_ns, data)
         if self.n is None:
             if topic == APPLIED_TOPIC:
                 return np.asarray(msg.data, dtype=float)     # checked once n is known
@@ -289,6 +303,23 @@ class LogStream:
         if not np.all(np.isfinite(data)):
             raise LogFormatError(f"{APPLIED_TOPIC} at t = {t} s has a non-finite value")
         return data.reshape(self.n, 2)
+
+    def torque_array(self, log_ns: int, data: np.ndarray) -> np.ndarray:
+        """``applied_torques`` data as (n,) [N m]; LogFormatError for a wrong size or a
+        non-finite value."""
+        t = f"{log_ns / 1e9:.9g}"
+        data = np.asarray(data, dtype=float).reshape(-1)
+        if data.size != self.n:
+            raise LogFormatError(f"{TORQUES_TOPIC} at t = {t} s has {data.size} values "
+                                 f"(expected n = {self.n})")
+        if not np.all(np.isfinite(data)):
+            raise LogFormatError(f"{TORQUES_TOPIC} at t = {t} s has a non-finite value")
+        return data
+
+    @property
+    def has_torques(self) -> bool:
+        """Whether any file of the log has an ``applied_torques`` topic."""
+        return any(TORQUES_TOPIC.lstrip("/") in names for names in self.topics)
 
 
 def read_log(path: str | os.PathLike, namespace: str | None = None) -> LogStream:

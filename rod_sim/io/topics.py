@@ -30,6 +30,7 @@ TOPIC_TYPES: dict[str, str] = {
     "node_poses": "geometry_msgs/msg/PoseArray",
     "markers": "visualization_msgs/msg/MarkerArray",
     "applied_forces": "std_msgs/msg/Float64MultiArray",
+    "applied_torques": "std_msgs/msg/Float64MultiArray",
     "diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
     "clock": "rosgraph_msgs/msg/Clock",
     "robot_description": "std_msgs/msg/String",
@@ -47,6 +48,10 @@ SNAPSHOT_TOPICS = DEFAULT_TOPICS + ("clock",)
 FORCE_LAYOUT_LABELS = ("node", "xy")
 """``applied_forces``/``nodal_forces`` layout: a row-major (n, 2) array, dim[0] 'node'
 (size n, stride 2n), dim[1] 'xy' (size 2, stride 2): data[2(k-1) + j] is X_k (j=0), Y_k (j=1)."""
+
+TORQUE_LAYOUT_LABEL = "hinge"
+"""``applied_torques``/``hinge_torques`` layout: one dim 'hinge' (size n, stride n):
+data[h] is the motor moment T_h [N m] at hinge h (joint ``hinge_h``)."""
 
 ROD_COLOR = {"r": 0.25, "g": 0.5, "b": 1.0, "a": 1.0}
 NODE_COLOR = {"r": 1.0, "g": 0.5, "b": 0.0, "a": 1.0}
@@ -231,6 +236,15 @@ def force_array(forces: np.ndarray) -> Msg:
                                {"label": FORCE_LAYOUT_LABELS[1], "size": 2, "stride": 2}],
                        "data_offset": 0},
             "data": _floats(f)}
+
+
+def torque_array(torques) -> Msg:
+    """``std_msgs/Float64MultiArray`` of hinge torques (n,) [N m]: data = [T_0, ..., T_{n-1}]
+    in joint order hinge_0..hinge_{n-1}, layout dim 'hinge' (:data:`TORQUE_LAYOUT_LABEL`)."""
+    t = np.asarray(torques, dtype=float).reshape(-1)
+    return {"layout": {"dim": [{"label": TORQUE_LAYOUT_LABEL, "size": t.size,
+                                "stride": t.size}], "data_offset": 0},
+            "data": _floats(t)}
 
 
 def applied_forces(snapshot: Snapshot) -> Msg:

@@ -1,6 +1,7 @@
-"""Intake of ``nodal_forces`` commands for the rod_sim node: the serialized command is refused
-by its length before it is decoded, then validated; refusals are counted with their last
-reason; the latest valid command is held (zero-order hold) until ``command_timeout``.
+"""Intake of the rod_sim node's commands (``nodal_forces``: 2 n values, ``hinge_torques``: n
+values; one :class:`CommandIntake` per topic): the serialized command is refused by its length
+before it is decoded, then validated; refusals are counted with their last reason; the latest
+valid command is held (zero-order hold) until ``command_timeout``.
 
 ROS-light: it decodes a ``std_msgs/Float64MultiArray`` but creates no ROS entity and logs
 nothing; the node subscribes, records, logs and steps."""
@@ -13,33 +14,46 @@ import numpy as np
 from rclpy.serialization import deserialize_message
 from std_msgs.msg import Float64MultiArray
 
-from rod_sim.ros.conversions import CommandError, command_forces
+from rod_sim.ros.conversions import CommandError, command_forces, command_torques
 from rod_sim.ros.pacing import NS_PER_S
 
 COMMAND_SLACK_BYTES = 4096
-"""Bytes a serialized command may carry beyond its 2 n doubles (header, layout, labels)."""
+"""Bytes a serialized command may carry beyond its 2 n (torques: n) doubles (header, layout,
+labels)."""
+
+FORCES, TORQUES = "nodal_forces", "hinge_torques"
+"""The command topics (relative names) and the kinds of :class:`CommandIntake`."""
+_KINDS = {FORCES: (2, command_forces), TORQUES: (1, command_torques)}
 
 
 @dataclass(frozen=True)
 class Command:
-    """A valid command: forces (n, 2) [N], received at wall ``wall_ns`` (monotonic) and at
-    simulated time ``sim_ns``."""
+    """A valid command: ``forces`` = nodal forces (n, 2) [N] (``kind`` nodal_forces) or hinge
+    torques (n,) [N m] (``kind`` hinge_torques), received at wall ``wall_ns`` (monotonic) and
+    at simulated time ``sim_ns``."""
 
     forces: np.ndarray
     wall_ns: int
     sim_ns: int
+    kind: str = FORCES
 
 
 class CommandIntake:
-    """Commands of a chain of ``n`` nodes: counters, the latest valid command and its hold.
+    """Commands of a chain of ``n`` nodes on one topic (``kind``: :data:`FORCES`, 2 n values
+    -> (n, 2) [N], or :data:`TORQUES`, n values -> (n,) [N m]): counters, the latest valid
+    command and its hold.
 
     ``received`` and ``rejected`` count commands; ``last_rejection`` is the last reason;
     ``latest`` is the latest valid :class:`Command`; ``active`` says whether the last
     :meth:`held` force was a command (False once it timed out)."""
 
-    def __init__(self, n: int, timeout_s: float):
+    def __init__(self, n: int, timeout_s: float, kind: str = FORCES):
         self.n = n
-        self.max_bytes = 16 * 2 * n + COMMAND_SLACK_BYTES
+        self.kind = kind
+        self.width, self._parse = _KINDS[kind]
+        self.values = self.width * n
+        """Values a valid command holds."""
+        self.max_bytes = 16 * self.values + COMMAND_SLACK_BYTES
         self.received = 0
         self.rejected = 0
         self.last_rejection = ""
@@ -47,7 +61,7 @@ class CommandIntake:
         self.active = False
         self.timeout_ns = 0
         self.set_timeout(timeout_s)
-        self._zero = np.zeros((n, 2))
+        self._zero = np.zeros((n, 2)) if self.width == 2 else np.zeros(n)
 
     def set_timeout(self, seconds: float) -> None:
         """``command_timeout`` [s]; 0 = hold forever."""
@@ -60,12 +74,12 @@ class CommandIntake:
 
     def decode(self, data: bytes) -> Float64MultiArray | None:
         """The message in the serialized ``data``, or None (counted as received and rejected)
-        when it is too long for a command of 2 n values (checked before any decoding: an 80 MB
+        when it is too long for a command of 2 n (torques: n) values (checked before any decoding: an 80 MB
         message must not stall the node) or cannot be decoded."""
         if len(data) > self.max_bytes:
             self.received += 1
             self.reject(f"{len(data)} bytes, more than the {self.max_bytes} a command "
-                        f"of {2 * self.n} values may take (not recorded)")
+                        f"of {self.values} values may take (not recorded)")
             return None
         try:
             return deserialize_message(data, Float64MultiArray)
@@ -84,15 +98,15 @@ class CommandIntake:
         new latest command, or None (rejected, the last valid one is kept)."""
         self.received += 1
         try:
-            forces = command_forces(msg, self.n)
+            forces = self._parse(msg, self.n)
         except CommandError as exc:
             self.reject(str(exc))
             return None
-        self.latest = Command(forces, time.monotonic_ns(), sim_ns)
+        self.latest = Command(forces, time.monotonic_ns(), sim_ns, self.kind)
         return self.latest
 
     def held(self, sim_ns: int, wall_age: bool) -> np.ndarray:
-        """The command force (n, 2) [N] to hold over the next period: the latest valid command,
+        """The command (n, 2) [N] or torques (n,) [N m] to hold over the next period: the latest valid command,
         or zero once it is older than ``command_timeout`` (wall age if ``wall_age``, else
         simulated age at ``sim_ns``)."""
         cmd = self.latest

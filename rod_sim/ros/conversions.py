@@ -110,6 +110,26 @@ def command_forces(msg: Any, n: int) -> np.ndarray:
     return data.reshape(n, 2).copy()
 
 
+def command_torques(msg: Any, n: int) -> np.ndarray:
+    """Validated hinge torques (n,) [N m] from a ``std_msgs/Float64MultiArray`` command on
+    ``hinge_torques``.
+
+    ``msg.data[data_offset:]`` must hold exactly n finite values [T_0, ..., T_{n-1}] in joint
+    order hinge_0..hinge_{n-1} (the ``joint_states`` names; the convention of a joint-group
+    effort controller); the layout's dims are not needed and not checked. Raises CommandError
+    naming the problem."""
+    offset = int(getattr(getattr(msg, "layout", None), "data_offset", 0) or 0)
+    data = np.asarray(msg.data, dtype=float)[offset:]
+    if data.size != n:
+        raise CommandError(f"expected {n} values [T_0, ..., T_{n - 1}] [N m] for hinges "
+                           f"hinge_0..hinge_{n - 1}, got {data.size}")
+    bad = np.flatnonzero(~np.isfinite(data))
+    if bad.size:
+        i = int(bad[0]) + offset
+        raise CommandError(f"non-finite value {msg.data[i]!r} at data[{i}]")
+    return data.copy()
+
+
 def message_to_dict(msg: Any) -> Any:
     """The nested dict/list form of an rclpy message (the inverse of :func:`fill_message`),
     e.g. to log a received message; arrays become lists of Python numbers."""

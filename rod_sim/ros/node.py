@@ -60,8 +60,16 @@ Work per period is bounded (:mod:`rod_sim.ros.budget`): the integrator's steps p
 a period that would take seconds (a 1e12 N command) fails fast with a named cause. Commands
 are taken as serialized bytes and refused by their length before they are decoded.
 
-Recording (``record_path``): the log of docs/interface.md section 4 with the commands as received (``/nodal_forces``
-at the simulated time of reception, rejected ones included), ``/applied_forces``, every output
+Commands: ``nodal_forces`` (2n values [N]) and ``hinge_torques`` (n values [N m], joint order
+hinge_0..hinge_{n-1}), one :class:`~rod_sim.ros.commands.CommandIntake` each (validation,
+counts, hold, timeout per topic); the held input of a period is (n, 3) = [X, Y, T]. In
+lockstep a valid command on either topic advances one period with the other topic's last
+valid command held; ``applied_torques`` (the held torques) is published on change and
+recorded every period beside ``applied_forces``.
+
+Recording (``record_path``): the log of docs/interface.md section 4 with the commands as received (``/nodal_forces``,
+``/hinge_torques`` at the simulated time of reception, rejected ones included), ``/applied_forces``,
+``/applied_torques``, every output
 topic and ``/diagnostics`` (which carries wall-clock measurements and so differs between
 otherwise identical runs), under their resolved names (namespace and remappings applied, as
 rosbag2 records). ``~/reset`` sends simulated time back to 0, so the recording goes on in the
@@ -102,7 +110,8 @@ from rod_sim.io.urdf import scene_urdf
 from rod_sim.tools.common import UsageError
 from rod_sim.tools.limits import check_model_memory
 from rod_sim.ros import budget
-from rod_sim.ros.commands import COMMAND_SLACK_BYTES, Command, CommandIntake  # noqa: F401
+from rod_sim.ros.commands import (COMMAND_SLACK_BYTES, FORCES, TORQUES, Command,  # noqa: F401
+                                  CommandIntake)
 from rod_sim.ros.conversions import message_class, message_to_dict, to_message
 from rod_sim.ros.errors import NodeConfigError, one_line
 from rod_sim.ros.monitor import DiagnosticReport, EnergyLedger
@@ -121,8 +130,14 @@ from rod_sim.ros.recording import (MAX_LOG_ROLLS, NodeRecording, create_log,  # 
                                    offered_qos)
 from rod_sim.ros.scene_path import ScenePathError, resolve_scene_file
 
-COMMAND_TOPIC = "nodal_forces"
+COMMAND_TOPIC = FORCES
+"""``nodal_forces``: [X_1, Y_1, ..., X_n, Y_n] [N]."""
+TORQUE_TOPIC = TORQUES
+"""``hinge_torques``: [T_0, ..., T_{n-1}] [N m] in joint order hinge_0..hinge_{n-1}."""
+COMMAND_TOPICS = (COMMAND_TOPIC, TORQUE_TOPIC)
 COMMAND_TYPE = "std_msgs/msg/Float64MultiArray"
+APPLIED_TOPICS = {COMMAND_TOPIC: "applied_forces", TORQUE_TOPIC: "applied_torques"}
+"""Command topic -> the output topic of what is applied (recorded every period)."""
 STATE_TOPICS = ("joint_states", "rod_states", "bending", "node_poses", "markers")
 """Published at the end of every control period (if subscribed or recorded)."""
 DESCRIPTION_TOPICS = ("robot_description", "scene")
@@ -207,7 +222,8 @@ class RodSimNode(Node):
             f"{self.get_fully_qualified_name()}: scene {self.scene.name!r} (n = {self.scene.n}), "
             f"model {self.model.name}, {self.sim.integrator.describe()}, "
             f"{self.settings.rate_hz:g} Hz, {self._mode()}, work budget "
-            f"{self._budget.describe()}; commands on {self._topic_names[COMMAND_TOPIC]}"
+            f"{self._budget.describe()}; commands on {self._topic_names[COMMAND_TOPIC]} and "
+            f"{self._topic_names[TORQUE_TOPIC]}"
             + (f", recording to {self._log_path}" if self._log_path else "")
             + (", paused until ~/pause false or the first command"
                if self.settings.start_paused else ""))
@@ -292,9 +308,16 @@ class RodSimNode(Node):
         self._clock_wall_ns = 0
         self._error: str | None = None
         self._sync_queue: deque[Command] = deque()
-        self._commands = CommandIntake(n, self.settings.command_timeout)
+        self._commands = CommandIntake(n, self.settings.command_timeout, FORCES)
+        self._torques = CommandIntake(n, self.settings.command_timeout, TORQUES)
+        self._intakes = {FORCES: self._commands, TORQUES: self._torques}
+        self._rejection = ""
+        """The latest rejection of either command topic, prefixed with the topic."""
+        self._sync_held = np.zeros((n, 3))
+        """Lockstep: the held inputs [X, Y, T] as of the last queued command processed (a
+        command of one topic keeps the other topic's last command)."""
         self._dropped = 0
-        self._applied_last: np.ndarray | None = None
+        self._applied_last: dict[str, np.ndarray] = {}
         self._ledger = EnergyLedger(self._energy(self.sim.held))
         self._validity = ValidityMonitor(self.model)
         self._meter = RateMeter(time.monotonic_ns())
@@ -315,7 +338,8 @@ class RodSimNode(Node):
         (namespace and remappings applied, as rosbag2 records)."""
         names = {name: self.resolve_topic_name(name)
                  for name in STATE_TOPICS + DESCRIPTION_TOPICS
-                 + ("applied_forces", COMMAND_TOPIC, HINGE_EVENTS_TOPIC)}
+                 + ("applied_forces", "applied_torques", HINGE_EVENTS_TOPIC)
+                 + COMMAND_TOPICS}
         names["diagnostics"] = self.resolve_topic_name(DIAGNOSTICS_TOPIC)
         return names
 
@@ -323,9 +347,9 @@ class RodSimNode(Node):
         state_qos = LOCKSTEP_STATE_QOS if self.settings.sync_mode else STATE_QOS
         self._pubs = {name: self._publisher(
             topics.TOPIC_TYPES[name], self._topic_names[name],
-            APPLIED_QOS if name == "applied_forces" else
+            APPLIED_QOS if name in ("applied_forces", "applied_torques") else
             DIAGNOSTICS_QOS if name == "diagnostics" else state_qos)
-            for name in STATE_TOPICS + ("applied_forces", "diagnostics")}
+            for name in STATE_TOPICS + ("applied_forces", "applied_torques", "diagnostics")}
         self._pubs.update({name: self._publisher(topics.TOPIC_TYPES[name],
                                                  self._topic_names[name], LATCHED_QOS)
                            for name in DESCRIPTION_TOPICS})
@@ -337,8 +361,10 @@ class RodSimNode(Node):
                             if has_hinge_events(self.scene) else None)
         self._events_sent = 0
         # raw: the length of a command is checked before it is deserialized
-        self.create_subscription(Float64MultiArray, self._topic_names[COMMAND_TOPIC],
-                                 self._on_command_bytes, COMMAND_QOS, raw=True)
+        for topic, intake in self._intakes.items():
+            self.create_subscription(Float64MultiArray, self._topic_names[topic],
+                                     lambda data, intake=intake: self._on_command_bytes(
+                                         data, intake), COMMAND_QOS, raw=True)
         self.create_service(Trigger, "~/reset", self._on_reset, qos_profile=SERVICE_QOS)
         # Its own reentrant group: between the slices of a long call the node's other
         # callbacks (default, mutually exclusive group) run, and a second call is answered
@@ -396,11 +422,13 @@ class RodSimNode(Node):
         if self._start_hold:
             self.get_logger().info(
                 f"paused at t = {self.sim.t:g} s (start_paused): waiting for ~/pause false or "
-                f"the first {self._topic_names[COMMAND_TOPIC]} command")
-        elif self.settings.sync_mode and self._commands.latest is None and self._running():
+                f"the first {self._topic_names[COMMAND_TOPIC]} or "
+                f"{self._topic_names[TORQUE_TOPIC]} command")
+        elif self.settings.sync_mode and not self._any_command() and self._running():
             self.get_logger().info(
                 f"lockstep: waiting for the first nodal_forces command on "
-                f"{self._topic_names[COMMAND_TOPIC]} (the t = {self.sim.t:g} s state is "
+                f"{self._topic_names[COMMAND_TOPIC]} (or hinge_torques on "
+                f"{self._topic_names[TORQUE_TOPIC]}; the t = {self.sim.t:g} s state is "
                 "published transient local)")
 
     def _on_idle_clock(self) -> None:
@@ -432,7 +460,8 @@ class RodSimNode(Node):
                 self._configure_pacing()
                 self._meter.restart(time.monotonic_ns())
             elif p.name == "command_timeout":
-                self._commands.set_timeout(float(p.value))
+                for intake in self._intakes.values():
+                    intake.set_timeout(float(p.value))
             elif p.name == "frame_id":
                 self._frame_id = str(p.value)
                 self._pubs["robot_description"].publish(to_message(
@@ -483,35 +512,45 @@ class RodSimNode(Node):
             return "paused at start (start_paused): waiting for ~/pause false or a command"
         if self._paused:
             return "paused"
-        if self.settings.sync_mode and self._commands.latest is None:
+        if self.settings.sync_mode and not self._any_command():
             return "waiting for the first command"
         return "running"
 
     # ----- commands -----
 
-    def _on_command_bytes(self, data: bytes) -> None:
-        """A serialized command: refuse it by its length before any decoding (an 80 MB
-        message must not stall the node), else decode and handle it."""
-        msg = self._commands.decode(data)
+    def _any_command(self) -> bool:
+        """Whether a valid command (either topic) is held since the start or the last reset."""
+        return any(intake.latest is not None for intake in self._intakes.values())
+
+    def _on_command_bytes(self, data: bytes, intake: CommandIntake | None = None) -> None:
+        """A serialized command (of ``intake``'s topic, default ``nodal_forces``): refuse it by
+        its length before any decoding (an 80 MB message must not stall the node), else
+        decode and handle it."""
+        intake = self._commands if intake is None else intake
+        msg = intake.decode(data)
         if msg is None:
-            self._warn_rejected()
+            self._warn_rejected(intake)
             return
-        self._on_command(msg)
+        self._on_command(msg, intake)
 
-    def _warn_rejected(self) -> None:
+    def _warn_rejected(self, intake: CommandIntake | None = None) -> None:
+        intake = self._commands if intake is None else intake
+        self._rejection = f"{intake.kind}: {intake.last_rejection}"
         self._log_throttled(
-            "rejected", "warning",
-            f"rejected a nodal_forces command: {self._commands.last_rejection} "
-            f"({self._commands.rejected} rejected so far); keeping the last valid command")
+            f"rejected {intake.kind}", "warning",
+            f"rejected a {intake.kind} command: {intake.last_rejection} "
+            f"({intake.rejected} rejected so far); keeping the last valid command")
 
-    def _on_command(self, msg: Float64MultiArray) -> None:
-        """Validate and store a command (never integrates)."""
+    def _on_command(self, msg: Float64MultiArray, intake: CommandIntake | None = None) -> None:
+        """Validate and store a command of ``intake``'s topic (default ``nodal_forces``);
+        never integrates."""
+        intake = self._commands if intake is None else intake
         if self._recording.writer is not None:
-            self._recording.record(self._topic_names[COMMAND_TOPIC], COMMAND_TYPE, self.sim.t_ns,
+            self._recording.record(self._topic_names[intake.kind], COMMAND_TYPE, self.sim.t_ns,
                                    message_to_dict(msg))
-        command = self._commands.accept(msg, self.sim.t_ns)
+        command = intake.accept(msg, self.sim.t_ns)
         if command is None:
-            self._warn_rejected()
+            self._warn_rejected(intake)
             return
         if self._start_hold:
             self._start_hold = self._paused = False
@@ -523,16 +562,20 @@ class RodSimNode(Node):
             self._sync_trigger.trigger()
 
     def _held_command(self, wall_age: bool) -> np.ndarray:
-        """The command force to hold over the next period: the latest valid command, or zero
-        once it is older than ``command_timeout`` (wall age if ``wall_age``, else simulated)."""
-        was_active = self._commands.active
-        forces = self._commands.held(self.sim.t_ns, wall_age)
-        if was_active and not self._commands.active:
-            self._log_throttled(
-                "timeout", "info",
-                f"no valid {COMMAND_TOPIC} command for "
-                f"{self._commands.timeout_ns / NS_PER_S:g} s: command force set to zero")
-        return forces
+        """The inputs to hold over the next period, (n, 3) [X, Y, T]: per command topic the
+        latest valid command, or zero once it is older than ``command_timeout`` (wall age if
+        ``wall_age``, else simulated)."""
+        held = np.empty((self.scene.n, 3))
+        for intake, columns in ((self._commands, slice(0, 2)), (self._torques, 2)):
+            was_active = intake.active
+            held[:, columns] = intake.held(self.sim.t_ns, wall_age)
+            if was_active and not intake.active:
+                what = "command force" if intake.kind == FORCES else "hinge torques"
+                self._log_throttled(
+                    f"timeout {intake.kind}", "info",
+                    f"no valid {intake.kind} command for "
+                    f"{intake.timeout_ns / NS_PER_S:g} s: {what} set to zero")
+        return held
 
     # the command state under the names it had before it moved to CommandIntake (tests)
     @property
@@ -617,16 +660,30 @@ class RodSimNode(Node):
         for _ in range(SYNC_BATCH):
             if not self._sync_queue or not self._running() or time.monotonic_ns() > deadline:
                 break
-            self._commands.active = True
-            self._step_period(self._sync_queue.popleft().forces)
+            command = self._sync_queue.popleft()
+            self._intakes[command.kind].active = True
+            held = self._sync_held.copy()
+            if command.kind == TORQUES:
+                held[:, 2] = command.forces
+            else:
+                held[:, :2] = command.forces
+            self._sync_held = held
+            self._step_period(held)
         if self._sync_queue and self._running():
             self._sync_trigger.trigger()
 
     def _step_period(self, held: np.ndarray) -> bool:
-        """Advance one control period holding ``held`` (n, 2) [N] plus the scripted loads, and
-        publish. Returns False (and pauses) when the integration fails."""
+        """Advance one control period holding ``held`` plus the scripted loads, and publish:
+        (n, 3) = nodal forces X, Y [N] and hinge torques T [N m], or (n, 2) forces only (zero
+        torques). Returns False (and pauses) when the integration fails."""
         sim = self.sim
-        sim.set_forces(held)
+        held = np.asarray(held, dtype=float)
+        if held.shape != (self.scene.n, 3):
+            full = np.zeros((self.scene.n, 3))
+            full[:, :2] = held.reshape(self.scene.n, 2)
+            held = full
+        sim.set_forces(held[:, :2])
+        sim.set_hinge_torques(held[:, 2])
         self._publish_applied(sim.t_ns)
         p_start = self._net_power(held)
         work = self._budget.work(sim.integrator)
@@ -711,16 +768,18 @@ class RodSimNode(Node):
             self._pubs[name].publish(to_message(type_name, data))
 
     def _publish_applied(self, t_ns: int) -> None:
-        """Applied forces (scripted + held) from ``t_ns`` on: recorded every period, published
-        when they change (and the first time)."""
-        applied = self.model.forces(t_ns / NS_PER_S, self.sim.held)
-        data = topics.force_array(applied)
-        self._recording.record(self._topic_names["applied_forces"],
-                               topics.TOPIC_TYPES["applied_forces"], t_ns, data)
-        if self._applied_last is None or not np.array_equal(applied, self._applied_last):
-            self._applied_last = applied
-            self._pubs["applied_forces"].publish(
-                to_message(topics.TOPIC_TYPES["applied_forces"], data))
+        """Applied forces (scripted + held) and hinge torques (held) from ``t_ns`` on: each
+        recorded every period, published when it changes (and the first time)."""
+        values = {"applied_forces": self.model.forces(t_ns / NS_PER_S, self.sim.held),
+                  "applied_torques": self.sim.held[:, 2].copy()}
+        for name, applied in values.items():
+            data = (topics.force_array(applied) if name == "applied_forces" else
+                    topics.torque_array(applied))
+            self._recording.record(self._topic_names[name], topics.TOPIC_TYPES[name], t_ns, data)
+            last = self._applied_last.get(name)
+            if last is None or not np.array_equal(applied, last):
+                self._applied_last[name] = applied
+                self._pubs[name].publish(to_message(topics.TOPIC_TYPES[name], data))
 
     def _publish_state(self, snap, force: bool = False) -> None:
         """Everything a state determines, stamped at its simulated time (``force``: publish
@@ -750,7 +809,7 @@ class RodSimNode(Node):
     def _republish_waiting(self) -> None:
         """Lockstep, before the first valid command (at start and after ``~/reset``): publish
         the waiting state again, not recorded, for volatile subscribers that joined since."""
-        if self._commands.latest is not None or self._sync_queue or self._error is not None:
+        if self._any_command() or self._sync_queue or self._error is not None:
             return
         wanted = [name for name in STATE_TOPICS
                   if name != "markers" or self._markers_due(self.sim.t_ns)]
@@ -782,15 +841,22 @@ class RodSimNode(Node):
             step_cost_mean=mean_ms, step_cost_max=max_ms, step_budget=budget,
             steps=self._meter.steps, dropped_periods=self._dropped,
             energy=self._ledger.energy, energy_residual=self._ledger.residual,
-            commands_received=self._commands.received, commands_rejected=self._commands.rejected,
-            last_rejection=self._commands.last_rejection, command_active=self._commands.active,
+            commands_received=self._commands.received + self._torques.received,
+            commands_rejected=self._commands.rejected + self._torques.rejected,
+            last_rejection=self._rejection,
+            command_active=self._commands.active or self._torques.active,
             max_abs_alpha=self._max_alpha, max_abs_beta=self._max_beta,
             model=self.model.name, integrator=self.sim.integrator.describe(), error=self._error,
             recording_error=self._recording.error,
             validity=[f.message for f in self._validity.findings() if f.kind != "bending"],
             extra={"scene": self.scene.name, "rate_hz": f"{self.settings.rate_hz:g}",
                    "recording": str(self.log_path) if self.log_path else "off",
-                   "work_budget": self._budget.describe(), "node": self.get_fully_qualified_name()})
+                   "work_budget": self._budget.describe(), "node": self.get_fully_qualified_name(),
+                   **{f"{kind}_{what}": str(getattr(intake, what))
+                      for kind, intake in self._intakes.items()
+                      for what in ("received", "rejected")},
+                   **{f"{kind}_active": "true" if intake.active else "false"
+                      for kind, intake in self._intakes.items()}})
 
     def publish_diagnostics(self) -> None:
         """Publish (and record) one ``diagnostics`` message and start a new window."""
@@ -809,10 +875,12 @@ class RodSimNode(Node):
         self._resets += 1
         self.sim.reset()
         self._events_sent = 0
-        self._commands.clear()
+        for intake in self._intakes.values():
+            intake.clear()
         self._sync_queue.clear()
+        self._sync_held = np.zeros((self.scene.n, 3))
         self._error = None
-        self._applied_last = None
+        self._applied_last = {}
         self._ledger.start(self._energy(self.sim.held))
         self._validity = ValidityMonitor(self.model)
         self._meter.restart(time.monotonic_ns())
@@ -902,7 +970,7 @@ class RodSimNode(Node):
                     "source": "rod_sim node", "mode": self._mode(),
                     "node": self.get_fully_qualified_name()}
         state_depth = LOCKSTEP_STATE_DEPTH if s.sync_mode else STATE_DEPTH
-        latched = {"applied_forces": 1, HINGE_EVENTS_TOPIC: 100,
+        latched = {"applied_forces": 1, "applied_torques": 1, HINGE_EVENTS_TOPIC: 100,
                    **{name: 1 for name in DESCRIPTION_TOPICS},
                    **{name: state_depth for name in STATE_TOPICS}}
         return create_log(path, metadata, offered_qos(self._topic_names, latched))

@@ -157,7 +157,10 @@ def format_report(report, info: dict) -> str:
             + f" -> {'converged' if ref['converged'] else 'NOT converged'}",
             f"forces: {report.forces['messages']} /applied_forces messages, "
             f"{report.forces['segments']} held-command segment(s), max |held| "
-            f"{report.forces['max_abs_held']:.3g} N"]
+            f"{report.forces['max_abs_held']:.3g} N"
+            + (f"; torques: {report.forces['torque_messages']} /applied_torques messages, "
+               f"max |T| {report.forces['max_abs_torque']:.3g} N m"
+               if report.forces.get("torque_messages") else "")]
     lines = [w for line in head for w in _wrap(line)] + [""]
     lines.append("max |log - full| per rod (node_position: node k, the end of rod k):")
     lines.append(f"{'rod':>3}  " + "".join(f"{name:>14}" for name, _ in COLUMNS)

@@ -27,7 +27,11 @@ held command, a zero-order hold. So the held part on [t_i, t_{i+1}) is
 ``held_i = applied(t_i) - scripted(t_i)``; the re-run applies the scripted loads continuously
 and ``held_i`` piecewise constant, restarting the integrator wherever ``held`` changes. This
 covers ``rod-sim simulate`` logs (a message at every sample, held = 0) and node logs (a message
-at the start of every control period).
+at the start of every control period). Hinge torques: an ``/applied_torques`` message at t_i
+holds the motor moments T (n,) [N m] from t_i on (the node records one per period; a log
+without the topic had none); they join the held input as its third column, held (n, 3) =
+[X, Y, T], and a change of either starts a new segment. A log with the topic must cover the
+states with it as for the forces (from t = 0, no gaps).
 
 Units: angles [rad], rates [rad/s], positions [m], forces [N], times [s] (integer ns where
 named ``*_ns``).
@@ -119,7 +123,8 @@ class Run:
 
     def advance(self, t_out: np.ndarray, bounds: list[int], helds: list[np.ndarray]) -> np.ndarray:
         """States (len(t_out), 6n) at the sorted times ``t_out`` [ns] (all >= ``t_ns``, the
-        last <= ``bounds[-1]``); the held command ``helds[i]`` (n, 2) [N] applies up to
+        last <= ``bounds[-1]``); the held input ``helds[i]`` (n, 3) = forces X, Y [N] and hinge
+        torques T [N m] (or (n, 2): forces, zero torques) applies up to
         ``bounds[i]`` [ns] (the integrator restarts there). Raises IntegrationError."""
         out = np.empty((t_out.size, self.y.size))
         k = 0
@@ -132,7 +137,10 @@ class Run:
             j = k
             while j < t_out.size and t_out[j] <= b:
                 j += 1
-            self.sim.set_forces(held)
+            held = np.asarray(held, dtype=float).reshape(self.model.n, -1)
+            self.sim.set_forces(held[:, :2])
+            self.sim.set_hinge_torques(held[:, 2] if held.shape[1] == 3
+                                       else np.zeros(self.model.n))
             Y = self.sim.sample(np.concatenate([t_out[k:j], [int(b)]]))
             out[k:j] = Y[:-1]
             k = j
@@ -456,6 +464,12 @@ class _Comparison:
         self.applied_messages = 0
         self.segments = 0
         self.max_held = 0.0
+        self.torque_msgs: list[tuple[int, np.ndarray]] = []
+        self.held_force = np.zeros((n, 2))
+        self.held_torque = np.zeros(n)
+        self.last_torque: int | None = None
+        self.torque_messages = 0
+        self.max_torque = 0.0
         self.state_count = 0
         self.first_state: int | None = None
         self.last_state: int | None = None
@@ -491,6 +505,8 @@ class _Comparison:
             self.nodes.append((g.t_ns, g.nodes))
         if g.applied is not None:
             self.applied.append((g.t_ns, g.applied))
+        if g.torques is not None:
+            self.torque_msgs.append((g.t_ns, g.torques))
         if g.state is not None and self.states and (
                 len(self.states) >= WINDOW_SAMPLES
                 or g.t_ns - self.states[0][0] >= WINDOW_S * NS_PER_S):
@@ -509,6 +525,11 @@ class _Comparison:
         if self.last_state - self.last_applied > GAP_FACTOR * self.period:
             raise CompareInputError(
                 f"/applied_forces ends at t = {self.last_applied / NS_PER_S:.9g} s but the "
+                f"states go on to {self.last_state / NS_PER_S:.9g} s: messages are missing")
+        if (self.log.has_torques and self.last_torque is not None
+                and self.last_state - self.last_torque > GAP_FACTOR * self.period):
+            raise CompareInputError(
+                f"/applied_torques ends at t = {self.last_torque / NS_PER_S:.9g} s but the "
                 f"states go on to {self.last_state / NS_PER_S:.9g} s: messages are missing")
 
     # ----- one window -----
@@ -537,19 +558,53 @@ class _Comparison:
             if use[0][0] != 0:
                 raise CompareInputError(f"/applied_forces starts at t = {use[0][0] / NS_PER_S:.9g}"
                                         " s, not 0: the forces before it are unknown")
-        bounds, helds = [], []
-        for t, applied in use:
-            if applied.ndim == 1:
-                applied = self.log.applied_array(t, applied)
-            if self.last_applied is not None and t - self.last_applied > GAP_FACTOR * self.period:
+        torques = [(t, v) for t, v in self.torque_msgs if t <= t_cut]
+        self.torque_msgs = [(t, v) for t, v in self.torque_msgs if t > t_cut]
+        if self.log.has_torques and self.last_torque is None:
+            if not torques:
                 raise CompareInputError(
-                    f"/applied_forces has a gap longer than {GAP_FACTOR:g} sampling periods "
-                    f"({self.last_applied / NS_PER_S:.9g} s to {t / NS_PER_S:.9g} s): messages "
-                    "are missing, so the force history cannot be rebuilt")
-            self.last_applied = t
-            self.applied_messages += 1
-            held = applied - self.model.forces(t / NS_PER_S)
-            self.max_held = max(self.max_held, float(np.max(np.abs(held))))
+                    f"no /applied_torques messages up to t = {t_cut / NS_PER_S:.9g} s, so the "
+                    "hinge-torque history cannot be rebuilt")
+            if torques[0][0] != 0:
+                raise CompareInputError(f"/applied_torques starts at t = "
+                                        f"{torques[0][0] / NS_PER_S:.9g} s, not 0: the torques "
+                                        "before it are unknown")
+        changes: dict[int, dict[str, np.ndarray]] = {}
+        for t, applied in use:
+            changes.setdefault(t, {})["forces"] = applied
+        for t, value in torques:
+            changes.setdefault(t, {})["torques"] = value
+        bounds, helds = [], []
+        for t in sorted(changes):
+            change = changes[t]
+            if "forces" in change:
+                applied = change["forces"]
+                if applied.ndim == 1:
+                    applied = self.log.applied_array(t, applied)
+                if (self.last_applied is not None
+                        and t - self.last_applied > GAP_FACTOR * self.period):
+                    raise CompareInputError(
+                        f"/applied_forces has a gap longer than {GAP_FACTOR:g} sampling periods "
+                        f"({self.last_applied / NS_PER_S:.9g} s to {t / NS_PER_S:.9g} s): "
+                        "messages are missing, so the force history cannot be rebuilt")
+                self.last_applied = t
+                self.applied_messages += 1
+                self.held_force = applied - self.model.forces(t / NS_PER_S)
+                self.max_held = max(self.max_held, float(np.max(np.abs(self.held_force))))
+            if "torques" in change:
+                value = self.log.torque_array(t, change["torques"])
+                if (self.last_torque is not None
+                        and t - self.last_torque > GAP_FACTOR * self.period):
+                    raise CompareInputError(
+                        f"/applied_torques has a gap longer than {GAP_FACTOR:g} sampling "
+                        f"periods ({self.last_torque / NS_PER_S:.9g} s to "
+                        f"{t / NS_PER_S:.9g} s): messages are missing, so the hinge-torque "
+                        "history cannot be rebuilt")
+                self.last_torque = t
+                self.torque_messages += 1
+                self.held_torque = value
+                self.max_torque = max(self.max_torque, float(np.max(np.abs(value))))
+            held = np.column_stack([self.held_force, self.held_torque])
             if self.held is None or not np.array_equal(held, self.held):
                 bounds.append(t)
                 helds.append(self.held)
@@ -740,7 +795,8 @@ class _Comparison:
             quantities={k: v for k, v in self.q.items() if v.count},
             reference=reference,
             forces={"messages": self.applied_messages, "segments": self.segments,
-                    "max_abs_held": self.max_held},
+                    "max_abs_held": self.max_held, "torque_messages": self.torque_messages,
+                    "max_abs_torque": self.max_torque},
             gaps=self.gaps, gap_count=self.gap_count, truncated=bool(self.log.truncated),
             horizon=self.horizon, chaos=chaos, within=within, series=self.series, notes=notes)
 
