@@ -29,7 +29,9 @@ import math
 
 import numpy as np
 
+from rod_sim.core.dense_lu import _pivot, lu_inplace, lu_solve  # noqa: F401
 from rod_sim.core.jit import njit
+from rod_sim.core.kernels import hinge_angle, load_forces  # noqa: F401  (shared, not under test)
 
 SHAPE_PULSE, SHAPE_CONSTANT, SHAPE_STEP = 0, 1, 2
 
@@ -44,28 +46,6 @@ mode, switched at located crossings, not by the sign of the penetration). ``flag
 and the constraint matrix C (rows, dof) as coordinate lists (row, col int64, value float;
 the full model solves with Lagrange multipliers through its Schur complement, the others
 with T); ``pivots`` int64 (n,) and ``scratch`` floats (3 dof^2 + 2 dof) for those solves."""
-
-
-@njit(inline="always")
-def load_forces(t, loads, held, t_side, out):
-    """Nodal forces (n, 2) [N] at time t: held forces plus scripted loads."""
-    node, axis, shape, amp, start, dur = loads
-    out[:, :] = held
-    for i in range(node.shape[0]):
-        if t_side < start[i]:
-            continue
-        tau = t - start[i]
-        sh = shape[i]
-        if sh == SHAPE_CONSTANT:
-            v = amp[i]
-        elif sh == SHAPE_STEP:
-            v = amp[i] if t_side < start[i] + dur[i] else 0.0
-        else:
-            if t_side > start[i] + dur[i]:
-                v = 0.0
-            else:
-                v = amp[i] * (0.5 - 0.5 * math.cos(2.0 * math.pi * tau / dur[i]))
-        out[node[i], axis[i]] += v
 
 
 @njit(inline="always")
@@ -133,33 +113,12 @@ def rigid_velocity_terms(phi, dphi, chain, g_phi, g_alpha):
 
 
 @njit(inline="always")
-def hinge_angle(phi, dphi, h):
-    """Rigid hinge angle theta_h [rad] and its rate [rad/s] (phi_1; phi_{h+1} - phi_h)."""
-    if h == 0:
-        return phi[0], dphi[0]
-    return phi[h] - phi[h - 1], dphi[h] - dphi[h - 1]
-
-
-@njit(inline="always")
 def rigid_hinge_moments(phi, dphi, kappa, nu, out):
     """Hinge moments with gamma = 0: kappa_h dphi_h + nu_h d(dphi_h)/dt [N m] into out (n,)."""
     n = phi.shape[0]
     for h in range(n):
         d, dd = hinge_angle(phi, dphi, h)
         out[h] = kappa[h] * d + nu[h] * dd
-
-
-@njit(inline="always")
-def _pivot(A, col):
-    """(row of the largest |A[r, col]| for r >= col, that value): partial pivoting."""
-    piv = col
-    best = abs(A[col, col])
-    for r in range(col + 1, A.shape[0]):
-        v = abs(A[r, col])
-        if v > best:
-            best = v
-            piv = r
-    return piv, best
 
 
 @njit(inline="always")
@@ -449,59 +408,6 @@ def full_rhs(t, y, chain, extra, loads, held, t_side, out):
         return
     out[3 * n:4 * n] = x
     _bending_accelerations(Ma, Mb, ia, ib, Fa, Fb, x, out[4 * n:5 * n], out[5 * n:])
-
-
-@njit(inline="always")
-def lu_inplace(A, piv):
-    """LU factorisation with partial pivoting of A (n, n), float64 or complex128, in place
-    (LAPACK's getrf layout: unit-lower L below the diagonal, U on and above; rows swapped
-    whole, piv[k] (n,) int64 = the row swapped with k at step k). Returns False for a zero
-    pivot. Also the factorisation of :mod:`rod_sim.core.radau` (real and complex)."""
-    n = A.shape[0]
-    for col in range(n):
-        p, best = _pivot(A, col)
-        piv[col] = p
-        if best == 0.0:
-            return False
-        if p != col:
-            for c2 in range(n):
-                tmp = A[col, c2]
-                A[col, c2] = A[p, c2]
-                A[p, c2] = tmp
-        inv = 1.0 / A[col, col]
-        # row slices (contiguous 1-D views) let LLVM vectorise the update (see solve_inplace)
-        pivot_row = A[col, col + 1:]
-        for r in range(col + 1, n):
-            f = A[r, col] * inv
-            A[r, col] = f
-            row = A[r, col + 1:]
-            for c2 in range(pivot_row.shape[0]):
-                row[c2] -= f * pivot_row[c2]
-    return True
-
-
-@njit(inline="always")
-def lu_solve(LU, piv, b):
-    """Solve A x = b (b (n,), float64 or complex128) with the factors LU (n, n), piv (n,) of
-    :func:`lu_inplace`; x overwrites b. The row swaps are applied first (the factors' L rows
-    were swapped whole), then the two triangular solves."""
-    n = b.shape[0]
-    for i in range(n):
-        p = piv[i]
-        if p != i:
-            tmp = b[i]
-            b[i] = b[p]
-            b[p] = tmp
-    for i in range(n):
-        acc = b[i]
-        for j in range(i):
-            acc -= LU[i, j] * b[j]
-        b[i] = acc
-    for i in range(n - 1, -1, -1):
-        acc = b[i]
-        for j in range(i + 1, n):
-            acc -= LU[i, j] * b[j]
-        b[i] = acc / LU[i, i]
 
 
 @njit(inline="always")

@@ -495,8 +495,8 @@ def rhs_cost(model_name: str, n: int, budget_s: float = 0.05) -> float:
     """Wall time of one right-hand side [s] inside the compiled rk4 loop, chain of n rods
     (the paper's rods, tip pulses at node n, a bent initial state)."""
     from ..core.scene import Scene
+    from .bench_long import rhs_cost as cost
 
-    _, make_integrator, make_model, _ = _core()
     base = load_bench_scene("paper_example")
     d = base.to_dict()
     d["rods"]["count"] = n
@@ -508,18 +508,7 @@ def rhs_cost(model_name: str, n: int, budget_s: float = 0.05) -> float:
     d["initial"] = {"phi": 0.1, "phi_rate": 0.5}
     for ld in d["loads"]:
         ld["node"] = n
-    scene = Scene.from_dict(d)
-    model = make_model(model_name, scene)
-    y0 = model.initial_state()
-    steps = 1
-    while True:
-        integ = make_integrator("rk4", step=1e-5)
-        started = time.perf_counter()
-        integ.integrate(model, y0, 0.0, [steps * 1e-5])
-        wall = time.perf_counter() - started
-        if wall > budget_s or steps >= 1 << 16:
-            return wall / integ.stats.nfev
-        steps *= 4
+    return cost(model_name, Scene.from_dict(d), budget_s)
 
 
 def hinge_rhs_cost(models=MODELS, rounds: int = 7, span_s: float = 0.2) -> dict:

@@ -87,3 +87,14 @@ def compile_notice(after: float = 2.0, stream=None):
         yield
     finally:
         timer.cancel()
+
+
+def importable(module: str) -> bool:
+    """True when ``module`` can be imported (optional peers and extras)."""
+    import importlib
+
+    try:
+        importlib.import_module(module)
+    except ImportError:
+        return False
+    return True

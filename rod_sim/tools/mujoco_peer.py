@@ -25,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .common import importable
+
 
 class PeerError(RuntimeError):
     """The peer could not run this scene or this setting."""
@@ -32,11 +34,7 @@ class PeerError(RuntimeError):
 
 def available() -> bool:
     """True when the ``mujoco`` package can be imported."""
-    try:
-        import mujoco  # noqa: F401
-    except ImportError:
-        return False
-    return True
+    return importable("mujoco")
 
 
 def bench_settings(quick: bool) -> list[tuple[str, float]]:

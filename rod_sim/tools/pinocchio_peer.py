@@ -19,6 +19,8 @@ import time
 
 import numpy as np
 
+from .common import importable
+
 MAX_JOINTS = 4096
 MEMORY_LIMIT_BYTES = 4 << 30
 
@@ -29,11 +31,7 @@ class PeerError(RuntimeError):
 
 def available() -> bool:
     """True when ``pinocchio`` (PyPI package ``pin``) can be imported."""
-    try:
-        import pinocchio  # noqa: F401
-    except ImportError:
-        return False
-    return True
+    return importable("pinocchio")
 
 
 def build(scene):
