@@ -144,3 +144,26 @@ def test_pd_law_signs_and_limit():
     f = pd_forces([0.0, 0.0], [0.0, 0.0], [1.0, 1.0], lengths, kp=1e3, kd=0.0, max_moment=10.0)
     # both hinges ask for +10 N m: rod 1 gets no net couple, rod 2 gets +10 N m at its tip
     np.testing.assert_allclose(f, [[0.0, -10.0], [0.0, 10.0]], atol=1e-12)
+
+
+def test_a_long_chain_is_drawn_as_one_strip_through_its_nodes():
+    """Above MARKER_MAX_STRIPS rods one LINE_STRIP through nodes 0..n replaces the per-rod
+    strips (building 1024 per-rod markers took longer than a 10 ms period)."""
+    import numpy as np
+
+    from rod_sim.core.models import make_model
+    from rod_sim.io import topics
+    from rod_sim.tools.bench_long import uniform_chain
+
+    for n, strips in ((topics.MARKER_MAX_STRIPS, topics.MARKER_MAX_STRIPS), (300, 1)):
+        scene = uniform_chain(n)
+        model = make_model("rigid", scene)
+        y = model.initial_state()
+        y[:n] = np.linspace(0.0, 1.0, n)
+        snap = model.snapshot(0.0, y)
+        items = topics.markers(snap, scene)["markers"]
+        rods = [m for m in items if m["ns"] == "rods"]
+        assert len(rods) == strips
+        if strips == 1:
+            pts = np.array([[p["x"], p["y"]] for p in rods[0]["points"]])
+            np.testing.assert_allclose(pts, snap.nodes, atol=1e-12)

@@ -195,35 +195,35 @@ def _marker_geometry(scene: Scene, points_per_rod: int):
             shape_table(np.asarray(scene.length, dtype=float), points_per_rod))
 
 
-MARKER_POINTS = 20_000
-"""Points of all rod line strips together: a long chain's rods get fewer points each (at
-least their two ends), so one markers message stays ~1 MB whatever n."""
-
-
-def marker_points_per_rod(n: int) -> int:
-    """Points per rod line strip: 11 up to 1818 rods, then MARKER_POINTS / n, at least 2."""
-    return max(2, min(11, MARKER_POINTS // max(n, 1)))
+MARKER_MAX_STRIPS = 256
+"""Above this many rods the rods are drawn as one LINE_STRIP through the nodes instead of one
+bent strip per rod: building and encoding a marker costs ~20 us in Python, so 1024 per-rod
+strips took 20-34 ms, more than a 10 ms control period (measured at n = 1024)."""
 
 
 def markers(snapshot: Snapshot, scene: Scene, frame_id: str = "world",
-            points_per_rod: int | None = None) -> Msg:
+            points_per_rod: int = 11) -> Msg:
     """``visualization_msgs/MarkerArray``: one LINE_STRIP per rod (ns ``rods``, id k = 1..n)
-    through ``points_per_rod`` points of the bent rod (paper eq. (4); default
-    :func:`marker_points_per_rod`), and one SPHERE_LIST
-    (ns ``nodes``, id 0) at nodes 1..n for the node masses (size from :func:`marker_sizes`).
-    All ADD, lifetime 0 (forever), not frame-locked, z = 0."""
-    if points_per_rod is None:
-        points_per_rod = marker_points_per_rod(scene.n)
-    width, diameter, table = _marker_geometry(scene, points_per_rod)
-    pts = rod_points(np.asarray(scene.length, dtype=float), np.asarray(snapshot.phi, dtype=float),
-                     np.asarray(snapshot.alpha, dtype=float),
-                     np.asarray(snapshot.beta, dtype=float), points_per_rod, table)
+    through ``points_per_rod`` points of the bent rod (paper eq. (4)) -- for chains of more
+    than :data:`MARKER_MAX_STRIPS` rods one LINE_STRIP through nodes 0..n (ns ``rods``, id 0)
+    instead --, and one SPHERE_LIST (ns ``nodes``, id 0) at nodes 1..n for the node masses
+    (size from :func:`marker_sizes`). All ADD, lifetime 0 (forever), not frame-locked, z = 0."""
     when = stamp(snapshot.t)
-    items = [_marker(when, frame_id, "rods", k + 1, MARKER_LINE_STRIP, width, ROD_COLOR, rod)
-             for k, rod in enumerate(pts.tolist())]
-    nodes = np.asarray(snapshot.nodes, dtype=float)[1:].tolist()
+    all_nodes = np.asarray(snapshot.nodes, dtype=float)
+    if scene.n > MARKER_MAX_STRIPS:
+        width, diameter = marker_sizes(scene)
+        items = [_marker(when, frame_id, "rods", 0, MARKER_LINE_STRIP, width, ROD_COLOR,
+                         all_nodes.tolist())]
+    else:
+        width, diameter, table = _marker_geometry(scene, points_per_rod)
+        pts = rod_points(np.asarray(scene.length, dtype=float),
+                         np.asarray(snapshot.phi, dtype=float),
+                         np.asarray(snapshot.alpha, dtype=float),
+                         np.asarray(snapshot.beta, dtype=float), points_per_rod, table)
+        items = [_marker(when, frame_id, "rods", k + 1, MARKER_LINE_STRIP, width, ROD_COLOR,
+                         rod) for k, rod in enumerate(pts.tolist())]
     items.append(_marker(when, frame_id, "nodes", 0, MARKER_SPHERE_LIST, diameter,
-                         NODE_COLOR, nodes))
+                         NODE_COLOR, all_nodes[1:].tolist()))
     return {"markers": items}
 
 
