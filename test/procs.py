@@ -35,3 +35,13 @@ class Child:
         if self.proc.poll() is None:
             self.proc.kill()
             self.proc.wait(timeout=10)
+
+
+def terminal_signals() -> None:
+    """preexec_fn for a child that is sent Ctrl-C or SIGTERM: the dispositions and mask a
+    terminal gives a command (SIG_DFL, unblocked), whatever the test process accumulated."""
+    import signal as _signal
+
+    for s in (_signal.SIGINT, _signal.SIGTERM):
+        _signal.signal(s, _signal.SIG_DFL)
+    _signal.pthread_sigmask(_signal.SIG_UNBLOCK, {_signal.SIGINT, _signal.SIGTERM})

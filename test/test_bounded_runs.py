@@ -18,6 +18,8 @@ from rod_sim.core.integrators import IntegrationError, make_integrator
 from rod_sim.core.models import make_model
 from rod_sim.core.simulator import Simulator
 from rod_sim.io.mcap_log import read_rod_states
+
+from procs import terminal_signals  # noqa: E402
 from rod_sim.io.scene_yaml import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -40,7 +42,7 @@ def test_sigint_closes_the_log_of_a_stiff_run_within_two_seconds(tmp_path, integ
             "--model", "full", "--integrator", integrator, "--t-end", "0.2", "--out", str(out)]
     args += ["--step", "1e-8"] if integrator == "rk4" else ["--rtol", "1e-14"]
     proc = subprocess.Popen(args, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                            text=True)
+                            text=True, preexec_fn=terminal_signals)
     try:
         deadline = time.monotonic() + 120.0            # a cold numba cache compiles first
         while not out.exists() and proc.poll() is None and time.monotonic() < deadline:

@@ -9,6 +9,8 @@ import time
 from pathlib import Path
 
 import pytest
+
+from procs import terminal_signals  # noqa: E402
 import yaml
 from mcap.reader import make_reader
 
@@ -21,7 +23,7 @@ PAPER = ROOT / "config" / "paper_example.yaml"
 def rod_sim_proc(*args, cwd=None) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "rod_sim.tools.cli", *map(str, args)],
                             cwd=cwd or ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+                            text=True, preexec_fn=terminal_signals)
 
 
 def wait_for_size(proc, path: Path, size: int, timeout: float = 120.0) -> None:
@@ -122,6 +124,8 @@ def test_a_signal_in_the_middle_of_a_log_write_waits_for_its_end(tmp_path, monke
 
     for s in (signal.SIGTERM, signal.SIGINT):
         monkeypatch.setattr(cli, "_restore_" + s.name, signal.getsignal(s), raising=False)
+    signal.signal(signal.SIGINT, signal.default_int_handler)    # as Python starts a command
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
     real = mcap_log._FlushingFile.write
     calls = []
 

@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+from procs import terminal_signals  # noqa: E402
 import yaml
 
 from rod_sim.core.integrators import make_integrator
@@ -381,7 +383,7 @@ def test_sigint_stops_the_process_pool(tmp_path):
     out = tmp_path / "partial.csv"
     proc = subprocess.Popen([sys.executable, "-m", "rod_sim.tools.sweep", str(write_spec(tmp_path, spec)),
                              "--out", str(out), "--workers", "2"], cwd=tmp_path,
-                            stderr=subprocess.PIPE, text=True)
+                            stderr=subprocess.PIPE, text=True, preexec_fn=terminal_signals)
     first = proc.stderr.readline()
     assert "400 runs" in first
     time.sleep(6.0)

@@ -365,6 +365,10 @@ def handle_sigterm() -> None:
     exit with status 130, as for Ctrl-C (the node and ``replay`` install their own handler).
     Both wait for the end of a log write (:func:`signals_deferred`)."""
     if threading.current_thread() is threading.main_thread():
+        # a mask inherited from the launcher (or left by a library's worker threads in this
+        # process) would make the command deaf to Ctrl-C and SIGTERM
+        if hasattr(signal, "pthread_sigmask"):
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
         signal.signal(signal.SIGTERM, _on_signal)
         if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
             signal.signal(signal.SIGINT, _on_signal)
