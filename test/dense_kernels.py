@@ -495,7 +495,7 @@ def dense_rhs(model_name: str, scene, t, y, held=None, locked=None, side=None):
     stop ``side`` (n,) int contacts."""
     import numpy as np
 
-    from rod_sim.core.matrices import ChainParams, reduction_matrices
+    from rod_sim.core.matrices import ChainParams
     from rod_sim.core.models import load_table
 
     p = ChainParams.from_scene(scene)
@@ -511,15 +511,8 @@ def dense_rhs(model_name: str, scene, t, y, held=None, locked=None, side=None):
             h3[:] = h.reshape(n, 3)
         else:
             h3[:, :2] = h.reshape(n, 2)
-    chain = (p.l, p.m, p.mu, p.bending_stiffness_diag(), p.kappa, p.nu, p.tail_mass(),
-             p.m * p.l ** 2 / 12.0)
+    _, chain, P, B_inv = _dense_setup(scene)
     if model_name == "reduced":
-        K_gp, B = reduction_matrices(p)
-        rigid = np.asarray(scene.rod_rigid, dtype=bool)
-        keep = np.flatnonzero(np.concatenate([~rigid, ~rigid]))
-        B_inv = np.zeros((2 * n, 2 * n))
-        B_inv[np.ix_(keep, keep)] = np.linalg.inv(B[np.ix_(keep, keep)])
-        P = K_gp.T @ B_inv
         red = (np.ascontiguousarray(P[:, :n]), np.ascontiguousarray(P[:, n:]), B_inv)
     else:
         red = (np.zeros((n, n)), np.zeros((n, n)), np.zeros((2 * n, 2 * n)))
@@ -624,6 +617,18 @@ def dense_reduced_mass(scene, phi):
     from the dense blocks."""
     import numpy as np
 
+    p, chain, P, _ = _dense_setup(scene)
+    n = p.n
+    A, Ma, Mb = np.empty((n, n)), np.empty((n, n)), np.empty((n, n))
+    mass_blocks(np.ascontiguousarray(phi, dtype=float), chain, A, Ma, Mb)
+    return A - P[:, :n] @ Ma.T - P[:, n:] @ Mb.T
+
+
+def _dense_setup(scene):
+    """(ChainParams, the old kernels' chain tuple, P = K^T B^-1 (n, 2n), B^-1 (2n, 2n)) with
+    the scene's rigid rods' gamma rows removed."""
+    import numpy as np
+
     from rod_sim.core.matrices import ChainParams, reduction_matrices
 
     p = ChainParams.from_scene(scene)
@@ -633,9 +638,6 @@ def dense_reduced_mass(scene, phi):
     keep = np.flatnonzero(np.concatenate([~rigid, ~rigid]))
     B_inv = np.zeros((2 * n, 2 * n))
     B_inv[np.ix_(keep, keep)] = np.linalg.inv(B[np.ix_(keep, keep)])
-    P = K_gp.T @ B_inv
     chain = (p.l, p.m, p.mu, p.bending_stiffness_diag(), p.kappa, p.nu, p.tail_mass(),
              p.m * p.l ** 2 / 12.0)
-    A, Ma, Mb = np.empty((n, n)), np.empty((n, n)), np.empty((n, n))
-    mass_blocks(np.ascontiguousarray(phi, dtype=float), chain, A, Ma, Mb)
-    return A - P[:, :n] @ Ma.T - P[:, n:] @ Mb.T
+    return p, chain, K_gp.T @ B_inv, B_inv
