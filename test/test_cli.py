@@ -134,6 +134,7 @@ def test_light_name_lists_match_the_registries():
     from rod_sim.core import integrators, models, names
 
     assert sorted(models.MODELS) == sorted(names.MODEL_NAMES)
+    assert sorted(integrators.INTEGRATORS) == sorted(names.INTEGRATOR_NAMES)
     for name in names.INTEGRATOR_NAMES:
         assert integrators.make_integrator(name).name == name
 

@@ -27,7 +27,7 @@ PAPER = REPO / "config" / "paper_example.yaml"
 
 def run(scene, model, t_end, rtol=None, integrator="dop853-jit", rate=100.0, **kw):
     sim = Simulator(make_model(model, scene), make_integrator(integrator, rtol=rtol, **kw))
-    return sim.run(t_end, rate), sim.integrator.stats
+    return sim.run(t_end, rate), sim.stats
 
 
 def max_err(a, b) -> float:

@@ -176,7 +176,7 @@ def cmd_simulate(args) -> int:
     rtf = sim.t / run.wall if run.wall > 0 else math.inf
     print(f"{scene.name}: {model.name} model, {integrator.describe()}, t = 0..{sim.t:g} s, "
           f"{run.samples} samples -> {out} (integration {run.wall:.3f} s wall, {rtf:.0f}x real "
-          f"time, {integrator.stats.nfev} rhs evaluations"
+          f"time, {sim.stats.nfev} rhs evaluations"
           + (f", {run.logged_events} hinge events" if run.logged_events else "") + ")")
     if run.validity.summary():
         print(f"rod-sim simulate: validity warning: {run.validity.summary()}", file=sys.stderr)
