@@ -35,13 +35,15 @@ def default_out(log: Path) -> Path:
 
 
 def run(args) -> int:
-    from ..io.mcap_log import LogReader
+    from ..io.log_open import open_log
     from ..io.repair import repair_log
 
     log = Path(args.log)
-    if not log.is_file():
-        raise UsageError(f"{log}: no such file" if not log.exists() else f"{log}: not a file")
-    with LogReader(log) as reader:          # refuses a non-MCAP or corrupt log before writing
+    if log.is_dir():
+        raise UsageError(f"{log}: a directory; repair rewrites one MCAP file (repair each "
+                         ".mcap file of a bag)")
+    with open_log(log) as opened:           # refuses a non-MCAP or corrupt log before writing
+        reader = opened.readers[0]
         if reader.complete:
             print(f"{log} is complete (it has its summary and indexes): nothing to repair")
             return EXIT_OK
