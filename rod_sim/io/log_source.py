@@ -124,13 +124,13 @@ class LogStream:
     def __exit__(self, *exc) -> None:
         self.close()
 
-    def _messages(self) -> Iterator[tuple[int, int, str, Any]]:
-        """(log time [ns], 0, our base topic, message) in log-time order. The names found
+    def _messages(self) -> Iterator[tuple[int, str, Any]]:
+        """(log time [ns], our base topic, message) in log-time order. The names found
         in each file map back to ours by their base name (each file's topics lie in one
         namespace, :func:`read_log`)."""
         logged = sorted({name for names in self.topics for name in names.values()})
         for topic, log_ns, msg in self._log.messages(logged):
-            yield log_ns, 0, "/" + base_name(topic), msg
+            yield log_ns, "/" + base_name(topic), msg
 
     def groups(self) -> Iterator[Group]:
         """The log's messages grouped by log time, in time order (see :class:`Group`).
@@ -149,7 +149,7 @@ class LogStream:
                     item = next(messages, None)
                 if item is None:
                     break
-                log_ns, _, topic, msg = item
+                log_ns, topic, msg = item
                 if t_group is not None and log_ns != t_group:
                     yield self._group(t_group, pending)
                     pending = {}

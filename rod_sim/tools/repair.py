@@ -7,8 +7,9 @@ and the gap in log time); one flipped bit outside the chunks' data is located by
 data-section CRC and written corrected.
 
 Exit 0 when the repaired copy was written (or LOG was already complete and intact: nothing
-written); 2 with one line for a missing or non-MCAP LOG, a LOG whose record framing is damaged,
-or an existing OUT. LOG itself is never changed.
+written); 2 with one line for a missing or non-MCAP LOG (opened as every command opens a log,
+:mod:`rod_sim.io.log_open`), a directory, a LOG whose record framing is damaged, or an existing
+OUT. LOG itself is never changed.
 """
 from __future__ import annotations
 
