@@ -16,7 +16,7 @@ import pytest
 from rod_sim.core.integrators import make_integrator
 from rod_sim.core.models import make_model
 from rod_sim.core.simulator import Simulator
-from rod_sim.io.mcap_log import read_rod_states
+from rod_sim.io.series import read_rod_states
 from rod_sim.io.scene_yaml import load_scene
 from rod_sim.tools import bench, cli, mujoco_peer
 from rod_sim.tools.common import PAPER_EXAMPLE

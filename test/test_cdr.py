@@ -403,3 +403,15 @@ def test_struct_sequences_padded_after_their_count():
                 {"v": [], "w": [{"x": 1.0, "y": 2.0}], "p": []}, {}):
         assert fast(msg) == reference(msg), msg
     assert fast({"v": [{"x": 1.0, "y": 2.0}]})[4 + 12:4 + 16] == b"\x00" * 4  # the pad
+
+
+def test_cdr_bench_runs_and_every_encoder_agrees(capsys):
+    """The benchmark quoted in rod_sim/io/cdr.py's docstring: mcap_ros2, rod_sim and (when
+    installed) rosbags give the same bytes for every topic (else it returns 1)."""
+    from rod_sim.io import cdr_bench
+
+    assert cdr_bench.main(["--repeat", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "6 per period" in out and "markers" in out
+    pytest.importorskip("rosbags")
+    assert "rosbags dict [us]" in out

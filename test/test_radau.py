@@ -303,7 +303,8 @@ def test_radau_is_cached_under_the_core_stamp():
 
 
 def test_simulate_cli_runs_radau_jit(tmp_path):
-    from rod_sim.io.mcap_log import LogReader, read_rod_states
+    from rod_sim.io.log_reader import LogReader
+    from rod_sim.io.series import read_rod_states
 
     out = tmp_path / "radau.mcap"
     proc = subprocess.run([sys.executable, "-m", "rod_sim.tools.cli", "simulate", str(PAPER),

@@ -104,7 +104,7 @@ from rod_sim.core.validity import ValidityMonitor, latch_losses
 from rod_sim.io import topics
 from rod_sim.io.hinge_events import (HINGE_EVENTS_TOPIC, HINGE_EVENTS_TYPE, event_message,
                                      event_time_ns)
-from rod_sim.io.mcap_log import LogWriter
+from rod_sim.io.log_writer import LogWriter
 from rod_sim.io.scene_yaml import load_scene, scene_to_yaml
 from rod_sim.io.urdf import scene_urdf
 from rod_sim.tools.common import UsageError
