@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rod_sim.core import erk, integrators, jit, radau
+from rod_sim.core import erk, integrators, jit, kernels, radau
 from rod_sim.core.integrators import IntegrationError, make_integrator
 from rod_sim.core.models import make_model
 from rod_sim.core.simulator import Simulator
@@ -122,8 +122,11 @@ def test_radau_gives_up_after_repeated_newton_failures():
     ev = (np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0, dtype=np.int64), np.empty(4),
           np.empty(4, dtype=np.int64), np.empty((4, 2)), np.zeros(1, dtype=np.int64))
     y, t, h, status, written = radau.radau_run(
-        nan_after_start, (np.zeros(1),), (np.zeros(1),), (np.zeros(1),), np.zeros((1, 3)), y0,
-        0.0, t_out, np.zeros(0), 1e-8, 1e-8, 1e-3, np.inf, 100_000, 1 << 62, Y, stats, ev)
+        nan_after_start,
+        kernels.Problem((np.zeros(1),), (np.zeros(1),), (np.zeros(1),), np.zeros((1, 3))),
+        kernels.Span(y0, 0.0, t_out, np.zeros(0)),
+        kernels.Control(1e-8, 1e-8, 1e-3, np.inf, 100_000, 1 << 62),
+        kernels.Output(Y, stats, ev))
     assert status == erk.STATUS_NEWTON_FAILED, status
     assert t == 0.0 and stats[2] == radau.NEWTON_FAILURES       # 30 halvings, then it stops
     assert 0.0 < h < 1e-3 / 2**29

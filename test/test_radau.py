@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from rod_sim.core import dense_lu, jit, radau
+from rod_sim.core import dense_lu, jit, kernels, radau
 from rod_sim.core.integrators import IntegrationError, make_integrator
 from rod_sim.core.models import make_model
 from rod_sim.core.scene import Scene
@@ -140,8 +140,10 @@ def test_run_stops_at_an_event_located_on_the_collocation_polynomial():
     Y = np.full((t_out.size, 4), np.nan)
     ev = event_buffers([0], [0.2], [hinges.EV_LATCH])
     y, t, h, status, written = radau.radau_run(
-        rhs, chain, extra, loads, held, Y0_LIN, 0.0, t_out, np.zeros(0), 1e-10, 1e-10, 0.0,
-        np.inf, 100_000, 1 << 62, Y, np.zeros(6, dtype=np.int64), ev)
+        rhs, kernels.Problem(chain, extra, loads, held),
+        kernels.Span(Y0_LIN, 0.0, t_out, np.zeros(0)),
+        kernels.Control(1e-10, 1e-10, 0.0, np.inf, 100_000, 1 << 62),
+        kernels.Output(Y, np.zeros(6, dtype=np.int64), ev))
     assert status == erk.STATUS_EVENT and ev[6][0] == 1 and ev[4][0] == 0     # falling
     assert abs(t - exact) < 1e-8, (t, exact)
     assert ev[3][0] == t and abs(y[0] - 0.2) < 1e-10
@@ -157,8 +159,10 @@ def test_run_stops_when_the_event_buffer_is_full():
     Y = np.empty((t_out.size, 4))
     ev = event_buffers([0], [0.2], [hinges.EV_LATCH], cap=0)
     y, t, h, status, written = radau.radau_run(
-        rhs, chain, extra, loads, held, Y0_LIN, 0.0, t_out, np.zeros(0), 1e-8, 1e-8, 0.0,
-        np.inf, 100_000, 1 << 62, Y, np.zeros(6, dtype=np.int64), ev)
+        rhs, kernels.Problem(chain, extra, loads, held),
+        kernels.Span(Y0_LIN, 0.0, t_out, np.zeros(0)),
+        kernels.Control(1e-8, 1e-8, 0.0, np.inf, 100_000, 1 << 62),
+        kernels.Output(Y, np.zeros(6, dtype=np.int64), ev))
     assert status == erk.STATUS_EVENTS_FULL and t == 0.0 and written == 1
     np.testing.assert_array_equal(y, Y0_LIN)
 
@@ -172,8 +176,10 @@ def test_run_error_falls_with_the_tolerance_on_the_stiff_linear_problem():
         Y = np.empty((t_out.size, 4))
         stats = np.zeros(6, dtype=np.int64)
         y, t, h, status, written = radau.radau_run(
-            rhs, chain, extra, loads, held, Y0_LIN, 0.0, t_out, np.array([1.5]), rtol, rtol,
-            0.0, np.inf, 100_000, 1 << 62, Y, stats, NO_EVENTS)
+        rhs, kernels.Problem(chain, extra, loads, held),
+        kernels.Span(Y0_LIN, 0.0, t_out, np.array([1.5])),
+        kernels.Control(rtol, rtol, 0.0, np.inf, 100_000, 1 << 62),
+        kernels.Output(Y, stats, NO_EVENTS))
         assert status == 0 and t == 3.0 and written == t_out.size
         np.testing.assert_array_equal(y, Y[-1])
         errors.append(np.max(np.abs(Y - exact)))

@@ -281,18 +281,25 @@ def _initial_step(rhs, chain, extra, loads, held, t_side, t0, y0, f0, t_bound, r
 
 
 @njit
-def dop853_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-               max_step, max_steps, budget, Y_out, stats, events):
-    """Integrate from (t0, y0) through every time of ``t_out`` (sorted, > t0 or == t0).
+def dop853_run(rhs, problem, span, control, output):
+    """Integrate ``rhs(t, y, chain, extra, loads, held, t_side, out)`` of ``problem``
+    (:class:`~rod_sim.core.kernels.Problem`) over ``span`` (:class:`~rod_sim.core.kernels.Span`:
+    from (t0, y0) through every time of ``t_out``, sorted, > t0 or == t0) with ``control``
+    (:class:`~rod_sim.core.kernels.Control`) into ``output``
+    (:class:`~rod_sim.core.kernels.Output`: Y_out, stats, events).
 
     ``breaks`` (sorted) are times where the forcing jumps: steps end exactly there.
     Writes y(t_out[i]) into Y_out[i]. ``stats`` = [rhs evaluations, accepted steps,
     rejected steps] is accumulated. ``h_init`` <= 0 selects the first step automatically.
     After ``budget`` right-hand side evaluations (counted from the call's start) it returns
     STATUS_BUDGET after an accepted step: calling again from (y_end, t_end, h_next) continues
-    the same integration. ``events``: see the module docstring. Returns (y_end, t_end, h_next, status, number of
-    outputs written).
+    the same integration. ``events``: see the module docstring. Returns (y_end, t_end,
+    h_next, status, number of outputs written).
     """
+    chain, extra, loads, held = problem
+    y0, t0, t_out, breaks = span
+    rtol, atol, h_init, max_step, max_steps, budget = control
+    Y_out, stats, events = output
     n = y0.shape[0]
     n_out = t_out.shape[0]
     t_final = t_out[n_out - 1]
@@ -436,9 +443,10 @@ def dop853_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol
 
 
 @njit
-def fixed_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c,
-              budget, Y_out, stats, events):
-    """Fixed-step explicit Runge-Kutta with tableau (A, b, c) (c[0] = 0).
+def fixed_run(rhs, problem, span, control, tableau, output):
+    """Fixed-step explicit Runge-Kutta with ``tableau`` (A, b, c) (c[0] = 0); arguments as
+    :func:`dop853_run`, of ``control`` only ``max_step`` (the step h_max [s]) and
+    ``budget``.
 
     Every interval between consecutive output times and breakpoints is split into
     ceil(length / h_max) equal steps, so outputs and breakpoints are hit exactly. Events are
@@ -446,6 +454,11 @@ def fixed_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b
     After ``budget`` right-hand side evaluations it returns STATUS_BUDGET at the start of a
     step (calling again from (y_end, t_end) continues with the same steps).
     Returns (y_end, t_end, status, number of outputs written)."""
+    chain, extra, loads, held = problem
+    y0, t0, t_out, breaks = span
+    h_max, budget = control.max_step, control.budget
+    A, b, c = tableau
+    Y_out, stats, events = output
     n = y0.shape[0]
     nfev0 = stats[0]
     ns = b.shape[0]
@@ -519,43 +532,30 @@ from . import kernels as _k  # noqa: E402
 
 
 @njit
-def dop853_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                 max_step, max_steps, budget, Y_out, stats, events):
-    return dop853_run(_k.rigid_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
-                      atol, h_init, max_step, max_steps, budget, Y_out, stats, events)
+def dop853_rigid(problem, span, control, output):
+    return dop853_run(_k.rigid_rhs, problem, span, control, output)
 
 
 @njit
-def dop853_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                   max_step, max_steps, budget, Y_out, stats, events):
-    return dop853_run(_k.reduced_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
-                      atol, h_init, max_step, max_steps, budget, Y_out, stats, events)
+def dop853_reduced(problem, span, control, output):
+    return dop853_run(_k.reduced_rhs, problem, span, control, output)
 
 
 @njit
-def dop853_full(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                max_step, max_steps, budget, Y_out, stats, events):
-    return dop853_run(_k.full_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
-                      atol, h_init, max_step, max_steps, budget, Y_out, stats, events)
+def dop853_full(problem, span, control, output):
+    return dop853_run(_k.full_rhs, problem, span, control, output)
 
 
 @njit
-def fixed_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c, budget, Y_out, stats,
-                events):
-    return fixed_run(_k.rigid_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max,
-                     A, b, c, budget, Y_out, stats, events)
+def fixed_rigid(problem, span, control, tableau, output):
+    return fixed_run(_k.rigid_rhs, problem, span, control, tableau, output)
 
 
 @njit
-def fixed_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c, budget, Y_out, stats,
-                  events):
-    return fixed_run(_k.reduced_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max,
-                     A, b, c, budget, Y_out, stats, events)
+def fixed_reduced(problem, span, control, tableau, output):
+    return fixed_run(_k.reduced_rhs, problem, span, control, tableau, output)
 
 
 @njit
-def fixed_full(chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c, budget, Y_out, stats,
-               events):
-    return fixed_run(_k.full_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max,
-                     A, b, c, budget, Y_out, stats, events)
-
+def fixed_full(problem, span, control, tableau, output):
+    return fixed_run(_k.full_rhs, problem, span, control, tableau, output)

@@ -25,6 +25,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from . import erk, hinges, radau
+from .kernels import Control, Output, Problem, Span
 
 DEFAULT_RTOL = 1e-8
 DEFAULT_STEP = 1e-3
@@ -266,11 +267,15 @@ class JitDop853(Integrator):
         Y = np.empty((t_out.size, y0.size))
         stats = np.zeros(3, dtype=np.int64)
         ev = _event_buffers(plan, y0.size)
-        y, t, h, status, written = _compiled(model.compiled.dop853,
-            model.chain, plan.extra, model.loads, held, y0, float(t0), t_out, breaks,
-            self.rtol, self.abs_tol, carry.h, self.max_step, self._steps_left(carry),
-            call_budget(y0.size), Y, stats, ev)
+        y, t, h, status, written = _compiled(
+            model.compiled.dop853, Problem(model.chain, plan.extra, model.loads, held),
+            Span(y0, float(t0), t_out, breaks), self._control(carry, y0.size),
+            Output(Y, stats, ev))
         return self._finish(carry, model, plan, held, Y, stats, ev, y, t, h, status, written)
+
+    def _control(self, carry: Carry, size: int) -> Control:
+        return Control(float(self.rtol), float(self.abs_tol), float(carry.h),
+                       float(self.max_step), int(self._steps_left(carry)), call_budget(size))
 
     @staticmethod
     def _finish(carry, model, plan, held, Y, stats, ev, y, t, h, status, written) -> Stretch:
@@ -302,10 +307,10 @@ class JitRadau(JitDop853):
         if carry.work is None:
             carry.work = radau.chain_radau_workspace(model)
         try:
-            y, t, h, status, written = _compiled(model.compiled.radau,
-                model.chain, plan.extra, model.loads, held, y0, float(t0), t_out, breaks,
-                self.rtol, self.abs_tol, carry.h, self.max_step, self._steps_left(carry),
-                call_budget(y0.size), Y, stats, ev, carry.work)
+            y, t, h, status, written = _compiled(
+                model.compiled.radau, Problem(model.chain, plan.extra, model.loads, held),
+                Span(y0, float(t0), t_out, breaks), self._control(carry, y0.size),
+                Output(Y, stats, ev), carry.work)
         except BaseException:
             carry.work = None                    # no half-updated history kept
             raise
@@ -333,9 +338,10 @@ class JitFixedStep(Integrator):
         stats = np.zeros(3, dtype=np.int64)
         A, b, c, _ = _TABLEAUX[self.name]
         ev = _event_buffers(plan, y0.size)
-        y, t, status, written = _compiled(model.compiled.fixed,
-            model.chain, plan.extra, model.loads, held, y0, float(t0), t_out, breaks,
-            float(self.step), A, b, c, call_budget(y0.size), Y, stats, ev)
+        control = Control(0.0, 0.0, 0.0, float(self.step), 0, call_budget(y0.size))
+        y, t, status, written = _compiled(
+            model.compiled.fixed, Problem(model.chain, plan.extra, model.loads, held),
+            Span(y0, float(t0), t_out, breaks), control, (A, b, c), Output(Y, stats, ev))
         carry.stats.add(stats)
         if status not in _RESUMABLE:
             raise _failure(model, erk.STATUS_TEXT[status], t, y, held)

@@ -139,6 +139,54 @@ def make_extra(rest, stops, contact, locked, pinned, comp=None, kind=KIND_REDUCE
                  np.zeros(N_SMALL, dtype=dtype), np.zeros((n, 2)), np.zeros(n + 1), int(kind))
 
 
+class Problem(NamedTuple):
+    """What a right-hand side needs besides (t, y): ``chain`` (:class:`Chain`), ``extra``
+    (:class:`Extra` of the current mode), ``loads`` (the scripted loads' arrays,
+    ``models.load_table``) and ``held`` (n, 3): nodal forces X, Y [N] and hinge moments T
+    [N m] held by the caller."""
+
+    chain: Chain
+    extra: Extra
+    loads: tuple
+    held: np.ndarray
+
+
+class Span(NamedTuple):
+    """Where a compiled driver call integrates: from state ``y0`` (size,) at ``t0`` [s]
+    through the sorted output times ``t_out`` (N,) [s], ending steps exactly at the sorted
+    load breakpoints ``breaks`` [s]."""
+
+    y0: np.ndarray
+    t0: float
+    t_out: np.ndarray
+    breaks: np.ndarray
+
+
+class Control(NamedTuple):
+    """Step control of a compiled driver call: tolerances ``rtol``, ``atol``; ``h_init`` [s]
+    the first step to try (<= 0: choose one); ``max_step`` [s] the largest step (the step of
+    a fixed-step method); ``max_steps`` accepted steps allowed; ``budget`` right-hand side
+    evaluations before the call returns (the call's work bound)."""
+
+    rtol: float
+    atol: float
+    h_init: float
+    max_step: float
+    max_steps: int
+    budget: int
+
+
+class Output(NamedTuple):
+    """Where a compiled driver call writes: states ``Y`` (N, size) at the output times, work
+    counters ``stats`` (int64: rhs evaluations, accepted, rejected steps[, Jacobians, LU
+    factorisations, Newton iterations]) accumulated, and the event table and buffers
+    ``events`` (see :mod:`rod_sim.core.erk`)."""
+
+    Y: np.ndarray
+    stats: np.ndarray
+    events: tuple
+
+
 @njit(inline="always")
 def load_forces(t, loads, held, t_side, out):
     """Nodal forces (n, 2) [N] at time t: held forces plus scripted loads."""

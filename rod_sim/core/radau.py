@@ -438,8 +438,7 @@ def radau_dense(y_old, Q, x, out):
 
 # ----------------------------------------------------------------- the driver
 @njit
-def radau_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-              max_step, max_steps, budget, Y_out, stats, events):
+def radau_run(rhs, problem, span, control, output):
     """Integrate from (t0, y0) through every time of ``t_out`` (sorted, >= t0): the same
     arguments, return and status codes as :func:`rod_sim.core.erk.dop853_run`.
 
@@ -447,9 +446,8 @@ def radau_run(rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol,
     history is forgotten (:func:`radau_restart`). Writes y(t_out[i]) into Y_out[i] by dense
     output. ``events``: see :mod:`rod_sim.core.erk` (located on the collocation polynomial).
     Returns (y_end, t_end, h_next, status, number of outputs written)."""
-    return radau_run_work(rhs, dense_jac, dense_factor, dense_solve, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
-                          atol, h_init, max_step, max_steps, budget, Y_out, stats, events,
-                          radau_workspace(y0.shape[0]))
+    return radau_run_work(rhs, dense_jac, dense_factor, dense_solve, problem, span, control,
+                          output, radau_workspace(span.y0.shape[0]))
 
 
 @njit
@@ -467,8 +465,7 @@ def _nested_form(Q, F):
 
 
 @njit
-def radau_run_work(rhs, jac_fn, factor_fn, solve_fn, chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol,
-                   h_init, max_step, max_steps, budget, Y_out, stats, events, work):
+def radau_run_work(rhs, jac_fn, factor_fn, solve_fn, problem, span, control, output, work):
     """:func:`radau_run` with the workspace ``work`` (:func:`radau_workspace`) given, so that
     a caller stepping one model period by period keeps its Jacobian between calls (it is
     kept stale: slow Newton convergence still renews it). At an event the history is
@@ -476,7 +473,13 @@ def radau_run_work(rhs, jac_fn, factor_fn, solve_fn, chain, extra, loads, held, 
     velocity, a stop contact switches the rhs), so the next call starts afresh. After
     ``budget`` right-hand side evaluations (Jacobian columns included) it returns
     STATUS_BUDGET after an accepted step, keeping the step history in ``work``: a call from
-    the returned (y_end, t_end, h_next) with the same ``work`` continues the same integration."""
+    the returned (y_end, t_end, h_next) with the same ``work`` continues the same integration.
+    ``jac_fn``, ``factor_fn``, ``solve_fn``: the Newton systems' Jacobian, factorisation and
+    solve (dense, or the chain's O(n) ones of :mod:`rod_sim.core.newton`)."""
+    chain, extra, loads, held = problem
+    y0, t0, t_out, breaks = span
+    rtol, atol, h_init, max_step, max_steps, budget = control
+    Y_out, stats, events = output
     n = y0.shape[0]
     n_out = t_out.shape[0]
     t_final = t_out[n_out - 1]
@@ -564,28 +567,18 @@ def chain_radau_workspace(model):
 
 
 @njit
-def radau_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                max_step, max_steps, budget, Y_out, stats, events, work):
-    return radau_run_work(_k.rigid_rhs, _nw.chain_jac, _nw.chain_factor,
-                          _nw.chain_solve, chain, extra, loads, held, y0, t0, t_out,
-                          breaks, rtol, atol, h_init, max_step, max_steps, budget, Y_out, stats,
-                          events, work)
+def radau_rigid(problem, span, control, output, work):
+    return radau_run_work(_k.rigid_rhs, _nw.chain_jac, _nw.chain_factor, _nw.chain_solve,
+                          problem, span, control, output, work)
 
 
 @njit
-def radau_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                  max_step, max_steps, budget, Y_out, stats, events, work):
-    return radau_run_work(_k.reduced_rhs, _nw.chain_jac, _nw.chain_factor,
-                          _nw.chain_solve, chain, extra, loads, held, y0, t0, t_out,
-                          breaks, rtol, atol, h_init, max_step, max_steps, budget, Y_out, stats,
-                          events, work)
+def radau_reduced(problem, span, control, output, work):
+    return radau_run_work(_k.reduced_rhs, _nw.chain_jac, _nw.chain_factor, _nw.chain_solve,
+                          problem, span, control, output, work)
 
 
 @njit
-def radau_full(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-               max_step, max_steps, budget, Y_out, stats, events, work):
-    return radau_run_work(_k.full_rhs, _nw.chain_jac, _nw.chain_factor,
-                          _nw.chain_solve, chain, extra, loads, held, y0, t0, t_out,
-                          breaks, rtol, atol, h_init, max_step, max_steps, budget, Y_out, stats,
-                          events, work)
-
+def radau_full(problem, span, control, output, work):
+    return radau_run_work(_k.full_rhs, _nw.chain_jac, _nw.chain_factor, _nw.chain_solve,
+                          problem, span, control, output, work)
