@@ -13,8 +13,7 @@ import numpy as np
 from .integrators import Integrator, IntegrationError, drive, explain_state, make_integrator
 from .models import ChainModel
 from .snapshot import Snapshot
-
-NS_PER_S = 1_000_000_000
+from .units import NS_PER_S
 
 
 def seconds_to_ns(t: float) -> int:

@@ -20,10 +20,10 @@ from pathlib import Path
 
 import yaml
 
+from rod_sim.core.units import NS_PER_S
 from rod_sim.io.mcap_log import MAGIC, ChannelInfo, LogFormatError, LogReader
 from rod_sim.io.sqlite_bag import SQLITE_STORAGE, SqliteBagError, bag_storage, sqlite_bag_to_mcap
 
-NS_PER_S = 1_000_000_000
 DEFAULT_DEPTH = 10
 """History depth offered when a channel records none (rclcpp's and rosbag2's default)."""
 BAG_METADATA = "metadata.yaml"

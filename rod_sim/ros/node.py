@@ -100,6 +100,7 @@ from rod_sim.core.integrators import IntegrationError, make_integrator
 from rod_sim.core.models import ModelError, make_model
 from rod_sim.core.scene import SceneError
 from rod_sim.core.simulator import Simulator
+from rod_sim.core.units import NS_PER_S
 from rod_sim.core.validity import ValidityMonitor, latch_losses
 from rod_sim.io import topics
 from rod_sim.io.hinge_events import (HINGE_EVENTS_TOPIC, HINGE_EVENTS_TYPE, event_message,
@@ -117,8 +118,7 @@ from rod_sim.ros.errors import NodeConfigError, one_line
 from rod_sim.ros.monitor import DiagnosticReport, EnergyLedger
 from rod_sim.ros.node_main import (ROS_ARGS_HINT, StopRequest, build_parser,  # noqa: F401
                                    main, params_files, parse_cli, run_node, spin_until)
-from rod_sim.ros.pacing import (NS_PER_S, RateMeter, RealTimePacer, period_ns,
-                                tick_period_s)
+from rod_sim.ros.pacing import RateMeter, RealTimePacer, period_ns, tick_period_s
 from rod_sim.ros.parameters import (NODE_NAME, PARAMETERS, NodeSettings,  # noqa: F401
                                     ParameterSpec, declare_settings, unknown_overrides,
                                     validate_change)

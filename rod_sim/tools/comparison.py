@@ -49,11 +49,10 @@ from rod_sim.core.kinematics import node_positions
 from rod_sim.core.models import FullModel, make_model
 from rod_sim.core.scene import Scene
 from rod_sim.core.simulator import Simulator
+from rod_sim.core.units import NS_PER_S
 
 if TYPE_CHECKING:
     from rod_sim.io.log_source import LogStream
-
-NS_PER_S = 1_000_000_000
 
 DEFAULT_TOLERANCE = 1e-2
 """[rad] default limit on max |phi_log - phi_full| (see docs/compare.md for why)."""

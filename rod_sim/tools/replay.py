@@ -133,7 +133,8 @@ def _select(source, args) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..io.playback import NS_PER_S, open_source
+    from ..core.units import NS_PER_S
+    from ..io.playback import open_source
 
     with open_source(args.log) as source:
         topics = _select(source, args)
