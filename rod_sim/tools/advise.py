@@ -18,7 +18,6 @@ import time
 
 import numpy as np
 
-COMMAND = "advise"
 HELP = "recommend the cheapest model and integrator settings that meet a tolerance"
 MARGIN = 0.5
 """A candidate must be within MARGIN x tolerance on the trial (room for longer runs)."""

@@ -56,7 +56,6 @@ RADAU_RTOLS = (1e-4, 1e-5, 6e-6, 3e-6, 1e-6, 3e-7, 1e-7, 1e-8)
 RADAU_RTOLS_QUICK = (1e-5, 3e-6, 1e-6)
 
 
-COMMAND = "bench"
 HELP = "speed against error of every model and integrator (docs/bench.md)"
 
 

@@ -20,7 +20,6 @@ from ..io.quote import quote
 
 from .common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, positive_float
 
-COMMAND = "compare"
 HELP = "check a log against a converged re-run of the full model (predictability horizon)"
 
 
