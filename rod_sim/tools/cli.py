@@ -35,7 +35,7 @@ COMMANDS = {
     "table1": "table1",                         # Table 1 of the paper
     "node": "node",                             # the ROS 2 node (rod_sim.ros.node)
     "advise": "advise",                         # cheapest model/integrator for a tolerance
-    "bench": "bench",                           # speed against error (docs/bench.md)
+    "bench": "bench.command",                   # speed against error (docs/bench.md)
     "compare": "compare",                       # a log against the full model
     "ctl": "ctl",                               # the node's services, parameters, topics
     "deployment-figure": "deployment_figure",   # snapshots of a logged chain
