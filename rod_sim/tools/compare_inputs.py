@@ -7,6 +7,7 @@ inputs [N, N, N m] per segment) and the time line of the ``/rod_states`` samples
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -20,6 +21,49 @@ MAX_LISTED_GAPS = 100
 
 class CompareInputError(ValueError):
     """The log cannot be compared (wrong scene size, incomplete force history, ...): one line."""
+
+
+@dataclass(frozen=True)
+class _History:
+    """How the messages of one held input are named in the refusals."""
+
+    topic: str          # "/applied_forces"
+    history: str        # "applied-force": "the applied-force history cannot be rebuilt"
+    gap_history: str    # "force": "so the force history cannot be rebuilt" (after a gap)
+    values: str         # "forces": "the forces before it are unknown"
+
+
+FORCES = _History("/applied_forces", "applied-force", "force", "forces")
+TORQUES = _History("/applied_torques", "hinge-torque", "hinge-torque", "torques")
+
+
+def _split(items: list, t_cut: int) -> tuple[list, list]:
+    """(the (t_ns, ...) items at or before ``t_cut`` [ns], the rest), in order."""
+    return [x for x in items if x[0] <= t_cut], [x for x in items if x[0] > t_cut]
+
+
+def _require_start(h: _History, taken: list, t_cut: int) -> None:
+    """Refuse a history that has no message up to ``t_cut`` [ns] or does not start at 0."""
+    if not taken:
+        raise CompareInputError(f"no {h.topic} messages up to t = {t_cut / NS_PER_S:.9g} s, so "
+                                f"the {h.history} history cannot be rebuilt")
+    if taken[0][0] != 0:
+        raise CompareInputError(f"{h.topic} starts at t = {taken[0][0] / NS_PER_S:.9g} s, not 0: "
+                                f"the {h.values} before it are unknown")
+
+
+def _require_no_gap(h: _History, last: int | None, t: int, period: float,
+                    end: bool = False) -> None:
+    """Refuse a step from the last message at ``last`` [ns] to ``t`` [ns] (the next message,
+    or with ``end`` the last state) longer than GAP_FACTOR sampling periods [ns]."""
+    if last is None or not t - last > GAP_FACTOR * period:
+        return
+    if end:
+        raise CompareInputError(f"{h.topic} ends at t = {last / NS_PER_S:.9g} s but the states "
+                                f"go on to {t / NS_PER_S:.9g} s: messages are missing")
+    raise CompareInputError(f"{h.topic} has a gap longer than {GAP_FACTOR:g} sampling periods "
+                            f"({last / NS_PER_S:.9g} s to {t / NS_PER_S:.9g} s): messages are "
+                            f"missing, so the {h.gap_history} history cannot be rebuilt")
 
 
 class HeldInputs:
@@ -49,27 +93,12 @@ class HeldInputs:
         """Integration bounds and held commands up to ``t_cut`` from the buffered applied
         forces (held = applied - scripted loads; consecutive equal commands merged); refuses
         a force history with a hole."""
-        use = [(t, a) for t, a in self.applied if t <= t_cut]
-        self.applied = [(t, a) for t, a in self.applied if t > t_cut]
+        use, self.applied = _split(self.applied, t_cut)
         if self.last_applied is None:
-            if not use:
-                raise CompareInputError(
-                    f"no /applied_forces messages up to t = {t_cut / NS_PER_S:.9g} s, so the "
-                    "applied-force history cannot be rebuilt")
-            if use[0][0] != 0:
-                raise CompareInputError(f"/applied_forces starts at t = {use[0][0] / NS_PER_S:.9g}"
-                                        " s, not 0: the forces before it are unknown")
-        torques = [(t, v) for t, v in self.torque_msgs if t <= t_cut]
-        self.torque_msgs = [(t, v) for t, v in self.torque_msgs if t > t_cut]
+            _require_start(FORCES, use, t_cut)
+        torques, self.torque_msgs = _split(self.torque_msgs, t_cut)
         if self.log.has_torques and self.last_torque is None:
-            if not torques:
-                raise CompareInputError(
-                    f"no /applied_torques messages up to t = {t_cut / NS_PER_S:.9g} s, so the "
-                    "hinge-torque history cannot be rebuilt")
-            if torques[0][0] != 0:
-                raise CompareInputError(f"/applied_torques starts at t = "
-                                        f"{torques[0][0] / NS_PER_S:.9g} s, not 0: the torques "
-                                        "before it are unknown")
+            _require_start(TORQUES, torques, t_cut)
         changes: dict[int, dict[str, np.ndarray]] = {}
         for t, applied in use:
             changes.setdefault(t, {})["forces"] = applied
@@ -82,25 +111,14 @@ class HeldInputs:
                 applied = change["forces"]
                 if applied.ndim == 1:
                     applied = self.log.applied_array(t, applied)
-                if (self.last_applied is not None
-                        and t - self.last_applied > GAP_FACTOR * period):
-                    raise CompareInputError(
-                        f"/applied_forces has a gap longer than {GAP_FACTOR:g} sampling periods "
-                        f"({self.last_applied / NS_PER_S:.9g} s to {t / NS_PER_S:.9g} s): "
-                        "messages are missing, so the force history cannot be rebuilt")
+                _require_no_gap(FORCES, self.last_applied, t, period)
                 self.last_applied = t
                 self.applied_messages += 1
                 self.held_force = applied - self.scripted_forces(t / NS_PER_S)
                 self.max_held = max(self.max_held, float(np.max(np.abs(self.held_force))))
             if "torques" in change:
                 value = self.log.torque_array(t, change["torques"])
-                if (self.last_torque is not None
-                        and t - self.last_torque > GAP_FACTOR * period):
-                    raise CompareInputError(
-                        f"/applied_torques has a gap longer than {GAP_FACTOR:g} sampling "
-                        f"periods ({self.last_torque / NS_PER_S:.9g} s to "
-                        f"{t / NS_PER_S:.9g} s): messages are missing, so the hinge-torque "
-                        "history cannot be rebuilt")
+                _require_no_gap(TORQUES, self.last_torque, t, period)
                 self.last_torque = t
                 self.torque_messages += 1
                 self.held_torque = value
@@ -117,15 +135,9 @@ class HeldInputs:
 
     def check_end(self, last_state: int, period: float) -> None:
         """Refuse a log whose force (or torque) messages end before its states do."""
-        if last_state - self.last_applied > GAP_FACTOR * period:
-            raise CompareInputError(
-                f"/applied_forces ends at t = {self.last_applied / NS_PER_S:.9g} s but the "
-                f"states go on to {last_state / NS_PER_S:.9g} s: messages are missing")
-        if (self.log.has_torques and self.last_torque is not None
-                and last_state - self.last_torque > GAP_FACTOR * period):
-            raise CompareInputError(
-                f"/applied_torques ends at t = {self.last_torque / NS_PER_S:.9g} s but the "
-                f"states go on to {last_state / NS_PER_S:.9g} s: messages are missing")
+        _require_no_gap(FORCES, self.last_applied, last_state, period, end=True)
+        if self.log.has_torques and self.last_torque is not None:
+            _require_no_gap(TORQUES, self.last_torque, last_state, period, end=True)
 
     def summary(self) -> dict:
         """The ``forces`` part of the report."""
