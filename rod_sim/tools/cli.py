@@ -85,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     reset_signals()
     handle_sigterm()
-    log_module = sys.modules.get("rod_sim.io.mcap_log")
+    log_module = sys.modules.get("rod_sim.io.log_reader")
     if log_module is not None:          # a log's damage warnings: once per command
         log_module._reported.clear()
     if argv[:1] == ["node"]:

@@ -98,6 +98,6 @@ class ChaosTracker:
             "log_precision_before_onset": self.eps if self.onset is not None else None,
             "horizon_cause": self.horizon_cause,
             "twin_perturbation": TWIN_DELTA,
-            "twin_rhs_evaluations": self.twin.integ.stats.nfev,
+            "twin_rhs_evaluations": self.twin.sim.stats.nfev,
             "beyond_horizon": None,
         }

@@ -305,7 +305,7 @@ class _Comparison:
         reference: dict[str, Any] = {"model": self.model.name,
                                      "integrator": refs.ref.integ.describe(),
                                      "segments": self.inputs.segments,
-                                     "rhs_evaluations": refs.ref.integ.stats.nfev}
+                                     "rhs_evaluations": refs.ref.sim.stats.nfev}
         converged = False
         if refs.check is not None:
             converged = bool(self.within.ref_separation <= CONVERGED_FRACTION * tol)

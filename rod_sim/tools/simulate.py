@@ -64,7 +64,7 @@ def run(args) -> int:
     from ..core.models import make_model
     from ..core.simulator import Simulator
     from ..io.log_source import SCENE_TOPIC
-    from ..io.mcap_log import LogWriter, offered_qos_yaml
+    from ..io.log_writer import LogWriter, offered_qos_yaml
     from ..io.scene_yaml import scene_to_yaml
 
     if not args.frame_id:                   # as the node's frame_id parameter
@@ -110,7 +110,7 @@ def run(args) -> int:
     rtf = sim.t / logged.wall if logged.wall > 0 else math.inf
     print(f"{scene.name}: {model.name} model, {integrator.describe()}, t = 0..{sim.t:g} s, "
           f"{logged.samples} samples -> {out} (integration {logged.wall:.3f} s wall, "
-          f"{rtf:.0f}x real time, {integrator.stats.nfev} rhs evaluations"
+          f"{rtf:.0f}x real time, {sim.stats.nfev} rhs evaluations"
           + (f", {logged.logged_events} hinge events" if logged.logged_events else "") + ")")
     if logged.validity.summary():
         print(f"rod-sim simulate: validity warning: {logged.validity.summary()}", file=sys.stderr)
@@ -206,7 +206,7 @@ class _LoggedRun:
 def _salvage(path: Path) -> str:
     """After a failed write: keep ``path`` if it holds complete samples (say which), else
     remove it. Returns what was done, for the error line."""
-    from ..io.mcap_log import read_rod_states
+    from ..io.series import read_rod_states
 
     try:
         t, _, _ = read_rod_states(path)

@@ -144,11 +144,10 @@ def _phi_run(scene, model_name, integrator, rtol, t_end, rate=50.0):
     from ...core.models import make_model
     from ...core.simulator import Simulator
 
-    integ = make_integrator(integrator, rtol=rtol)
-    sim = Simulator(make_model(model_name, scene), integ)
+    sim = Simulator(make_model(model_name, scene), make_integrator(integrator, rtol=rtol))
     cpu = time.process_time()
     traj = sim.run(t_end, rate)
-    return traj.phi, time.process_time() - cpu, integ.stats
+    return traj.phi, time.process_time() - cpu, sim.stats
 
 
 def work_precision(scene, model_name, t_end, settings, ref_rtol=1e-11, check_rtol=1e-10,

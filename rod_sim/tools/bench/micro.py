@@ -16,20 +16,17 @@ from .runs import _core
 def rhs_cost(model_name: str, scene, budget_s: float = 0.05) -> float:
     """Wall time of one right-hand side [s] inside the compiled rk4 loop (a bent, moving
     state: phi 0.1 rad, rates 0.5 rad/s)."""
-    from ...core.integrators import make_integrator
-    from ...core.models import make_model
-
+    _, make_integrator, make_model, Simulator = _core()
     scene = scene.with_changes(phi0=np.full(scene.n, 0.1), phi_rate0=np.full(scene.n, 0.5))
     model = make_model(model_name, scene)
-    y0 = model.initial_state()
     steps = 1
     while True:
-        integ = make_integrator("rk4", step=1e-5)
+        sim = Simulator(model, make_integrator("rk4", step=1e-5))
         started = time.perf_counter()
-        integ.integrate(model, y0, 0.0, [steps * 1e-5])
+        sim.advance(steps * 1e-5)
         wall = time.perf_counter() - started
         if wall > budget_s or steps >= 1 << 16:
-            return wall / integ.stats.nfev
+            return wall / sim.stats.nfev
         steps *= 4
 
 
@@ -58,7 +55,7 @@ def hinge_rhs_cost(models=MODELS, rounds: int = 7, span_s: float = 0.2) -> dict:
     its hinge features (no rest angle, stop, latch or locked hinge), per model, and their
     ratio. The two are timed alternately, ``rounds`` times each, and the minimum of each is
     kept, so that a burst of load from other processes hits both or neither."""
-    _, make_integrator, make_model, _ = _core()
+    _, make_integrator, make_model, Simulator = _core()
     scene = load_bench_scene("deployment")
     n = scene.n
     plain = scene.with_changes(hinge_rest_angle=0.0, stop_lower=-math.inf,
@@ -70,12 +67,11 @@ def hinge_rhs_cost(models=MODELS, rounds: int = 7, span_s: float = 0.2) -> dict:
         cost = {"hinge": math.inf, "plain": math.inf}
         for _ in range(rounds):
             for label, model in chains.items():
-                integ = make_integrator("rk4", step=1e-5)
-                y0 = model.initial_state()
+                sim = Simulator(model, make_integrator("rk4", step=1e-5))
                 started = time.perf_counter()
-                integ.integrate(model, y0, 0.0, [span_s])
+                sim.advance(span_s)
                 cost[label] = min(cost[label],
-                                  (time.perf_counter() - started) / integ.stats.nfev)
+                                  (time.perf_counter() - started) / sim.stats.nfev)
         out[m] = {"hinge_s": cost["hinge"], "plain_s": cost["plain"],
                   "ratio": cost["hinge"] / cost["plain"], "n": n, "rounds": rounds,
                   "span_s": span_s}

@@ -33,11 +33,11 @@ class RunTimeout(RuntimeError):
     """A run would exceed (or exceeded) the per-run wall-time cap."""
 
 def run_phi(scene, model_name, integrator, t_end=T_END, **settings):
-    """phi (N, n) sampled at RATE_HZ on [0, t_end] and the integrator (for its stats)."""
+    """phi (N, n) sampled at RATE_HZ on [0, t_end] and the run's work counters."""
     _, make_integrator, make_model, Simulator = _core()
-    integ = make_integrator(integrator, **settings)
-    traj = Simulator(make_model(model_name, scene), integ).run(t_end, RATE_HZ)
-    return traj.phi, integ
+    sim = Simulator(make_model(model_name, scene), make_integrator(integrator, **settings))
+    traj = sim.run(t_end, RATE_HZ)
+    return traj.phi, sim.stats
 
 
 def reference(scene, model_name: str, rtol=BENCH_REFERENCE_RTOL, check_rtol=BENCH_CHECK_RTOL,
@@ -75,7 +75,7 @@ def _deadline_model(model, deadline):
 
 
 def time_run(scene, model_name, integrator, settings, repeats, cap_s, t_end=T_END):
-    """(median wall [s], median CPU [s], phi (N, n), integrator of the last run, repeats).
+    """(median wall [s], median CPU [s], phi (N, n), work counters of the last run, repeats).
 
     Compiled runs are preceded by a pilot over PILOT_FRACTION of the time span that predicts
     the full wall time; a prediction above ``cap_s`` raises RunTimeout without the long run.
@@ -93,11 +93,10 @@ def time_run(scene, model_name, integrator, settings, repeats, cap_s, t_end=T_EN
             raise RunTimeout(f"predicted {predicted:.3g} s > cap {cap_s:g} s (pilot over "
                              f"{t_end * PILOT_FRACTION:g} s)")
     walls, cpus = [], []
-    phi = integ = None
+    phi = sim = None
     while True:
-        integ = make_integrator(integrator, **settings)
         run_model = model if compiled else _deadline_model(model, time.perf_counter() + cap_s)
-        sim = Simulator(run_model, integ)
+        sim = Simulator(run_model, make_integrator(integrator, **settings))
         cpu0, started = time.process_time(), time.perf_counter()
         traj = sim.run(t_end, RATE_HZ)
         walls.append(time.perf_counter() - started)
@@ -108,7 +107,7 @@ def time_run(scene, model_name, integrator, settings, repeats, cap_s, t_end=T_EN
             break                                       # fast runs: more repeats, same budget
         if total * (len(walls) + 1) / len(walls) > cap_s / 2:
             break                                       # slow runs: fewer repeats
-    return statistics.median(walls), statistics.median(cpus), phi, integ, len(walls)
+    return statistics.median(walls), statistics.median(cpus), phi, sim.stats, len(walls)
 
 
 def _max_err(phi, ref):
@@ -171,16 +170,15 @@ def measure_setting(key, scene, model_name, integrator, settings, ref: Reference
         return row
     reps = 1 if integrator in SCIPY_METHODS and cfg.quick else cfg.repeats
     try:
-        wall, cpu, phi, integ, done = time_run(scene, model_name, integrator, settings, reps,
+        wall, cpu, phi, stats, done = time_run(scene, model_name, integrator, settings, reps,
                                                cfg.cap_s, t_end)
         row.wall_s, row.rtf = wall, t_end / wall
         row.cpu_s, row.rtf_cpu = cpu, t_end / max(cpu, 1e-9)
         row.max_phi_error = _max_err(phi, ref.phi)
         row.max_hinge_error = _hinge_err(phi, ref.phi)
         row.error_vs_full = _max_err(phi, full_ref)
-        row.nfev, row.steps, row.rejected = (integ.stats.nfev, integ.stats.steps,
-                                             integ.stats.rejected)
-        row.njev = getattr(integ.stats, "njev", 0)
+        row.nfev, row.steps, row.rejected = stats.nfev, stats.steps, stats.rejected
+        row.njev = stats.njev
         row.repeats = done
         if not np.isfinite(row.max_phi_error):
             row.status = "diverged (non-finite phi)"
