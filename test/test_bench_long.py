@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from rod_sim.core.models import make_model
-from rod_sim.tools import bench_long, pinocchio_peer
+from rod_sim.tools.bench import long_chains as bench_long
+from rod_sim.tools.bench import pinocchio_peer
 
 
 def test_scenes_are_what_the_docs_say():

@@ -28,7 +28,8 @@ from rod_sim.io.log_source import read_log
 from rod_sim.io.log_writer import LogWriter
 from rod_sim.io.scene_yaml import load_scene, scene_to_yaml
 from rod_sim.tools import cli
-from rod_sim.tools.comparison import (DEFAULT_TOLERANCE, compare_log, significant_digits)
+from rod_sim.tools.compare_stats import significant_digits
+from rod_sim.tools.comparison import DEFAULT_TOLERANCE, compare_log
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = ROOT / "config" / "small_chain.yaml"

@@ -14,8 +14,7 @@ from .integrators import (Carry, Integrator, IntegrationError, Stats, drive, exp
                           make_integrator)
 from .models import ChainModel
 from .snapshot import Snapshot
-
-NS_PER_S = 1_000_000_000
+from .units import NS_PER_S
 
 
 def seconds_to_ns(t: float) -> int:

@@ -23,7 +23,6 @@ from rod_sim.io.log_format import LogFormatError
 from rod_sim.io.log_open import open_log
 from rod_sim.io.log_reader import ChannelInfo
 
-NS_PER_S = 1_000_000_000
 DEFAULT_DEPTH = 10
 """History depth offered when a channel records none (rclcpp's and rosbag2's default)."""
 

@@ -20,6 +20,7 @@ import numpy as np
 from rod_sim.core.kinematics import rod_points, shape_table
 from rod_sim.core.scene import Scene
 from rod_sim.core.snapshot import Snapshot
+from rod_sim.core.units import NS_PER_S
 
 Msg = dict[str, Any]
 
@@ -57,8 +58,6 @@ ROD_COLOR = {"r": 0.25, "g": 0.5, "b": 1.0, "a": 1.0}
 NODE_COLOR = {"r": 1.0, "g": 0.5, "b": 0.0, "a": 1.0}
 MARKER_DENSITY = 7850.0
 """[kg/m^3] density of the spheres drawn for the node masses (steel), sets their diameter."""
-
-NS_PER_S = 1_000_000_000
 
 MARKER_LINE_STRIP = 4
 MARKER_SPHERE_LIST = 7

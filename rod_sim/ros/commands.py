@@ -14,8 +14,8 @@ import numpy as np
 from rclpy.serialization import deserialize_message
 from std_msgs.msg import Float64MultiArray
 
+from rod_sim.core.units import NS_PER_S
 from rod_sim.ros.conversions import CommandError, command_forces, command_torques
-from rod_sim.ros.pacing import NS_PER_S
 
 COMMAND_SLACK_BYTES = 4096
 """Bytes a serialized command may carry beyond its 2 n (torques: n) doubles (header, layout,

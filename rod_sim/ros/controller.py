@@ -44,7 +44,7 @@ from rod_sim.core.scene import SceneError
 from rod_sim.io import topics
 from rod_sim.io.scene_yaml import load_scene
 from rod_sim.ros.conversions import to_message
-from rod_sim.ros.node_main import parse_cli, run_node
+from rod_sim.ros.process import parse_cli, run_node
 
 CONTROLLER_NAME = "rod_sim_controller"
 

@@ -73,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
     from rod_sim.core.scene import SceneError
     from rod_sim.ros.controller import HingePDController
     from rod_sim.ros.node import NodeConfigError, RodSimNode
-    from rod_sim.ros.node_main import StopRequest, spin_until
+    from rod_sim.ros.process import StopRequest, spin_until
 
     rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
     nodes = []

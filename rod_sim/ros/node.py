@@ -9,8 +9,9 @@ This module holds the node class: its interfaces, timers, pacing, stepping and p
 rest lives in :mod:`rod_sim.ros.parameters` (declarations, settings and their checks),
 :mod:`rod_sim.ros.commands` (command intake: length check, decoding, validation, rejection
 counts, zero-order hold and timeout), :mod:`rod_sim.ros.recording` (the log and its rolling after
-``~/reset``), :mod:`rod_sim.ros.qos` (QoS profiles) and :mod:`rod_sim.ros.node_main` (the
-process: arguments, signals, exit codes); the names they export are re-exported here.
+``~/reset``), :mod:`rod_sim.ros.qos` (QoS profiles) and :mod:`rod_sim.ros.process` (a ROS
+process: arguments, signals, spin loop, exit codes); :func:`main` at the end wires the node
+into it (``--help`` lists the parameters).
 
 How time advances
 -----------------
@@ -82,7 +83,10 @@ Integration failures pause the simulation, are logged and reported with level ER
 """
 from __future__ import annotations
 
+import argparse
+import functools
 import sys
+import textwrap
 import time
 from collections import deque
 from pathlib import Path
@@ -100,6 +104,7 @@ from rod_sim.core.integrators import IntegrationError, make_integrator
 from rod_sim.core.models import ModelError, make_model
 from rod_sim.core.scene import SceneError
 from rod_sim.core.simulator import Simulator
+from rod_sim.core.units import NS_PER_S
 from rod_sim.core.validity import ValidityMonitor, latch_losses
 from rod_sim.io import topics
 from rod_sim.io.hinge_events import (HINGE_EVENTS_TOPIC, HINGE_EVENTS_TYPE, event_message,
@@ -110,24 +115,19 @@ from rod_sim.io.urdf import scene_urdf
 from rod_sim.tools.common import UsageError
 from rod_sim.tools.limits import check_model_memory
 from rod_sim.ros import budget
-from rod_sim.ros.commands import (COMMAND_SLACK_BYTES, FORCES, TORQUES, Command,  # noqa: F401
-                                  CommandIntake)
+from rod_sim.ros.commands import FORCES, TORQUES, Command, CommandIntake
 from rod_sim.ros.conversions import message_class, message_to_dict, to_message
 from rod_sim.ros.errors import NodeConfigError, one_line
 from rod_sim.ros.monitor import DiagnosticReport, EnergyLedger
-from rod_sim.ros.node_main import (ROS_ARGS_HINT, StopRequest, build_parser,  # noqa: F401
-                                   main, params_files, parse_cli, run_node, spin_until)
-from rod_sim.ros.pacing import (NS_PER_S, RateMeter, RealTimePacer, period_ns,
-                                tick_period_s)
-from rod_sim.ros.parameters import (NODE_NAME, PARAMETERS, NodeSettings,  # noqa: F401
-                                    ParameterSpec, declare_settings, unknown_overrides,
-                                    validate_change)
-from rod_sim.ros.qos import (APPLIED_QOS, CLOCK_QOS, CLOCK_RELIABILITY,  # noqa: F401
-                             COMMAND_QOS, DIAGNOSTICS_QOS, EVENTS_QOS, LATCHED_QOS,
-                             LOCKSTEP_STATE_DEPTH, LOCKSTEP_STATE_QOS, SERVICE_QOS,
-                             SERVICE_QUEUE_DEPTH, STATE_DEPTH, STATE_QOS, clock_qos)
-from rod_sim.ros.recording import (MAX_LOG_ROLLS, NodeRecording, create_log,  # noqa: F401
-                                   offered_qos)
+from rod_sim.ros.pacing import RateMeter, RealTimePacer, period_ns, tick_period_s
+from rod_sim.ros.parameters import (NODE_NAME, PARAMETERS, NodeSettings, declare_settings,
+                                    unknown_overrides, validate_change)
+from rod_sim.ros.process import params_files, parse_cli, run_node
+from rod_sim.ros.qos import (APPLIED_QOS, COMMAND_QOS, DIAGNOSTICS_QOS, EVENTS_QOS, LATCHED_QOS,
+                             LOCKSTEP_STATE_DEPTH, LOCKSTEP_STATE_QOS, SERVICE_QOS, STATE_DEPTH,
+                             STATE_QOS, clock_qos)
+from rod_sim.ros.qos import SERVICE_QUEUE_DEPTH  # noqa: F401  (the node's stated limit)
+from rod_sim.ros.recording import NodeRecording, create_log, offered_qos
 from rod_sim.ros.scene_path import ScenePathError, resolve_scene_file
 
 COMMAND_TOPIC = FORCES
@@ -367,7 +367,7 @@ class RodSimNode(Node):
         self.create_service(Trigger, "~/reset", self._on_reset, qos_profile=SERVICE_QOS)
         # Its own reentrant group: between the slices of a long call the node's other
         # callbacks (default, mutually exclusive group) run, and a second call is answered
-        # "busy". The node is spun by a single-threaded executor (node_main), so callbacks
+        # "busy". The node is spun by a single-threaded executor (rod_sim.ros.process), so callbacks
         # never run at the same time; they interleave only where _on_step awaits.
         self.create_service(Trigger, "~/step", self._on_step, qos_profile=SERVICE_QOS,
                             callback_group=ReentrantCallbackGroup())
@@ -983,6 +983,47 @@ class RodSimNode(Node):
         """Close the log (with its summary), then destroy the node."""
         self._recording.close()
         super().destroy_node()
+
+
+# ----- the node as a process (sim_node, rod-sim node, python -m rod_sim.ros.node)
+def parameter_help(specs=PARAMETERS, width: int = 79) -> str:
+    """The parameters for ``--help``: one per line (``name  type, default: ...``), its
+    description wrapped and indented below it."""
+    kinds = {bool: "bool", float: "double", int: "integer", str: "string"}
+    lines = ["parameters (set with --ros-args -p NAME:=VALUE or --params-file FILE):"]
+    for spec in specs:
+        default = (str(spec.default).lower() if isinstance(spec.default, bool)
+                   else repr(spec.default))
+        run_time = "" if spec.read_only else ", settable at run time"
+        lines.append(f"  {spec.name} ({kinds[type(spec.default)]}, default {default}"
+                     f"{run_time})")
+        text = spec.description
+        if spec.range is not None:
+            text += f"; range {spec.range[0]:g} .. {spec.range[1]:g}"
+        if spec.constraints and spec.constraints not in text:
+            text += f"; {spec.constraints}"
+        lines += textwrap.wrap(text, width, initial_indent=" " * 6, subsequent_indent=" " * 6,
+                               break_on_hyphens=False)
+    return "\n".join(lines)
+
+
+def build_parser(prog: str = "sim_node") -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog=prog, formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="rod_sim ROS 2 node: a chain of elastic rods driven by nodal forces\n"
+        "(docs/interface.md section 3). Configure it with ROS arguments, e.g.\n"
+        "  --ros-args --params-file config/sim_node.params.yaml -p scene_file:=SCENE.yaml",
+        epilog=parameter_help())
+    return parser
+
+
+def main(argv: list[str] | None = None, prog: str = "sim_node") -> int:
+    """Run the node until SIGINT/SIGTERM. Returns 0, or 2 (with a one-line reason on stderr)
+    for bad arguments, parameters or scenes. ``prog`` names the command in messages."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    parse_cli(build_parser(prog), args)
+    return run_node(prog, functools.partial(RodSimNode, params_files=params_files(args)),
+                    args, NodeConfigError)
 
 
 if __name__ == "__main__":

@@ -26,7 +26,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-NS_PER_S = 1_000_000_000
+from rod_sim.core.units import NS_PER_S
+
 MIN_TICK_S = 0.001
 """[s] shortest wall period of the node's pacing timer."""
 TICK_STEP_FRACTION = 0.5

@@ -27,9 +27,10 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rosgraph_msgs.msg import Clock
 from std_srvs.srv import SetBool, Trigger
 
-from rod_sim.io.playback import NS_PER_S, PlaybackSource, QosSpec, Timeline
+from rod_sim.core.units import NS_PER_S
+from rod_sim.io.playback import PlaybackSource, QosSpec, Timeline
 from rod_sim.ros.conversions import message_class
-from rod_sim.ros.node_main import StopRequest, spin_until
+from rod_sim.ros.process import StopRequest, spin_until
 from rod_sim.ros.qos import CLOCK_QOS
 
 NODE_NAME = "rod_sim_replay"

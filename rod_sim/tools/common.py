@@ -1,9 +1,9 @@
 """What every ``rod-sim`` subcommand shares: exit statuses, the usage error, argument types.
 
-A subcommand lives in its own module under ``rod_sim/tools`` and is found by
-:func:`rod_sim.tools.cli.build_parser` when the module defines
+A subcommand lives in its own module under ``rod_sim/tools``, listed in
+:data:`rod_sim.tools.cli.COMMANDS`, and defines
 
-- ``COMMAND`` (the subcommand name) and ``HELP`` (one line for ``rod-sim --help``),
+- ``HELP`` (one line for ``rod-sim --help``) and optionally ``DESCRIPTION``,
 - ``configure(parser)`` adding its arguments to an ``argparse`` subparser,
 - ``run(args) -> int`` returning an exit status.
 

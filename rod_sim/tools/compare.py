@@ -19,8 +19,8 @@ from pathlib import Path
 from ..io.quote import quote
 
 from .common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, positive_float
+from .compare_verdict import Cause, Verdict
 
-COMMAND = "compare"
 HELP = "check a log against a converged re-run of the full model (predictability horizon)"
 
 
@@ -92,9 +92,10 @@ def verdict_line(report) -> str:
     q = report.quantities["phi"]
     cut = (f" -- TRUNCATED LOG: only t = {report.t_start:g}..{report.t_end:g} s was checked"
            if report.truncated else "")
-    if report.verdict == "FAIL":
-        return "FAIL: " + "; ".join(report.reasons())
-    if report.verdict == "PASS":
+    judgement = report.judgement
+    if judgement.verdict is Verdict.FAIL:
+        return "FAIL: " + "; ".join(judgement.sentences())
+    if judgement.verdict is Verdict.PASS:
         rod, t = q.argmax()
         return (f"PASS: max |phi error| {q.max:.3g} rad (rod {rod}, t = {t:.6g} s) <= tolerance "
                 f"{report.tolerance:g} rad{cut}")
@@ -197,28 +198,28 @@ def next_steps(report, info: dict) -> list[str]:
         return []
     scene = info.get("scene_file") or "SCENE.yaml"
     steps = []
-    e = report.within["max_phi_error"]
-    if not math.isfinite(report.quantities["phi"].max):
+    reasons = {r.cause: r for r in report.judgement.reasons}
+    if Cause.NON_FINITE in reasons:
         steps.append("the logged run diverged: run it again with a tighter rtol or a smaller "
                      "command (the node pauses with the cause on diagnostics)")
-    elif e > report.tolerance:
-        first = report.first_exceeded()
+    elif Cause.TOLERANCE_EXCEEDED in reasons:
+        r = reasons[Cause.TOLERANCE_EXCEEDED]
         if info.get("model") != "full":
             steps.append(f"this {info.get('model')} model is not accurate enough here: run the "
                          f"full model (rod-sim simulate {scene} --model full, or the node with "
                          "-p model:=full)")
-            steps.append(f"or ask rod-sim advise {scene} --tolerance {report.tolerance:g} for "
+            steps.append(f"or ask rod-sim advise {scene} --tolerance {r.limit:g} for "
                          "the cheapest model and integrator that meets this tolerance")
         else:
             steps.append("a full-model log that departs from the full model: check the scene "
                          "(--scene) and the logged forces, or log with a tighter rtol")
         steps.append(f"or use a shorter horizon: the error first exceeds the tolerance at t = "
-                     f"{first:.6g} s (a run ending before that passes at this tolerance), or a "
-                     f"looser --tolerance if {e:.3g} rad is acceptable")
-    if report.gap_count:
+                     f"{r.first_t:.6g} s (a run ending before that passes at this tolerance), "
+                     f"or a looser --tolerance if {r.value:.3g} rad is acceptable")
+    if Cause.STATE_GAPS in reasons:
         steps.append("states are missing: record in lockstep (-p sync_mode:=true), where no "
                      "period is dropped, or at a lower rate_hz")
-    if not report.reference["converged"]:
+    if Cause.REFERENCE_NOT_CONVERGED in reasons:
         steps.append("the full-model reference did not converge: compare a shorter log")
     return steps
 

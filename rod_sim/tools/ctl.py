@@ -19,7 +19,6 @@ import sys
 
 from .common import EXIT_CHECK_FAILED, UsageError, positive_float
 
-COMMAND = "ctl"
 HELP = "call the node's services, get/set its parameters, echo or time a topic (no ros2 CLI)"
 ACTIONS = ("pause", "resume", "step", "reset", "param", "echo", "hz")
 

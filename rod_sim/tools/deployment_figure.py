@@ -15,7 +15,6 @@ import numpy as np
 from ..core.quote import quote
 from .common import UsageError, new_output_path
 
-COMMAND = "deployment-figure"
 HELP = "draw snapshots of a logged chain (e.g. the deployment scene) with its latch events"
 
 

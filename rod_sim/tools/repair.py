@@ -18,7 +18,6 @@ from pathlib import Path
 
 from .common import EXIT_OK, UsageError, new_output_path
 
-COMMAND = "repair"
 HELP = "rewrite a truncated (writer killed) or damaged log with a new summary and indexes"
 
 

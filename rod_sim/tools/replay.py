@@ -13,7 +13,6 @@ import sys
 
 from .common import EXIT_OK, UsageError, positive_float
 
-COMMAND = "replay"
 HELP = "republish a log's topics on a live ROS graph with their timing and /clock"
 DEFAULT_CLOCK_HZ = 100.0
 
@@ -133,7 +132,8 @@ def _select(source, args) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..io.playback import NS_PER_S, open_source
+    from ..core.units import NS_PER_S
+    from ..io.playback import open_source
 
     with open_source(args.log) as source:
         topics = _select(source, args)
@@ -161,7 +161,7 @@ def _play(source, topics: list[str], args):
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
 
-    from ..ros.node import StopRequest
+    from ..ros.process import StopRequest
     from ..ros.replay import PlayStats, Player, wait_for_subscribers
 
     try:

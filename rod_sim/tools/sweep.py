@@ -19,7 +19,6 @@ from pathlib import Path
 from ..core.quote import quote
 from .common import EXIT_OK, UsageError, new_output_path
 
-COMMAND = "sweep"
 HELP = "batch runs over parameter grids or Monte-Carlo draws (local pool or Dask cluster)"
 EXIT_INTERRUPTED = 130
 

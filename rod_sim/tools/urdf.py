@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import sys
 
-COMMAND = "urdf"
 HELP = "write a scene's chain as URDF (what the node publishes on robot_description)"
 
 

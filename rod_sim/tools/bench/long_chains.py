@@ -9,7 +9,6 @@ Every timing is one core, in this run; the rows name the settings that reproduce
 from __future__ import annotations
 
 import math
-import os
 import resource
 import subprocess
 import sys
@@ -20,7 +19,9 @@ from pathlib import Path
 import numpy as np
 
 from . import pinocchio_peer
-from .common import PAPER_EXAMPLE
+from .config import TARGET_ERROR
+from .micro import rhs_cost
+from .report import cell
 
 SCALING_NS = (8, 16, 32, 64, 128, 256, 512, 1024, 2048, 4096)
 STARTUP_NS = (8, 256, 1024, 2048, 4096)
@@ -29,7 +30,6 @@ LONG_T_END = 2.0
 TETHER_N = 512
 TETHER_T_END = 0.05          # dop853-jit needs ~2e-6 s steps on the full tether (4800 per 0.01 s)
 RADAU_STEP_NS = (512, 1024, 2048, 4096)
-TARGET_ERROR = 1e-6
 PEER_MAX_N = 256
 """Pinocchio's Data grows as ~n^3 in memory here (64: 17 MB, 256: 0.58 GB, 512: 4.4 GB
 measured): the peer is timed up to this n."""
@@ -38,7 +38,7 @@ measured): the peer is timed up to this n."""
 def uniform_chain(n: int, load: bool = True):
     """The paper's rods, node masses and hinges (config/bench/chain_n32.yaml) with n rods at
     rest along x, the paper's two tip pulses at node n (``load``)."""
-    from ..core.scene import Scene
+    from ...core.scene import Scene
 
     d = {"name": f"chain_n{n}",
          "rods": {"count": n, "length": 2.0, "mass_per_length": 3.0, "bending_stiffness": 1e5},
@@ -56,7 +56,7 @@ def tether(n: int = TETHER_N):
     """A stiff tether: n rods of 5 cm (0.1 kg/m, EI 0.5 N m^2: first bending mode 1.56 kHz,
     growing as 1/l^2), soft damped hinges, hanging straight along x, a 0.2 s sideways pulse
     of 2 N at the tip."""
-    from ..core.scene import Scene
+    from ...core.scene import Scene
 
     return Scene.from_dict({
         "name": f"tether_n{n}",
@@ -65,26 +65,6 @@ def tether(n: int = TETHER_N):
         "initial": {"phi": 0.0, "phi_rate": 0.0},
         "loads": [{"node": n, "axis": "y", "shape": "raised_cosine_pulse", "amplitude": 2.0,
                    "start": 0.0, "duration": 0.2}]})
-
-
-def rhs_cost(model_name: str, scene, budget_s: float = 0.05) -> float:
-    """Wall time of one right-hand side [s] inside the compiled rk4 loop (a bent, moving
-    state: phi 0.1 rad, rates 0.5 rad/s)."""
-    from ..core.integrators import make_integrator
-    from ..core.models import make_model
-    from ..core.simulator import Simulator
-
-    scene = scene.with_changes(phi0=np.full(scene.n, 0.1), phi_rate0=np.full(scene.n, 0.5))
-    model = make_model(model_name, scene)
-    steps = 1
-    while True:
-        sim = Simulator(model, make_integrator("rk4", step=1e-5))
-        started = time.perf_counter()
-        sim.advance(steps * 1e-5)
-        wall = time.perf_counter() - started
-        if wall > budget_s or steps >= 1 << 16:
-            return wall / sim.stats.nfev
-        steps *= 4
 
 
 def scaling(ns=SCALING_NS, models=("rigid", "reduced", "full"), log=None) -> dict:
@@ -103,7 +83,7 @@ def scaling(ns=SCALING_NS, models=("rigid", "reduced", "full"), log=None) -> dic
             out["per_rhs_s"][m].append(min(rhs_cost(m, scene) for _ in range(2)))
         peer = data = math.nan
         if have_peer and n <= PEER_MAX_N:
-            from ..core.models import make_model
+            from ...core.models import make_model
 
             err = pinocchio_peer.check(scene, make_model("rigid", scene))
             out["pinocchio_check"] = max(out["pinocchio_check"] or 0.0, err)
@@ -134,7 +114,7 @@ def scaling(ns=SCALING_NS, models=("rigid", "reduced", "full"), log=None) -> dic
 def startup(ns=STARTUP_NS, log=None) -> list[dict]:
     """Wall time [s] and peak RSS [bytes] of ``rod-sim simulate`` (reduced, 4 rk4 steps of
     0.1 ms, a fresh Python process, the numba cache warm) on the uniform chain of n rods."""
-    from ..io.scene_yaml import scene_to_yaml
+    from ...io.scene_yaml import scene_to_yaml
 
     say = log or (lambda s: None)
     rows = []
@@ -160,9 +140,9 @@ def startup(ns=STARTUP_NS, log=None) -> list[dict]:
 
 
 def _phi_run(scene, model_name, integrator, rtol, t_end, rate=50.0):
-    from ..core.integrators import make_integrator
-    from ..core.models import make_model
-    from ..core.simulator import Simulator
+    from ...core.integrators import make_integrator
+    from ...core.models import make_model
+    from ...core.simulator import Simulator
 
     sim = Simulator(make_model(model_name, scene), make_integrator(integrator, rtol=rtol))
     cpu = time.process_time()
@@ -262,24 +242,19 @@ def targets(data: dict) -> dict:
     return t
 
 
-def _g(x, fmt=".3g") -> str:
-    return "-" if x is None or (isinstance(x, float) and not math.isfinite(x)) else \
-        format(x, fmt)
-
-
 def markdown_lines(data: dict) -> list[str]:
     """The "Long chains" section of results.md."""
     if not data:
         return []
     lines = ["", "## Long chains (issue 18)", "", "| target | value | met |", "|---|---|---|"]
     for name, (value, met) in targets(data).items():
-        lines.append(f"| {name} | {_g(value)} | {'yes' if met else 'no'} |")
+        lines.append(f"| {name} | {cell(value)} | {'yes' if met else 'no'} |")
     sc = data.get("scaling")
     if sc:
         models = list(sc["per_rhs_s"])
         lines += ["", "Cost per right-hand side (compiled rk4 loop, one core) and Pinocchio's "
                   "`aba` per call from Python on the same chain (its accelerations agree with "
-                  f"the rigid model to {_g(sc.get('pinocchio_check'), '.1e')} relative); per "
+                  f"the rigid model to {cell(sc.get('pinocchio_check'), '.1e')} relative); per "
                   "rod in ns:", "",
                   "| n | " + " | ".join(f"{m} [us]" for m in models)
                   + " | Pinocchio aba [us] | " + " | ".join(f"{m} [ns/rod]" for m in models)
@@ -287,12 +262,12 @@ def markdown_lines(data: dict) -> list[str]:
                   "|---" * (2 * len(models) + 4) + "|"]
         for i, n in enumerate(sc["n"]):
             peer = sc["pinocchio_aba_s"][i]
-            lines.append(f"| {n} | " + " | ".join(_g(sc["per_rhs_s"][m][i] * 1e6)
+            lines.append(f"| {n} | " + " | ".join(cell(sc["per_rhs_s"][m][i] * 1e6)
                                                   for m in models)
-                         + f" | {_g(peer * 1e6)} | "
-                         + " | ".join(_g(sc["per_rhs_s"][m][i] * 1e9 / n, ".0f") for m in models)
-                         + f" | {_g(peer * 1e9 / n, '.0f')} | "
-                         + f"{_g(sc['pinocchio_data_bytes'][i] / 1e6, '.0f')} |")
+                         + f" | {cell(peer * 1e6)} | "
+                         + " | ".join(cell(sc["per_rhs_s"][m][i] * 1e9 / n, ".0f") for m in models)
+                         + f" | {cell(peer * 1e9 / n, '.0f')} | "
+                         + f"{cell(sc['pinocchio_data_bytes'][i] / 1e6, '.0f')} |")
         lines += ["", "Fitted exponent (n >= 512): " + ", ".join(
             f"{m} {p:.2f}" for m, p in (sc.get("exponent_n_ge_512") or {}).items()) + "."]
     st = data.get("startup")
@@ -300,20 +275,20 @@ def markdown_lines(data: dict) -> list[str]:
         lines += ["", f"Start-up: `{st[0]['command']}` in a fresh process (numba cache warm):",
                   "", "| n | wall [s] | peak RSS [MB] | exit |", "|---|---|---|---|"]
         for r in st:
-            lines.append(f"| {r['n']} | {_g(r['wall_s'])} | "
-                         f"{_g(r['peak_rss_bytes'] / 1e6, '.0f')} | {r['exit']} |")
+            lines.append(f"| {r['n']} | {cell(r['wall_s'])} | "
+                         f"{cell(r['peak_rss_bytes'] / 1e6, '.0f')} | {r['exit']} |")
     for key, title in (("long_chain", "Uniform chain"), ("tether", "Stiff tether")):
         for block in data.get(key) or []:
             lines += ["", f"{title} `{block['scene']}` (n = {block['n']}), {block['model']} "
                       f"model, 0..{block['t_end']:g} s; reference dop853-jit rtol "
                       f"{block['reference_rtol']:g} (gap to 1e-10: "
-                      f"{_g(block['reference_gap'], '.2g')} rad, CPU "
-                      f"{_g(block['reference_cpu_s'])} s):", "",
+                      f"{cell(block['reference_gap'], '.2g')} rad, CPU "
+                      f"{cell(block['reference_cpu_s'])} s):", "",
                       "| integrator | rtol | CPU [s] | RTF (CPU) | phi err [rad] | rhs | steps | "
                       "Newton iterations |", "|---|---|---|---|---|---|---|---|"]
             for r in block["rows"]:
-                lines.append(f"| {r['integrator']} | {r['rtol']:g} | {_g(r['cpu_s'])} | "
-                             f"{_g(r['rtf_cpu'])} | {_g(r['max_phi_error'], '.2g')} | "
+                lines.append(f"| {r['integrator']} | {r['rtol']:g} | {cell(r['cpu_s'])} | "
+                             f"{cell(r['rtf_cpu'])} | {cell(r['max_phi_error'], '.2g')} | "
                              f"{r['nfev']} | {r['steps']} | {r['newton_iters']} |")
     rp = data.get("radau_per_step")
     if rp:
@@ -325,7 +300,7 @@ def markdown_lines(data: dict) -> list[str]:
 
 
 def main(argv=None) -> int:
-    """``python -m rod_sim.tools.bench_long [--quick]``: print the section's markdown."""
+    """``python -m rod_sim.tools.bench.long_chains [--quick]``: print the section's markdown."""
     import argparse
     import json
 

@@ -1,15 +1,12 @@
-"""The rod_sim node as a process (``sim_node``, ``rod-sim node``, ``python -m
-rod_sim.ros.node``): argument parsing (``--help``, ROS arguments after ``--ros-args``), SIGINT /
-SIGTERM handling that closes the log between callbacks, and exit codes (0, or 2 with a one-line
-reason). :func:`parse_cli`, :func:`run_node`, :class:`StopRequest` and :func:`spin_until` also
-serve the other rod_sim processes (controller, player, demo)."""
+"""A rod_sim ROS 2 process (the node, the controller, the player, the demo): argument parsing
+(ROS arguments after ``--ros-args``), SIGINT / SIGTERM handling that stops the spin loop
+between callbacks (so a log is closed whole), and exit codes (0, or 2 with a one-line reason).
+Knows no particular node: :mod:`rod_sim.ros.node` wires its node class into :func:`run_node`."""
 from __future__ import annotations
 
 import argparse
-import functools
 import signal
 import sys
-import textwrap
 import threading
 from typing import Any, Callable
 
@@ -18,40 +15,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 
-from rod_sim.ros.errors import NodeConfigError, one_line
-from rod_sim.ros.parameters import PARAMETERS
-
-
-def parameter_help(specs=PARAMETERS, width: int = 79) -> str:
-    """The parameters for ``--help``: one per line (``name  type, default: ...``), its
-    description wrapped and indented below it."""
-    kinds = {bool: "bool", float: "double", int: "integer", str: "string"}
-    lines = ["parameters (set with --ros-args -p NAME:=VALUE or --params-file FILE):"]
-    for spec in specs:
-        default = (str(spec.default).lower() if isinstance(spec.default, bool)
-                   else repr(spec.default))
-        run_time = "" if spec.read_only else ", settable at run time"
-        lines.append(f"  {spec.name} ({kinds[type(spec.default)]}, default {default}"
-                     f"{run_time})")
-        text = spec.description
-        if spec.range is not None:
-            text += f"; range {spec.range[0]:g} .. {spec.range[1]:g}"
-        if spec.constraints and spec.constraints not in text:
-            text += f"; {spec.constraints}"
-        lines += textwrap.wrap(text, width, initial_indent=" " * 6, subsequent_indent=" " * 6,
-                               break_on_hyphens=False)
-    return "\n".join(lines)
-
-
-def build_parser(prog: str = "sim_node") -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog=prog, formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="rod_sim ROS 2 node: a chain of elastic rods driven by nodal forces\n"
-        "(docs/interface.md section 3). Configure it with ROS arguments, e.g.\n"
-        "  --ros-args --params-file config/sim_node.params.yaml -p scene_file:=SCENE.yaml",
-        epilog=parameter_help())
-    return parser
-
+from rod_sim.ros.errors import one_line
 
 ROS_ARGS_HINT = "ROS arguments go after --ros-args, e.g. --ros-args -p scene_file:=SCENE.yaml"
 
@@ -114,16 +78,6 @@ def spin_until(executor, stop: StopRequest, done: Callable[[], bool] = lambda: F
     context = executor.context
     while not stop.requested and not done() and context.ok():
         executor.spin_once(timeout_sec=timeout_sec)
-
-
-def main(argv: list[str] | None = None, prog: str = "sim_node") -> int:
-    """Run the node until SIGINT/SIGTERM. Returns 0, or 2 (with a one-line reason on stderr)
-    for bad arguments, parameters or scenes. ``prog`` names the command in messages."""
-    from rod_sim.ros.node import RodSimNode   # the node module re-exports this function
-    args = list(sys.argv[1:] if argv is None else argv)
-    parse_cli(build_parser(prog), args)
-    return run_node(prog, functools.partial(RodSimNode, params_files=params_files(args)),
-                    args, NodeConfigError)
 
 
 def run_node(prog: str, make_node, args: list[str], config_errors) -> int:

@@ -25,7 +25,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .common import importable
+from ..common import importable
+
+NAME = "mujoco"
+"""The peer's name: its bench rows are integrators ``mujoco-<integrator>``."""
+MODEL = "rigid"
+"""The rod_sim model it simulates (its rows' errors are against that model's reference)."""
 
 
 class PeerError(RuntimeError):
@@ -96,7 +101,7 @@ class ChainPeer:
     def __init__(self, scene, dt: float, integrator: str = "RK4"):
         import mujoco
 
-        from ..core.models import load_table
+        from ...core.models import load_table
 
         self.mj = mujoco
         self.scene = scene

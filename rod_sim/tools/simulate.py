@@ -1,0 +1,224 @@
+"""``rod-sim simulate SCENE --t-end T --out LOG``: an offline run of a scene (no ROS graph),
+written as the MCAP log of docs/interface.md section 4, sampled at ``--rate`` in simulated time,
+the t = 0 state first; ``--integrator`` and its tolerances or step as for the node. A run that
+fails keeps every finite sample in the log (exit 1); a write that fails keeps the complete
+chunks or removes the file. Limits: docs/interface.md section 6.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+from pathlib import Path
+
+from .. import __version__
+from ..core.names import INTEGRATOR_NAMES as INTEGRATORS
+from ..core.names import MODEL_NAMES
+from . import limits
+from .common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, compile_notice, load_scene, \
+    new_output_path
+from .common import positive_float as _positive_float
+from .signals import signals_deferred
+
+HELP = "offline run of a scene, written as an MCAP log"
+DESCRIPTION = ("Offline run of a scene (no ROS graph); writes the log of docs/interface.md "
+               "section 4 sampled at --rate in simulated time, the t = 0 state first. Limits: "
+               "docs/interface.md section 6.")
+
+
+def configure(parser) -> None:
+    parser.add_argument("scene", help="scene YAML file (docs/interface.md section 1)")
+    parser.add_argument("--model", choices=sorted(MODEL_NAMES), default="reduced",
+                        help="full (3n ODEs), reduced (n ODEs, quasi-static bending) or rigid "
+                             "(default reduced)")
+    parser.add_argument("--t-end", type=_positive_float, required=True,
+                        help=f"end time [s], at most {limits.MAX_T_END:g}")
+    parser.add_argument("--out", required=True, help="MCAP log to write (must not exist)")
+    parser.add_argument("--rate", type=_positive_float, default=100.0,
+                        help="sampling rate of the log [Hz of simulated time], at most "
+                             f"{limits.MAX_RATE:g} (default 100)")
+    parser.add_argument("--integrator", choices=INTEGRATORS, default="dop853-jit",
+                        help="dop853-jit (default; compiled adaptive Dormand-Prince 8(5,3), "
+                             "--rtol/--atol), radau-jit (compiled implicit Radau IIA order 5, for "
+                             "stiff scenes, --rtol/--atol), rk4, rk2, euler (compiled fixed step, "
+                             "--step) or scipy's RK45, DOP853, Radau, BDF, LSODA")
+    parser.add_argument("--rtol", type=_positive_float, default=None,
+                        help="relative tolerance of adaptive integrators, "
+                             f"{limits.RTOL_RANGE[0]:g} .. {limits.RTOL_RANGE[1]:g} (default 1e-8)")
+    parser.add_argument("--atol", type=_positive_float, default=None,
+                        help="absolute tolerance (default = rtol)")
+    parser.add_argument("--step", type=_positive_float, default=None,
+                        help="largest step of fixed-step integrators [s], at least 1e-9 "
+                             "(default 1e-3)")
+    parser.add_argument("--frame-id", default="world",
+                        help="frame of the logged headers, poses and markers (default world)")
+
+
+def _sample_grid_ns(rate_hz: float, k: int) -> int:
+    """Time [ns] of sample k of the log's grid (as Simulator.run places its samples)."""
+    return int(round(k * (1e9 / rate_hz)))
+
+
+def run(args) -> int:
+    from ..core.integrators import IntegrationError, make_integrator
+    from ..core.models import make_model
+    from ..core.simulator import Simulator
+    from ..io.log_source import SCENE_TOPIC
+    from ..io.log_writer import LogWriter, offered_qos_yaml
+    from ..io.scene_yaml import scene_to_yaml
+
+    if not args.frame_id:                   # as the node's frame_id parameter
+        raise UsageError("--frame-id: must not be empty")
+    scene = load_scene(args.scene)
+    limits.check_rtol(args.rtol)
+    limits.check_sampling(args.t_end, args.rate, scene.n)
+    integrator = make_integrator(args.integrator, rtol=args.rtol, atol=args.atol, step=args.step)
+    if not integrator.adaptive and args.t_end / integrator.step > limits.MAX_FIXED_STEPS:
+        raise UsageError(f"--step: {args.t_end:g} s in steps of {integrator.step:g} s is more "
+                         f"than {limits.MAX_FIXED_STEPS:g} steps")
+    limits.check_model_memory(scene.n)
+    model = make_model(args.model, scene)
+    out = new_output_path(args.out)
+    with compile_notice():
+        try:            # compile (or load) the kernels before the clock starts
+            Simulator(model, make_integrator(args.integrator)).advance(1e-3)
+        except IntegrationError:
+            pass        # the run below meets the same failure and reports it
+    sim = Simulator(model, integrator)
+    metadata = {"scene": scene_to_yaml(scene), "model": model.name,
+                "integrator": integrator.describe(), "version": __version__,
+                "rate_hz": repr(args.rate), "source": "rod-sim simulate"}
+    try:
+        log = LogWriter(out, metadata=metadata, qos={SCENE_TOPIC: offered_qos_yaml(
+            depth=1, durability="transient_local")})
+        # the scene also as a latched topic: a log converted by rosbag2 tools (which drop MCAP
+        # metadata records) stays self-contained
+        log.write(SCENE_TOPIC, "std_msgs/msg/String", 0, {"data": metadata["scene"]})
+    except OSError as err:
+        raise UsageError(f"--out: cannot write {out}: {err.strerror or err}") from None
+    logged = _LoggedRun(sim, scene, log, args.frame_id)
+    try:
+        try:
+            status = logged.integrate(args.t_end, args.rate, IntegrationError)
+        finally:
+            with signals_deferred():        # the summary is written whole, even on Ctrl-C
+                log.close()
+    except OSError as err:
+        print(f"rod-sim simulate: error: writing {out} failed at t = {logged.t_logged:g} s: "
+              f"{err.strerror or err}; {_salvage(out)}", file=sys.stderr)
+        return EXIT_CHECK_FAILED
+    rtf = sim.t / logged.wall if logged.wall > 0 else math.inf
+    print(f"{scene.name}: {model.name} model, {integrator.describe()}, t = 0..{sim.t:g} s, "
+          f"{logged.samples} samples -> {out} (integration {logged.wall:.3f} s wall, "
+          f"{rtf:.0f}x real time, {sim.stats.nfev} rhs evaluations"
+          + (f", {logged.logged_events} hinge events" if logged.logged_events else "") + ")")
+    if logged.validity.summary():
+        print(f"rod-sim simulate: validity warning: {logged.validity.summary()}", file=sys.stderr)
+    return status
+
+
+class _LoggedRun:
+    """A simulator run logged sample by sample: the t = 0 state first, then chunks of at most
+    CHUNK_SAMPLES samples on the grid of --rate (plus the end time), with the hinge events."""
+
+    CHUNK_SAMPLES = 10_000
+    CHUNK_SECONDS = 0.5          # simulated seconds integrated per call at most
+
+    def __init__(self, sim, scene, log, frame_id: str):
+        from ..core.validity import EnergyBalance, ValidityMonitor
+
+        self.sim, self.scene, self.log, self.frame_id = sim, scene, log, frame_id
+        self.validity = ValidityMonitor(sim.model)
+        self.balance = None             # the energy balance (the node judges the same one)
+        self._last = None               # (t, net power) of the previous sample
+        self.balanced_events = 0
+        self.samples = 0
+        self.logged_events = 0
+        self.wall = 0.0
+        self.t_logged = 0.0
+
+    def _write(self, t: float, y, mode=None) -> None:
+        from ..core.validity import EnergyBalance, balance_terms, latch_losses
+
+        model = self.sim.model
+        snap = model.snapshot(t, y, None, mode)
+        self.validity.update(snap.t, y, None, snap.alpha, snap.beta)
+        energy, power = balance_terms(model, t, y, None, mode, (snap.alpha, snap.beta))
+        if self.balance is None:
+            self.balance = EnergyBalance(energy)
+        else:
+            events = self.sim.events
+            k = self.balanced_events
+            while k < len(events) and events[k].t < t:    # a sample at a latch's time: before it
+                k += 1
+            loss = latch_losses(events[self.balanced_events:k])
+            self.balanced_events = k
+            self.balance.add_period(t - self._last[0], self._last[1], power, energy, loss)
+            self.validity.update_energy(t, self.balance.residual, self.balance.scale)
+        self._last = (t, power)
+        with signals_deferred():            # every record of a sample whole, or none
+            self.log.write_snapshot(snap, self.scene, frame_id=self.frame_id)
+            self.samples += 1
+            self.t_logged = t
+
+    def _write_traj(self, traj) -> None:
+        """The samples of ``traj`` after its first (the previous call's last), then the hinge
+        events since the last call."""
+        from ..io.hinge_events import write_events
+
+        for i in range(1, traj.t.size):
+            self._write(float(traj.t[i]), traj.y[i],
+                        None if traj.modes is None else traj.modes[i])
+        with signals_deferred():
+            self.logged_events += write_events(self.log, self.sim.events[self.logged_events:])
+
+    def integrate(self, t_end: float, rate_hz: float, failure) -> int:
+        """Run to t_end [s]; on ``failure`` (IntegrationError) keep every finite sample, print
+        one line and return EXIT_CHECK_FAILED."""
+        sim = self.sim
+        self._write(sim.t, sim.y, sim.mode)
+        end_ns = round(t_end * 1e9)
+        per_chunk = max(1, min(self.CHUNK_SAMPLES, math.floor(self.CHUNK_SECONDS * rate_hz)))
+        k = 0
+        while sim.t_ns < end_ns:
+            k += per_chunk
+            t_next = min(end_ns, _sample_grid_ns(rate_hz, k)) / 1e9
+            started = time.perf_counter()
+            try:
+                traj = sim.run(t_next, rate_hz)
+            except failure as err:
+                # redo the chunk one sample at a time so the log keeps every finite sample
+                try:
+                    while sim.t_ns < round(t_next * 1e9):
+                        j = math.floor(sim.t_ns * rate_hz / 1e9 + 1e-6) + 1
+                        self._write_traj(sim.run(min(t_next, _sample_grid_ns(rate_hz, j) / 1e9),
+                                                 rate_hz))
+                except failure as again:
+                    err = again
+                print(f"rod-sim: {err}; the log holds {self.samples} samples, t = 0.."
+                      f"{self.t_logged:g} s", file=sys.stderr)
+                return EXIT_CHECK_FAILED
+            self.wall += time.perf_counter() - started
+            self._write_traj(traj)
+        return EXIT_OK
+
+
+def _salvage(path: Path) -> str:
+    """After a failed write: keep ``path`` if it holds complete samples (say which), else
+    remove it. Returns what was done, for the error line."""
+    from ..io.series import read_rod_states
+
+    try:
+        t, _, _ = read_rod_states(path)
+    except Exception:                         # nothing readable: no complete chunk
+        t = ()
+    if len(t):
+        return (f"{path} keeps the {len(t)} samples of t = 0..{t[-1]:g} s written in complete "
+                "chunks (no summary: readers scan it)")
+    try:
+        path.unlink()
+    except OSError as err:
+        return f"{path} holds no complete sample and could not be removed: {err.strerror or err}"
+    return f"removed {path}, which held no complete sample"
+
+
