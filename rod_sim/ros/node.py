@@ -100,7 +100,7 @@ from rod_sim.core.integrators import IntegrationError, make_integrator
 from rod_sim.core.models import ModelError, make_model
 from rod_sim.core.scene import SceneError
 from rod_sim.core.simulator import Simulator
-from rod_sim.core.validity import ValidityMonitor, latch_losses
+from rod_sim.core.validity import ValidityMonitor, load_jump_power, net_power
 from rod_sim.io import topics
 from rod_sim.io.hinge_events import (HINGE_EVENTS_TOPIC, HINGE_EVENTS_TYPE, event_message,
                                      event_time_ns)
@@ -685,7 +685,7 @@ class RodSimNode(Node):
         sim.set_forces(held[:, :2])
         sim.set_hinge_torques(held[:, 2])
         self._publish_applied(sim.t_ns)
-        p_start = self._net_power(held)
+        p_start, t_start = self._net_power(held), sim.t
         work = self._budget.work(sim.integrator)
         start = time.perf_counter_ns()
         try:
@@ -704,9 +704,10 @@ class RodSimNode(Node):
             return False
         self._meter.add_step(self.period_ns, time.perf_counter_ns() - start)
         snap = sim.snapshot()
-        self._ledger.add_period(self.period_ns / NS_PER_S, p_start, self._net_power(held),
-                                self._energy(held, bending=(snap.alpha, snap.beta)),
-                                latch_losses(sim.events[self._events_sent:]))
+        p_end = self._net_power(held) + load_jump_power(self.model, sim.t, sim.y, held)
+        self._ledger.add_span(t_start, sim.t, p_start, p_end,
+                              self._energy(held, bending=(snap.alpha, snap.beta)),
+                              sim.events[self._events_sent:])
         self._validity.update(sim.t, sim.y, held, snap.alpha, snap.beta)
         self._validity.update_energy(sim.t, self._ledger.residual, self._ledger.scale)
         self._publish_state(snap)
@@ -729,8 +730,7 @@ class RodSimNode(Node):
                                    mode=self.sim.mode).total
 
     def _net_power(self, held: np.ndarray) -> float:
-        load, damper = self.model.powers(self.sim.t, self.sim.y, held, mode=self.sim.mode)
-        return load - damper
+        return net_power(self.model, self.sim.t, self.sim.y, held, self.sim.mode)
 
     def _fail(self, exc: Exception) -> None:
         """Pause after a failed period (the state stays at the period's start), log the cause

@@ -204,7 +204,7 @@ class _LoggedRun:
         self.t_logged = 0.0
 
     def _write(self, t: float, y, mode=None) -> None:
-        from ..core.validity import EnergyBalance, balance_terms, latch_losses
+        from ..core.validity import EnergyBalance, balance_terms, load_jump_power
 
         model = self.sim.model
         snap = model.snapshot(t, y, None, mode)
@@ -217,9 +217,10 @@ class _LoggedRun:
             k = self.balanced_events
             while k < len(events) and events[k].t < t:    # a sample at a latch's time: before it
                 k += 1
-            loss = latch_losses(events[self.balanced_events:k])
+            self.balance.add_span(self._last[0], t, self._last[1],
+                                  power + load_jump_power(model, t, y), energy,
+                                  events[self.balanced_events:k])
             self.balanced_events = k
-            self.balance.add_period(t - self._last[0], self._last[1], power, energy, loss)
             self.validity.update_energy(t, self.balance.residual, self.balance.scale)
         self._last = (t, power)
         with signals_deferred():            # every record of a sample whole, or none
