@@ -180,6 +180,8 @@ class ValidityMonitor:
         self.max_abs_beta = 0.0
         self._held = None
         self._energy: Finding | None = None
+        self.energy_residual = 0.0      # [J] the residual and scale last judged (update_energy)
+        self.energy_scale = 0.0
 
     def _add(self, f: Finding) -> None:
         self._found.setdefault((f.kind, f.rod), f)
@@ -219,6 +221,7 @@ class ValidityMonitor:
         Unlike the other checks this one reflects the latest judgement (not the first
         occurrence): at the start of a run the scale is tiny and the ratio meaningless."""
         self._energy = None
+        self.energy_residual, self.energy_scale = float(residual), float(scale)
         if scale > 0 and math.isfinite(residual) and abs(residual) > ENERGY_RESIDUAL_WARN * scale:
             self._energy = Finding(
                 "energy", float(t), 0, abs(residual) / scale, ENERGY_RESIDUAL_WARN,
@@ -303,6 +306,24 @@ def load_jump_power(model, t: float, y, held=None) -> float:
     return float(np.sum(d[:, 0] * vx + d[:, 1] * vy))
 
 
+RATE_STEP = 1e-7
+"""[s] step of the central difference in :func:`power_rate`."""
+
+
+def power_rate(model, t: float, y, held=None, mode=None) -> float:
+    """[W/s] d/dt of :func:`net_power` along the model's own equations at (t, y): a central
+    difference of :data:`RATE_STEP` along the right-hand side in ``mode``. nan where a scripted
+    load jumps or kinks at t (no one derivative there; the balance then uses the trapezoid
+    rule for the spans that meet t)."""
+    if any(b == t for b in model.scene.load_breakpoints()):
+        return math.nan
+    y = np.asarray(y, dtype=float)
+    h = RATE_STEP
+    f = model.rhs(t, y, held, mode)
+    return (net_power(model, t + h, y + h * f, held, mode)
+            - net_power(model, t - h, y - h * f, held, mode)) / (2.0 * h)
+
+
 def balance_terms(model, t: float, y, held=None, mode=None, bending=None) -> tuple[float, float]:
     """(total mechanical energy [J], net power [W] of :func:`net_power`) at (t, y) with the
     latched hinges ``mode`` locked (stop contacts included in both)."""
@@ -333,34 +354,49 @@ class EnergyBalance:
         self.work = self.abs_work = self.impacts = 0.0
 
     def add_period(self, dt: float, p_start: float, p_end: float, energy_end: float,
-                   impacts: float = 0.0, split: tuple[float, float] | None = None) -> None:
+                   impacts: float = 0.0, split: tuple[float, float] | None = None,
+                   rates: tuple[float, float] | None = None) -> None:
         """One period of ``dt`` [s]: net powers [W] at its ends, energy [J] at its end and the
-        kinetic energy [J] lost in latch impacts inside it. ``split`` = (a, b), 0 <= a <= b <=
-        dt: the power jumps at a and b [s] after the period's start (hinge events): p_start
-        holds up to a, p_end from b on, their mean in between (the trapezoid rule when None)."""
+        kinetic energy [J] lost in latch impacts inside it. ``rates`` [W/s]: the powers' time
+        derivatives at the ends (:func:`power_rate`): the work integral is then the corrected
+        trapezoid rule dt (p0 + p1) / 2 + dt^2 (d0 - d1) / 12 (exact for cubics), else the
+        plain one (also when a rate is nan). ``split`` = (a, b), 0 <= a <= b <= dt: the power
+        jumps at a and b [s] after the period's start (hinge events): the start's Taylor
+        expansion holds up to a, the end's from b on, their mean in between."""
         dt, p0, p1 = float(dt), float(p_start), float(p_end)
+        d0, d1 = (0.0, 0.0) if rates is None else (float(rates[0]), float(rates[1]))
+        if not (math.isfinite(d0) and math.isfinite(d1)):
+            d0 = d1 = 0.0
+            rates = None
         if split is None:
             work = 0.5 * dt * (p0 + p1)
-            abs_work = 0.5 * dt * abs(p0 + p1)
+            if rates is not None:
+                work += dt * dt * (d0 - d1) / 12.0
+            abs_work = abs(work)
         else:
             a, b = (min(max(float(x), 0.0), dt) for x in split)
-            work = a * p0 + (dt - b) * p1 + 0.5 * (b - a) * (p0 + p1)
-            abs_work = a * abs(p0) + (dt - b) * abs(p1) + 0.5 * (b - a) * abs(p0 + p1)
+            c = dt - b
+            head = a * p0 + 0.5 * a * a * d0
+            tail = c * p1 - 0.5 * c * c * d1
+            mid = 0.5 * (b - a) * (p0 + p1)
+            work = head + tail + mid
+            abs_work = abs(head) + abs(tail) + abs(mid)
         self.work += work
         self.abs_work += abs_work
         self.impacts += float(impacts)
         self.energy = float(energy_end)
 
     def add_span(self, t_start: float, t_end: float, p_start: float, p_end: float,
-                 energy_end: float, events=()) -> None:
+                 energy_end: float, events=(), rates: tuple[float, float] | None = None) -> None:
         """One span of simulated time [s] between two states the caller holds (samples or
-        control periods), with the net powers [W] there, the energy [J] at its end and the
-        hinge events of the span (HingeEvent): the latch impacts' kinetic energy losses are
-        booked and the work integral is split at the events where the power jumps."""
+        control periods), with the net powers [W] there (and their time derivatives [W/s],
+        ``rates``), the energy [J] at its end and the hinge events of the span (HingeEvent):
+        the latch impacts' kinetic energy losses are booked and the work integral is split at
+        the events where the power jumps."""
         jumps = [e.t for e in events if e.kind in JUMP_EVENTS]
         split = None if not jumps else (min(jumps) - t_start, max(jumps) - t_start)
         self.add_period(t_end - t_start, p_start, p_end, energy_end,
-                        latch_losses(events), split)
+                        latch_losses(events), split, rates)
 
     def add_impact(self, loss: float) -> None:
         self.impacts += float(loss)
@@ -403,15 +439,16 @@ def assess_trajectory(model, t, y, held=None, command_rate_hz: float | None = No
         mode = None if modes is None else modes[i]
         mon.update(t[i], y[i], h)
         energy, power = balance_terms(model, t[i], y[i], h, mode)
+        rate = power_rate(model, t[i], y[i], h, mode)
         if prev is None:
             balance.start(energy)
         else:
             balance.add_span(prev[0], t[i], prev[1],
                              power + load_jump_power(model, t[i], y[i], h), energy,
-                             span_events(events, prev[0], t[i]))
+                             span_events(events, prev[0], t[i]), (prev[2], rate))
             if worst is None or abs(balance.residual) > abs(worst[1]):
                 worst = (t[i], balance.residual)
-        prev = (t[i], power)
+        prev = (t[i], power, rate)
     if worst is not None:
         mon.update_energy(worst[0], worst[1], balance.scale)
     return mon

@@ -100,7 +100,7 @@ from rod_sim.core.integrators import IntegrationError, make_integrator
 from rod_sim.core.models import ModelError, make_model
 from rod_sim.core.scene import SceneError
 from rod_sim.core.simulator import Simulator
-from rod_sim.core.validity import ValidityMonitor, load_jump_power, net_power
+from rod_sim.core.validity import ValidityMonitor, load_jump_power, net_power, power_rate
 from rod_sim.io import topics
 from rod_sim.io.hinge_events import (HINGE_EVENTS_TOPIC, HINGE_EVENTS_TYPE, event_message,
                                      event_time_ns)
@@ -686,6 +686,7 @@ class RodSimNode(Node):
         sim.set_hinge_torques(held[:, 2])
         self._publish_applied(sim.t_ns)
         p_start, t_start = self._net_power(held), sim.t
+        d_start = power_rate(self.model, sim.t, sim.y, held, sim.mode)
         work = self._budget.work(sim.integrator)
         start = time.perf_counter_ns()
         try:
@@ -707,7 +708,8 @@ class RodSimNode(Node):
         p_end = self._net_power(held) + load_jump_power(self.model, sim.t, sim.y, held)
         self._ledger.add_span(t_start, sim.t, p_start, p_end,
                               self._energy(held, bending=(snap.alpha, snap.beta)),
-                              sim.events[self._events_sent:])
+                              sim.events[self._events_sent:],
+                              (d_start, power_rate(self.model, sim.t, sim.y, held, sim.mode)))
         self._validity.update(sim.t, sim.y, held, snap.alpha, snap.beta)
         self._validity.update_energy(sim.t, self._ledger.residual, self._ledger.scale)
         self._publish_state(snap)
