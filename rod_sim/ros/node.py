@@ -100,7 +100,7 @@ from rod_sim.core.integrators import IntegrationError, make_integrator
 from rod_sim.core.models import ModelError, make_model
 from rod_sim.core.scene import SceneError
 from rod_sim.core.simulator import Simulator
-from rod_sim.core.validity import ValidityMonitor, load_jump_power, net_power, power_rate
+from rod_sim.core.validity import ValidityMonitor, balance_sample
 from rod_sim.io import topics
 from rod_sim.io.hinge_events import (HINGE_EVENTS_TOPIC, HINGE_EVENTS_TYPE, event_message,
                                      event_time_ns)
@@ -318,7 +318,7 @@ class RodSimNode(Node):
         command of one topic keeps the other topic's last command)."""
         self._dropped = 0
         self._applied_last: dict[str, np.ndarray] = {}
-        self._ledger = EnergyLedger(self._energy(self.sim.held))
+        self._ledger = EnergyLedger.for_model(self.model, self._energy(self.sim.held))
         self._validity = ValidityMonitor(self.model)
         self._meter = RateMeter(time.monotonic_ns())
         self._max_alpha = 0.0
@@ -685,8 +685,7 @@ class RodSimNode(Node):
         sim.set_forces(held[:, :2])
         sim.set_hinge_torques(held[:, 2])
         self._publish_applied(sim.t_ns)
-        p_start, t_start = self._net_power(held), sim.t
-        d_start = power_rate(self.model, sim.t, sim.y, held, sim.mode)
+        start_sample = balance_sample(self.model, sim.t, sim.y, held, sim.mode)
         work = self._budget.work(sim.integrator)
         start = time.perf_counter_ns()
         try:
@@ -705,11 +704,9 @@ class RodSimNode(Node):
             return False
         self._meter.add_step(self.period_ns, time.perf_counter_ns() - start)
         snap = sim.snapshot()
-        p_end = self._net_power(held) + load_jump_power(self.model, sim.t, sim.y, held)
-        self._ledger.add_span(t_start, sim.t, p_start, p_end,
-                              self._energy(held, bending=(snap.alpha, snap.beta)),
-                              sim.events[self._events_sent:],
-                              (d_start, power_rate(self.model, sim.t, sim.y, held, sim.mode)))
+        self._ledger.add(start_sample, balance_sample(self.model, sim.t, sim.y, held, sim.mode,
+                                                      (snap.alpha, snap.beta)),
+                         sim.events[self._events_sent:])
         self._validity.update(sim.t, sim.y, held, snap.alpha, snap.beta)
         self._validity.update_energy(sim.t, self._ledger.residual, self._ledger.scale)
         self._publish_state(snap)
@@ -730,9 +727,6 @@ class RodSimNode(Node):
     def _energy(self, held: np.ndarray, bending=None) -> float:
         return self.model.energies(self.sim.t, self.sim.y, held, bending=bending,
                                    mode=self.sim.mode).total
-
-    def _net_power(self, held: np.ndarray) -> float:
-        return net_power(self.model, self.sim.t, self.sim.y, held, self.sim.mode)
 
     def _fail(self, exc: Exception) -> None:
         """Pause after a failed period (the state stays at the period's start), log the cause
