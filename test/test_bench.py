@@ -16,7 +16,7 @@ import pytest
 from rod_sim.core.integrators import make_integrator
 from rod_sim.core.models import make_model
 from rod_sim.core.simulator import Simulator
-from rod_sim.io.mcap_log import read_rod_states
+from rod_sim.io.series import read_rod_states
 from rod_sim.io.scene_yaml import load_scene
 from rod_sim.tools import bench, cli, mujoco_peer
 from rod_sim.tools.common import PAPER_EXAMPLE
@@ -174,12 +174,12 @@ def test_full_model_bound_is_a_lower_bound_on_dop853s_work(paper):
     rhs evaluations than it says, and at loose tolerances (stability-bound) runs come close."""
     rows = []
     for rtol in (1e-4, 1e-6):
-        integ = make_integrator("dop853-jit", rtol=rtol)
-        Simulator(make_model("full", paper), integ).run(bench.T_END, bench.RATE_HZ)
+        sim = Simulator(make_model("full", paper), make_integrator("dop853-jit", rtol=rtol))
+        sim.run(bench.T_END, bench.RATE_HZ)
         rows.append(bench.BenchRow("paper_example", 8, "full", "dop853-jit", f"rtol={rtol:g}",
                                    None, 0.03, bench.T_END, 66.0, 1e-7, cpu_s=0.03,
-                                   rtf_cpu=bench.T_END / 0.03, nfev=integ.stats.nfev,
-                                   steps=integ.stats.steps, rejected=integ.stats.rejected))
+                                   rtf_cpu=bench.T_END / 0.03, nfev=sim.stats.nfev,
+                                   steps=sim.stats.steps, rejected=sim.stats.rejected))
     b = bench.full_model_bound(rows)
     assert 2000.0 < b["max_abs_lambda"] < 4000.0
     assert b["dop853_min_rhs"] == b["dop853_min_steps"] * 12

@@ -17,7 +17,7 @@ from rod_sim.core import erk, integrators, jit, radau
 from rod_sim.core.integrators import IntegrationError, make_integrator
 from rod_sim.core.models import make_model
 from rod_sim.core.simulator import Simulator
-from rod_sim.io.mcap_log import read_rod_states
+from rod_sim.io.series import read_rod_states
 
 from procs import terminal_signals  # noqa: E402
 from rod_sim.io.scene_yaml import load_scene

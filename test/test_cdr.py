@@ -403,3 +403,51 @@ def test_struct_sequences_padded_after_their_count():
                 {"v": [], "w": [{"x": 1.0, "y": 2.0}], "p": []}, {}):
         assert fast(msg) == reference(msg), msg
     assert fast({"v": [{"x": 1.0, "y": 2.0}]})[4 + 12:4 + 16] == b"\x00" * 4  # the pad
+
+
+def test_cdr_bench_runs_and_every_encoder_agrees(capsys):
+    """The benchmark quoted in rod_sim/io/cdr.py's docstring: mcap_ros2, rod_sim and (when
+    installed) rosbags give the same bytes for every topic (else it returns 1)."""
+    from rod_sim.io import cdr_bench
+
+    assert cdr_bench.main(["--repeat", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "6 per period" in out and "markers" in out
+    pytest.importorskip("rosbags")
+    assert "rosbags dict [us]" in out
+
+
+def test_long_name_sequences_are_cached_but_never_stale():
+    """Joint names of a long chain are encoded once and reused while equal; a different or
+    mutated list of the same length, or another alignment, is encoded afresh (byte-equal to
+    mcap_ros2 every time)."""
+    enc = fast_only("sensor_msgs/msg/JointState")
+    names = [f"rod_{k}" for k in range(1, 41)]
+    msg = {"header": {"stamp": {"sec": 1, "nanosec": 2}, "frame_id": "world"}, "name": names,
+           "position": [0.5] * 40, "velocity": [], "effort": []}
+    first = enc(msg)
+    assert first == mcap_encode("sensor_msgs/msg/JointState", msg)
+    assert enc(msg) == first
+    names[7] = "rod_x"                                        # same object, mutated
+    assert enc(msg) == mcap_encode("sensor_msgs/msg/JointState", msg) != first
+    other = dict(msg, name=[f"hinge_{k}" for k in range(40)])  # same length, other names
+    assert enc(other) == mcap_encode("sensor_msgs/msg/JointState", other)
+    shifted = dict(msg, header={"stamp": {"sec": 1, "nanosec": 2}, "frame_id": "w"})
+    assert enc(shifted) == mcap_encode("sensor_msgs/msg/JointState", shifted)
+
+
+def test_node_poses_are_the_nodes_with_their_rods_yaw():
+    rng = np.random.default_rng(3)
+    n = 300
+    phi = rng.uniform(-3.0, 3.0, n)
+    length = rng.uniform(0.5, 2.0, n)
+    from rod_sim.core.kinematics import node_positions
+
+    snap = type("S", (), {"t": 0.25, "phi": phi, "nodes": node_positions(length, phi)})()
+    msg = topics.node_poses(snap)
+    assert len(msg["poses"]) == n + 1
+    for k, pose in enumerate(msg["poses"]):
+        q = topics.yaw_quaternion(phi[max(k, 1) - 1])
+        assert pose["orientation"] == pytest.approx(q, abs=1e-15)
+        assert (pose["position"]["x"], pose["position"]["y"]) == tuple(snap.nodes[k])
+        assert pose["position"]["z"] == 0.0

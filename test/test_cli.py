@@ -10,7 +10,8 @@ import pytest
 from rod_sim.core.integrators import make_integrator
 from rod_sim.core.models import make_model
 from rod_sim.core.simulator import Simulator
-from rod_sim.io.mcap_log import LogReader, read_rod_states
+from rod_sim.io.log_reader import LogReader
+from rod_sim.io.series import read_rod_states
 from rod_sim.io.scene_yaml import load_scene, scene_from_yaml_text
 from rod_sim.tools import cli
 
@@ -134,6 +135,7 @@ def test_light_name_lists_match_the_registries():
     from rod_sim.core import integrators, models, names
 
     assert sorted(models.MODELS) == sorted(names.MODEL_NAMES)
+    assert sorted(integrators.INTEGRATORS) == sorted(names.INTEGRATOR_NAMES)
     for name in names.INTEGRATOR_NAMES:
         assert integrators.make_integrator(name).name == name
 

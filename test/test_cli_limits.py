@@ -13,8 +13,8 @@ import pytest
 
 from rod_sim.core.quote import QUOTE_LIMIT, quote
 from rod_sim.core.scene import Scene, SceneError
-from rod_sim.io import mcap_log
-from rod_sim.io.mcap_log import read_rod_states
+from rod_sim.io import log_writer as mcap_log
+from rod_sim.io.series import read_rod_states
 from rod_sim.io.scene_yaml import MAX_SCENE_BYTES, load_scene
 from rod_sim.tools import cli, limits
 from rod_sim.tools.common import COMPILE_NOTICE, UsageError, compile_notice

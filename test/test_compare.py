@@ -25,7 +25,7 @@ from rod_sim.core.models import make_model
 from rod_sim.core.simulator import Simulator
 from rod_sim.io import topics
 from rod_sim.io.log_source import read_log
-from rod_sim.io.mcap_log import LogWriter
+from rod_sim.io.log_writer import LogWriter
 from rod_sim.io.scene_yaml import load_scene, scene_to_yaml
 from rod_sim.tools import cli
 from rod_sim.tools.comparison import (DEFAULT_TOLERANCE, compare_log, significant_digits)

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from rod_sim.io.log_source import read_log
-from rod_sim.io.mcap_log import LogWriter
+from rod_sim.io.log_writer import LogWriter
 from rod_sim.io.scene_yaml import load_scene, scene_to_yaml
 from rod_sim.tools import cli, comparison
 from rod_sim.tools.comparison import compare_log
@@ -95,7 +95,7 @@ def test_damped_long_log_gets_a_plain_pass(tmp_path, capsys):
 
 def perturbed_copy(src: Path, dst: Path, t_from: float, delta: float) -> Path:
     """``src`` with every /rod_states phi_1 at t >= t_from shifted by ``delta`` [rad]."""
-    from rod_sim.io.mcap_log import LogReader
+    from rod_sim.io.log_reader import LogReader
     from rod_sim.io import topics
 
     with LogReader(src) as reader:

@@ -17,7 +17,7 @@ pytest.importorskip("rclpy")
 pytest.importorskip("rosbags")
 
 from procs import ros_env  # noqa: E402
-from rod_sim.io.mcap_log import LogReader  # noqa: E402
+from rod_sim.io.log_reader import LogReader  # noqa: E402
 from rod_sim.io.playback import parse_offered_qos  # noqa: E402
 from rod_sim.io.scene_yaml import load_scene, scene_to_yaml  # noqa: E402
 from ros_graph import Client, NodeProcess, unique_namespace  # noqa: E402

@@ -8,7 +8,7 @@ from mcap.writer import Writer as McapWriter
 
 from rod_sim.core.models import make_model
 from rod_sim.core.simulator import Simulator
-from rod_sim.io.mcap_log import LogWriter
+from rod_sim.io.log_writer import LogWriter
 from rod_sim.io.scene_yaml import scene_from_yaml_text, scene_to_yaml
 from rod_sim.tools import cli
 

@@ -27,7 +27,7 @@ PAPER = REPO / "config" / "paper_example.yaml"
 
 def run(scene, model, t_end, rtol=None, integrator="dop853-jit", rate=100.0, **kw):
     sim = Simulator(make_model(model, scene), make_integrator(integrator, rtol=rtol, **kw))
-    return sim.run(t_end, rate), sim.integrator.stats
+    return sim.run(t_end, rate), sim.stats
 
 
 def max_err(a, b) -> float:
@@ -247,7 +247,8 @@ def test_every_integrator_raises_instead_of_returning_nan(integrator, kw, force)
 
 
 def test_simulate_exits_1_and_keeps_a_readable_log(tmp_path):
-    from rod_sim.io.mcap_log import LogReader, read_rod_states
+    from rod_sim.io.log_reader import LogReader
+    from rod_sim.io.series import read_rod_states
 
     out = tmp_path / "diverge.mcap"
     proc = subprocess.run([sys.executable, "-m", "rod_sim.tools.cli", "simulate", str(PAPER),

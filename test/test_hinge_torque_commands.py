@@ -33,7 +33,7 @@ from std_msgs.msg import Float64MultiArray  # noqa: E402
 
 from procs import ros_env  # noqa: E402
 from ros_graph import Client, NodeProcess, stamp_ns, unique_namespace  # noqa: E402
-from rod_sim.io.mcap_log import LogReader  # noqa: E402
+from rod_sim.io.log_reader import LogReader  # noqa: E402
 from rod_sim.ros.commands import TORQUES, CommandIntake  # noqa: E402
 from rod_sim.ros.conversions import CommandError, command_torques  # noqa: E402
 from test_compare import rewrite  # noqa: E402

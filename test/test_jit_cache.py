@@ -27,7 +27,7 @@ def test_compiled_integrators_and_kernels_use_the_core_stamp():
     if not jit.CORE_LOCATORS:
         pytest.skip("this numba has no cache locator API")
     stamp = jit.sources_stamp()
-    for dispatcher in (erk._dop853_reduced, erk._fixed_full, kernels.reduced_rhs):
+    for dispatcher in (erk.dop853_reduced, erk.fixed_full, kernels.reduced_rhs):
         locator = dispatcher._cache._impl.locator
         assert isinstance(locator, jit.CORE_LOCATORS), type(locator)
         assert locator.get_source_stamp() == stamp

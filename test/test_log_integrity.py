@@ -14,7 +14,10 @@ from pathlib import Path
 
 import pytest
 
-from rod_sim.io.mcap_log import LogFormatError, LogReader, LogWriter, read_rod_states
+from rod_sim.io.log_format import LogFormatError
+from rod_sim.io.log_reader import LogReader
+from rod_sim.io.log_writer import LogWriter
+from rod_sim.io.series import read_rod_states
 from rod_sim.io.playback import PlaybackError, open_source
 from rod_sim.io.scene_yaml import load_scene, scene_to_yaml
 from rod_sim.tools import cli

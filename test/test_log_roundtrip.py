@@ -24,8 +24,10 @@ from rod_sim.core.kinematics import node_positions, rod_points
 from rod_sim.core.scene import Scene
 from rod_sim.core.snapshot import Snapshot
 from rod_sim.io import msgdefs, topics
-from rod_sim.io.mcap_log import (LogFormatError, LogReader, LogWriteError, LogWriter,
-                                 read_applied_forces, read_rod_states)
+from rod_sim.io.log_format import LogFormatError
+from rod_sim.io.log_reader import LogReader
+from rod_sim.io.log_writer import LogWriteError, LogWriter
+from rod_sim.io.series import read_applied_forces, read_rod_states
 
 JAZZY = get_typestore(Stores.ROS2_JAZZY)
 REPO = Path(__file__).resolve().parents[1]
@@ -378,7 +380,7 @@ def test_killed_writer_leaves_its_complete_chunks_on_disk(tmp_path):
     script = textwrap.dedent(f"""
         import os, sys
         sys.path.insert(0, {str(REPO)!r})
-        from rod_sim.io.mcap_log import LogWriter
+        from rod_sim.io.log_writer import LogWriter
         w = LogWriter({str(path)!r}, metadata={{"scene": "s", "model": "m", "integrator": "i"}},
                       chunk_size=2048)
         for i in range(2000):

@@ -14,7 +14,8 @@ from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
-from rod_sim.io.mcap_log import LogReader, read_rod_states
+from rod_sim.io.log_reader import LogReader
+from rod_sim.io.series import read_rod_states
 from rod_sim.tools import cli
 from test_log_integrity import chunks, flipped, records
 

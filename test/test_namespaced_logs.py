@@ -12,7 +12,9 @@ import pytest
 from test_compare import rewrite
 
 from rod_sim.io.hinge_events import read_hinge_events
-from rod_sim.io.mcap_log import read_rod_states, resolve_topics, LogFormatError
+from rod_sim.io.log_format import LogFormatError
+from rod_sim.io.series import read_rod_states
+from rod_sim.io.topic_names import resolve_topics
 from rod_sim.io.playback import PlaybackError, Track, QosSpec, open_source, select_topics
 from rod_sim.tools import cli
 

@@ -23,7 +23,7 @@ from std_msgs.msg import Float64MultiArray  # noqa: E402
 from std_srvs.srv import SetBool, Trigger  # noqa: E402
 
 import test_node_ros as base  # noqa: E402
-from rod_sim.io.mcap_log import LogReader  # noqa: E402
+from rod_sim.io.log_reader import LogReader  # noqa: E402
 from rod_sim.io.scene_yaml import load_scene  # noqa: E402
 from rod_sim.ros.node import (DIAGNOSTICS_STATUS_NAME, NodeConfigError, RodSimNode,  # noqa: E402
                               has_hinge_events, params_files)

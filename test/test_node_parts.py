@@ -13,7 +13,8 @@ from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from std_msgs.msg import Float64MultiArray
 
-from rod_sim.io.mcap_log import LogReader, LogWriter
+from rod_sim.io.log_reader import LogReader
+from rod_sim.io.log_writer import LogWriter
 from rod_sim.ros.commands import COMMAND_SLACK_BYTES, CommandIntake
 from rod_sim.ros.errors import NodeConfigError
 from rod_sim.ros.parameters import PARAMETERS, parameter_error, validate_change

@@ -26,7 +26,8 @@ from procs import ros_env  # noqa: E402
 from rod_sim.core.integrators import make_integrator  # noqa: E402
 from rod_sim.core.models import make_model  # noqa: E402
 from rod_sim.core.simulator import Simulator  # noqa: E402
-from rod_sim.io.mcap_log import LogReader, read_rod_states  # noqa: E402
+from rod_sim.io.log_reader import LogReader  # noqa: E402
+from rod_sim.io.series import read_rod_states  # noqa: E402
 from rod_sim.io.scene_yaml import load_scene, scene_from_yaml_text, scene_to_yaml  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(60)]

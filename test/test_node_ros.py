@@ -26,7 +26,7 @@ from std_msgs.msg import Float64MultiArray  # noqa: E402
 from std_srvs.srv import SetBool, Trigger  # noqa: E402
 from visualization_msgs.msg import MarkerArray  # noqa: E402
 
-from rod_sim.io.mcap_log import LogReader  # noqa: E402
+from rod_sim.io.log_reader import LogReader  # noqa: E402
 from rod_sim.io.scene_yaml import load_scene, scene_to_yaml  # noqa: E402
 from rod_sim.ros.node import NodeConfigError, RodSimNode, params_files  # noqa: E402
 

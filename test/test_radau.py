@@ -4,6 +4,7 @@ the three models (against scipy's Radau and compiled DOP853), it beats explicit 
 on a stiff scene, and it fails loudly."""
 from __future__ import annotations
 
+import dataclasses
 import os
 import subprocess
 import sys
@@ -208,10 +209,10 @@ def test_models_converge_to_scipy_radau(model_name):
     ref = ref_sim.run(t_end, 20.0).y
     errors = []
     for rtol in (1e-5, 1e-7, 1e-9):
-        integ = make_integrator("radau-jit", rtol=rtol)
-        Y = Simulator(model, integ).run(t_end, 20.0).y
+        sim = Simulator(model, make_integrator("radau-jit", rtol=rtol))
+        Y = sim.run(t_end, 20.0).y
         errors.append(np.max(np.abs(Y - ref)))
-        assert integ.stats.steps > 0 and integ.stats.njev >= 1
+        assert sim.stats.steps > 0 and sim.stats.njev >= 1
     assert errors[0] < 1e-3 and errors[-1] < 1e-7, errors
     for loose, tight in zip(errors[:-1], errors[1:]):
         assert tight < loose / 5.0, errors
@@ -222,8 +223,8 @@ def test_stiff_scene_takes_far_fewer_rhs_than_explicit():
     model = make_model("full", load_scene(STIFF))
     runs = {}
     for name in ("dop853-jit", "radau-jit"):
-        integ = make_integrator(name, rtol=1e-6)
-        runs[name] = (Simulator(model, integ).run(0.2, 100.0).y, integ.stats)
+        sim = Simulator(model, make_integrator(name, rtol=1e-6))
+        runs[name] = (sim.run(0.2, 100.0).y, sim.stats)
     (y_dop, s_dop), (y_rad, s_rad) = runs["dop853-jit"], runs["radau-jit"]
     assert np.max(np.abs(y_dop[:, :8] - y_rad[:, :8])) < 1e-5
     assert s_dop.nfev > 5 * s_rad.nfev, (s_dop, s_rad)
@@ -251,8 +252,7 @@ def test_non_finite_start_and_too_many_steps_raise_naming_the_cause():
         sim.run(0.1, 100.0)
     assert "step size" in str(info.value) and "\n" not in str(info.value)
 
-    integ = make_integrator("radau-jit")
-    integ.max_steps = 3
+    integ = dataclasses.replace(make_integrator("radau-jit"), max_steps=3)
     with pytest.raises(IntegrationError, match="too many steps"):
         Simulator(model, integ).run(0.5, 100.0)
 
@@ -260,16 +260,16 @@ def test_non_finite_start_and_too_many_steps_raise_naming_the_cause():
 def test_step_size_is_carried_between_calls_and_reset():
     sim = Simulator(make_model("reduced", load_scene(PAPER)), make_integrator("radau-jit"))
     sim.advance(0.05)
-    assert sim.integrator._h > 0
-    nfev = sim.integrator.stats.nfev
+    assert sim.carry.h > 0
+    nfev = sim.stats.nfev
     sim.advance(0.05)
-    carried = sim.integrator.stats.nfev - nfev
-    sim.integrator._h = 0.0                              # the same period from a cold start
-    nfev = sim.integrator.stats.nfev
+    carried = sim.stats.nfev - nfev
+    sim.carry.h = 0.0                                    # the same period from a cold start
+    nfev = sim.stats.nfev
     sim.advance(0.05)
-    assert carried < sim.integrator.stats.nfev - nfev    # no new start-up
+    assert carried < sim.stats.nfev - nfev               # no new start-up
     sim.reset()
-    assert sim.integrator._h == 0.0
+    assert sim.carry.h == 0.0 and sim.stats.nfev > 0     # counters live as long as the sim
 
 
 def test_period_by_period_keeps_the_jacobian_and_the_accuracy():
@@ -279,14 +279,16 @@ def test_period_by_period_keeps_the_jacobian_and_the_accuracy():
     sim = Simulator(model, make_integrator("radau-jit", rtol=1e-8))
     for _ in range(100):
         sim.advance(0.001)
-    assert sim.integrator.stats.njev < 20, sim.integrator.stats     # not one per call (100)
+    assert sim.stats.njev < 20, sim.stats               # not one per call (100)
     ref = Simulator(model, make_integrator("dop853-jit", rtol=1e-11)).run(0.1, 10.0).y[-1]
     assert np.max(np.abs(sim.y[:8] - ref[:8])) < 1e-7
-    other = make_model("full", load_scene(STIFF))       # a new model gets a new workspace
-    y = sim.integrator.integrate(other, other.initial_state(), 0.0, [0.001])
-    assert sim.integrator._work_model is other and np.all(np.isfinite(y))
+    work = sim.carry.work
+    other = Simulator(make_model("full", load_scene(STIFF)), sim.integrator)
+    other.advance(0.001)                  # the same settings, another simulator's own state
+    assert other.carry.work is not None and other.carry.work is not work
+    assert sim.carry.work is work and np.all(np.isfinite(other.y))
     sim.reset()
-    assert sim.integrator._work is None
+    assert sim.carry.work is None
 
 
 @pytest.mark.skipif(not jit.HAVE_NUMBA, reason="numba not installed")
@@ -294,14 +296,15 @@ def test_radau_is_cached_under_the_core_stamp():
     if not jit.CORE_LOCATORS:
         pytest.skip("this numba has no cache locator API")
     assert (jit.CORE_DIR / "radau.py").exists()
-    for dispatcher in radau.RADAU_WORK.values():
+    for dispatcher in (radau.radau_rigid, radau.radau_reduced, radau.radau_full):
         locator = dispatcher._cache._impl.locator
         assert isinstance(locator, jit.CORE_LOCATORS), type(locator)
         assert locator.get_source_stamp() == jit.sources_stamp()
 
 
 def test_simulate_cli_runs_radau_jit(tmp_path):
-    from rod_sim.io.mcap_log import LogReader, read_rod_states
+    from rod_sim.io.log_reader import LogReader
+    from rod_sim.io.series import read_rod_states
 
     out = tmp_path / "radau.mcap"
     proc = subprocess.run([sys.executable, "-m", "rod_sim.tools.cli", "simulate", str(PAPER),
@@ -395,7 +398,7 @@ def _events_and_angles(sc, model, integrator, t_end, rate, rtol):
     sim = Simulator(make_model(model, sc), make_integrator(integrator, rtol=rtol, atol=rtol))
     traj = sim.run(t_end, rate)
     theta = np.diff(traj.phi, axis=1, prepend=0.0)
-    return [(e.t, e.kind, e.hinge) for e in sim.events], theta, sim.integrator.stats
+    return [(e.t, e.kind, e.hinge) for e in sim.events], theta, sim.stats
 
 
 def _assert_same_events(a, b, dt):

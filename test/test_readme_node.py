@@ -17,7 +17,7 @@ import pytest
 pytest.importorskip("rclpy")
 
 from procs import Child, ros_env  # noqa: E402
-from rod_sim.io.mcap_log import LogReader  # noqa: E402
+from rod_sim.io.log_reader import LogReader  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]
 

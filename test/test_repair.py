@@ -15,7 +15,7 @@ import pytest
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
-from rod_sim.io.mcap_log import LogReader
+from rod_sim.io.log_reader import LogReader
 from rod_sim.tools import cli
 
 ROOT = Path(__file__).resolve().parents[1]

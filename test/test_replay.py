@@ -20,7 +20,9 @@ from procs import Child
 from rod_sim.core.integrators import make_integrator
 from rod_sim.core.models import make_model
 from rod_sim.core.simulator import Simulator
-from rod_sim.io.mcap_log import LogReader, LogWriter, offered_qos_yaml, read_rod_states
+from rod_sim.io.log_reader import LogReader
+from rod_sim.io.log_writer import LogWriter, offered_qos_yaml
+from rod_sim.io.series import read_rod_states
 from rod_sim.io.playback import (PlaybackError, QosSpec, Timeline, adapt_offers, open_source,
                                  parse_offered_qos, select_topics)
 from rod_sim.io.scene_yaml import load_scene, scene_to_yaml

@@ -14,7 +14,7 @@ from procs import terminal_signals  # noqa: E402
 import yaml
 from mcap.reader import make_reader
 
-from rod_sim.io.mcap_log import LogReader
+from rod_sim.io.log_reader import LogReader
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "config" / "paper_example.yaml"
@@ -119,7 +119,7 @@ def test_a_signal_in_the_middle_of_a_log_write_waits_for_its_end(tmp_path, monke
     ended in a broken record, no DataEnd.)"""
     import os
 
-    from rod_sim.io import mcap_log
+    from rod_sim.io import log_writer as mcap_log
     from rod_sim.tools import cli
 
     for s in (signal.SIGTERM, signal.SIGINT):

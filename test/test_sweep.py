@@ -253,15 +253,15 @@ def independent_row(index, stiffness, amplitude, model="reduced", t_end=0.2, rat
     scene = base.with_changes(hinge_stiffness=stiffness, loads=(
         Load(node=3, axis="y", shape="constant", amplitude=amplitude, start=0.1),))
     m = make_model(model, scene)
-    integ = make_integrator("dop853-jit", rtol=1e-9)
-    traj = Simulator(m, integ).run(t_end, rate)
+    sim = Simulator(m, make_integrator("dop853-jit", rtol=1e-9))
+    traj = sim.run(t_end, rate)
     phi = traj.phi
     tips = np.array([node_positions(scene.length, p)[-1] for p in phi])
     bend = [m.bending(t, y) for t, y in zip(traj.t, traj.y)]
     energy = [m.energies(t, y).total for t, y in zip(traj.t, traj.y)]
     power = [np.subtract(*m.powers(t, y)) for t, y in zip(traj.t, traj.y)]
     return {"run": index, "hinges.stiffness": stiffness, "loads[0].amplitude": amplitude,
-            "model": model, "status": "ok", "nfev": integ.stats.nfev,
+            "model": model, "status": "ok", "nfev": sim.stats.nfev,
             "max_abs_phi": np.abs(phi).max(), "tip_phi_final": phi[-1, -1],
             "max_tip_displacement": np.hypot(*(tips - tips[0]).T).max(),
             "max_abs_alpha": max(np.abs(a).max() for a, _ in bend),

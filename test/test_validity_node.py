@@ -12,7 +12,8 @@ pytest.importorskip("rclpy")
 import test_node_ros as base  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 
-from rod_sim.io.mcap_log import LogReader, read_rod_states  # noqa: E402
+from rod_sim.io.log_reader import LogReader  # noqa: E402
+from rod_sim.io.series import read_rod_states  # noqa: E402
 from rod_sim.io.scene_yaml import scene_to_yaml  # noqa: E402
 from rod_sim.tools.hard_cases import chain  # noqa: E402
 

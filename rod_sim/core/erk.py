@@ -519,46 +519,43 @@ from . import kernels as _k  # noqa: E402
 
 
 @njit
-def _dop853_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                  max_step, max_steps, budget, Y_out, stats, events):
+def dop853_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
+                 max_step, max_steps, budget, Y_out, stats, events):
     return dop853_run(_k.rigid_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
                       atol, h_init, max_step, max_steps, budget, Y_out, stats, events)
 
 
 @njit
-def _dop853_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                    max_step, max_steps, budget, Y_out, stats, events):
+def dop853_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
+                   max_step, max_steps, budget, Y_out, stats, events):
     return dop853_run(_k.reduced_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
                       atol, h_init, max_step, max_steps, budget, Y_out, stats, events)
 
 
 @njit
-def _dop853_full(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                 max_step, max_steps, budget, Y_out, stats, events):
+def dop853_full(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
+                max_step, max_steps, budget, Y_out, stats, events):
     return dop853_run(_k.full_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, rtol,
                       atol, h_init, max_step, max_steps, budget, Y_out, stats, events)
 
 
 @njit
-def _fixed_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c, budget, Y_out, stats,
-                 events):
+def fixed_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c, budget, Y_out, stats,
+                events):
     return fixed_run(_k.rigid_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max,
                      A, b, c, budget, Y_out, stats, events)
 
 
 @njit
-def _fixed_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c, budget, Y_out, stats,
-                   events):
+def fixed_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c, budget, Y_out, stats,
+                  events):
     return fixed_run(_k.reduced_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max,
                      A, b, c, budget, Y_out, stats, events)
 
 
 @njit
-def _fixed_full(chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c, budget, Y_out, stats,
-                events):
+def fixed_full(chain, extra, loads, held, y0, t0, t_out, breaks, h_max, A, b, c, budget, Y_out, stats,
+               events):
     return fixed_run(_k.full_rhs, chain, extra, loads, held, y0, t0, t_out, breaks, h_max,
                      A, b, c, budget, Y_out, stats, events)
 
-
-DOP853 = {"rigid": _dop853_rigid, "reduced": _dop853_reduced, "full": _dop853_full}
-FIXED = {"rigid": _fixed_rigid, "reduced": _fixed_reduced, "full": _fixed_full}

@@ -1,4 +1,6 @@
-"""Time steppers behind one protocol, chosen by name, and the one integration driver.
+"""Time steppers behind one protocol, registered by name (:data:`INTEGRATORS`), and the one
+integration driver. An integrator is immutable settings; what it carries between calls (step
+size, radau's workspace, work counters) is a :class:`Carry` owned by the ``Simulator``.
 
 :func:`drive` is the only integration path (``Simulator``, and through it simulate, the node,
 compare, bench, advise and sweep): it asks an integrator to ``advance`` the model in the
@@ -9,7 +11,8 @@ and locates hinge events (latches, stop contact begin/end):
 
 - ``dop853-jit`` (default): compiled adaptive Dormand-Prince 8(5,3) with dense output.
 - ``radau-jit``: compiled implicit Radau IIA of order 5 (stiff scenes: the full model,
-  stiff rods, stops), finite-difference Jacobian, collocation dense output.
+  stiff rods, stops), Newton systems solved in O(n) (:mod:`rod_sim.core.newton`),
+  collocation dense output.
 - ``rk4``, ``rk2``, ``euler``: compiled fixed-step explicit Runge-Kutta (order 4, 2, 1);
   the step is ``step`` [s] at most, intervals are split into equal substeps.
 - ``RK45``, ``DOP853``, ``Radau``, ``BDF``, ``LSODA``: scipy's ``solve_ivp`` methods.
@@ -37,8 +40,7 @@ COLLAPSE_STEP = 1e-12
 """[s] (times max(1, |t|)): a compiled call that uses its whole work budget with a mean
 accepted step below this has a collapsed step size (10^12 steps per simulated second):
 ``drive`` stops with IntegrationError instead of spinning."""
-from .names import INTEGRATOR_NAMES as INTEGRATORS
-from .names import SCIPY_METHODS
+from .names import INTEGRATOR_NAMES, SCIPY_METHODS
 
 _TABLEAUX = {
     "euler": (np.zeros((1, 1)), np.array([1.0]), np.array([0.0]), 1),
@@ -47,6 +49,8 @@ _TABLEAUX = {
                       [0.0, 0.0, 1.0, 0.0]]),
             np.array([1.0, 2.0, 2.0, 1.0]) / 6.0, np.array([0.0, 0.5, 0.5, 1.0]), 4),
 }
+
+_SCIPY_ORDERS = {"RK45": 5, "DOP853": 8, "Radau": 5, "BDF": 5, "LSODA": 12}
 
 
 class IntegrationError(RuntimeError):
@@ -184,17 +188,35 @@ def call_budget(size: int) -> int:
 
 
 @dataclass
+class Carry:
+    """What an integrator carries from one call to the next for one simulator (the
+    init/step pattern: the settings are the :class:`Integrator`, this is its state, owned by
+    the ``Simulator``): work counters ``stats``, the step size ``h`` [s] to try next (0:
+    choose one), radau's workspace ``work`` (its Jacobian and Newton matrices; None: build it)
+    and ``steps0``, ``stats.steps`` when the current drive began."""
+
+    stats: Stats = field(default_factory=Stats)
+    h: float = 0.0
+    work: tuple | None = field(default=None, repr=False)
+    steps0: int = 0
+
+    def restart(self) -> None:
+        """Forget the carried step size and workspace (a new run); the counters stay."""
+        self.h, self.work = 0.0, None
+
+
+@dataclass(frozen=True)
 class Integrator:
-    """Base class: ``advance(model, plan, y0, t0, t_out, held, breaks)`` -> :class:`Stretch`."""
+    """Base class of the integrators' *settings* (immutable; change one with
+    ``dataclasses.replace``). ``init(model)`` -> :class:`Carry`;
+    ``advance(carry, model, plan, y0, t0, t_out, held, breaks)`` -> :class:`Stretch`."""
 
     name: str = ""
     rtol: float = DEFAULT_RTOL
     atol: float | None = None
     step: float = DEFAULT_STEP
-    stats: Stats = field(default_factory=Stats)
     order: int = 0
     adaptive: bool = True
-    _drive_steps0: int = field(default=0, repr=False)   # stats.steps when the drive began
 
     @property
     def abs_tol(self) -> float:
@@ -206,100 +228,93 @@ class Integrator:
             return f"{self.name} rtol={self.rtol:g} atol={self.abs_tol:g}"
         return f"{self.name} step={self.step:g}"
 
-    def advance(self, model, plan, y0, t0, t_out, held, breaks) -> Stretch:
+    def init(self, model) -> Carry:
+        """A fresh carried state for stepping ``model``."""
+        return Carry()
+
+    def advance(self, carry: Carry, model, plan, y0, t0, t_out, held, breaks) -> Stretch:
         """Integrate from (t0, y0) in the mode of ``plan`` through the sorted ``t_out`` until
-        the end or a terminal event. Raises IntegrationError."""
+        the end, a terminal event or the call's work budget, updating ``carry``. Raises
+        IntegrationError."""
         raise NotImplementedError
 
-    def integrate(self, model, y0, t0, t_out, held=None, mode=None, events=None):
+    def integrate(self, model, y0, t0, t_out, held=None, mode=None, events=None,
+                  carry: Carry | None = None):
         """States (len(t_out), state_size) at the sorted times t_out [s] from (t0, y0) in
-        ``mode`` (see :func:`drive`; events go to ``events`` if given)."""
-        return drive(model, self, y0, t0, t_out, held, mode, [] if events is None else events)[0]
+        ``mode`` (see :func:`drive`; events go to ``events`` if given, work to ``carry``)."""
+        return drive(model, self, y0, t0, t_out, held, mode,
+                     [] if events is None else events, carry=carry).Y
 
-    def reset(self) -> None:
-        """Forget carried step sizes (a new run)."""
-
-    def _steps_left(self) -> int:
+    def _steps_left(self, carry: Carry) -> int:
         """Accepted steps the current drive may still take (``max_steps`` bounds a drive)."""
         return max(1, int(getattr(self, "max_steps", 1 << 62))
-                   - (self.stats.steps - self._drive_steps0))
+                   - (carry.stats.steps - carry.steps0))
 
 
-@dataclass
+@dataclass(frozen=True)
 class JitDop853(Integrator):
-    """Compiled adaptive DOP853; carries its step size from one call to the next."""
+    """Compiled adaptive DOP853 (:func:`rod_sim.core.erk.dop853_run`); the step size is
+    carried from one call to the next. ``max_step`` [s] bounds a step, ``max_steps`` the
+    accepted steps of one drive."""
 
     name: str = "dop853-jit"
     order: int = 8
     max_step: float = np.inf
     max_steps: int = 10_000_000
-    _h: float = 0.0
 
-    def advance(self, model, plan, y0, t0, t_out, held, breaks) -> Stretch:
+    def advance(self, carry, model, plan, y0, t0, t_out, held, breaks) -> Stretch:
         Y = np.empty((t_out.size, y0.size))
         stats = np.zeros(3, dtype=np.int64)
         ev = _event_buffers(plan, y0.size)
-        y, t, h, status, written = _compiled(erk.DOP853[model.name],
+        y, t, h, status, written = _compiled(model.compiled.dop853,
             model.chain, plan.extra, model.loads, held, y0, float(t0), t_out, breaks,
-            self.rtol, self.abs_tol, self._h, self.max_step, self._steps_left(),
+            self.rtol, self.abs_tol, carry.h, self.max_step, self._steps_left(carry),
             call_budget(y0.size), Y, stats, ev)
-        return self._finish(model, plan, held, Y, stats, ev, y, t, h, status, written)
+        return self._finish(carry, model, plan, held, Y, stats, ev, y, t, h, status, written)
 
-    def _finish(self, model, plan, held, Y, stats, ev, y, t, h, status, written) -> Stretch:
+    @staticmethod
+    def _finish(carry, model, plan, held, Y, stats, ev, y, t, h, status, written) -> Stretch:
         """Account a compiled run's stats, raise on failure, carry the step size (a fresh
         start after a latch's impact) and wrap the result as a :class:`Stretch`."""
-        self.stats.add(stats)
+        carry.stats.add(stats)
         if status not in _RESUMABLE:
             raise _failure(model, erk.STATUS_TEXT[status] + f" (t = {t:.9g} s, step {h:.3g} s)",
                            t, y, held)
         latch = status == erk.STATUS_EVENT and plan.events[2][int(ev[4][0]) // 2] == \
             hinges.EV_LATCH
-        self._h = 0.0 if latch else h          # a fresh start after an impact
+        carry.h = 0.0 if latch else h          # a fresh start after an impact
         return _stretch(model, plan, Y, written, y, t, status, ev)
 
-    def reset(self) -> None:
-        self._h = 0.0
 
-
-@dataclass
+@dataclass(frozen=True)
 class JitRadau(JitDop853):
     """Compiled implicit Radau IIA (order 5) for stiff problems (:mod:`rod_sim.core.radau`);
-    carries its step size and, for the same model, its workspace (Jacobian) from one call to
+    the step size and the workspace (Jacobian, Newton matrices) are carried from one call to
     the next, so that stepping period by period does not rebuild the Jacobian every period."""
 
     name: str = "radau-jit"
     order: int = 5
-    _work: tuple | None = field(default=None, repr=False)
-    _work_model: object = field(default=None, repr=False)
 
-    def _workspace(self, model):
-        if self._work is None or self._work_model is not model:
-            self._work = radau.chain_radau_workspace(model)
-            self._work_model = model
-        return self._work
-
-    def advance(self, model, plan, y0, t0, t_out, held, breaks) -> Stretch:
+    def advance(self, carry, model, plan, y0, t0, t_out, held, breaks) -> Stretch:
         Y = np.empty((t_out.size, y0.size))
         stats = np.zeros(6, dtype=np.int64)
         ev = _event_buffers(plan, y0.size)
+        if carry.work is None:
+            carry.work = radau.chain_radau_workspace(model)
         try:
-            y, t, h, status, written = _compiled(radau.RADAU_WORK[model.name],
+            y, t, h, status, written = _compiled(model.compiled.radau,
                 model.chain, plan.extra, model.loads, held, y0, float(t0), t_out, breaks,
-                self.rtol, self.abs_tol, self._h, self.max_step, self._steps_left(),
-                call_budget(y0.size), Y, stats, ev, self._workspace(model))
+                self.rtol, self.abs_tol, carry.h, self.max_step, self._steps_left(carry),
+                call_budget(y0.size), Y, stats, ev, carry.work)
         except BaseException:
-            self._work = self._work_model = None        # no half-updated history kept
+            carry.work = None                    # no half-updated history kept
             raise
         if status not in _RESUMABLE:
-            self._work = self._work_model = None
-        return self._finish(model, plan, held, Y, stats, ev, y, t, h, status, written)
-
-    def reset(self) -> None:
-        super().reset()
-        self._work = self._work_model = None
+            carry.work = None
+        return self._finish(carry, model, plan, held, Y, stats, ev, y, t, h, status, written)
 
 
-@dataclass
+@dataclass(frozen=True)
 class JitFixedStep(Integrator):
     """Compiled fixed-step explicit Runge-Kutta (euler, rk2 = Heun, rk4); hinge events are
     located on each step's cubic Hermite interpolant (erk.fixed_run)."""
@@ -307,21 +322,21 @@ class JitFixedStep(Integrator):
     adaptive: bool = False
 
     def __post_init__(self):
-        A, b, c, order = _TABLEAUX[self.name]
-        self._tableau = (np.ascontiguousarray(A), b, c)
-        self.order = order
+        if self.name not in _TABLEAUX:
+            raise ValueError(f"integrator: {self.name!r} is not a fixed-step method")
+        object.__setattr__(self, "order", _TABLEAUX[self.name][3])
         if not self.step > 0:
             raise ValueError(f"step: must be > 0 (got {self.step!r})")
 
-    def advance(self, model, plan, y0, t0, t_out, held, breaks) -> Stretch:
+    def advance(self, carry, model, plan, y0, t0, t_out, held, breaks) -> Stretch:
         Y = np.empty((t_out.size, y0.size))
         stats = np.zeros(3, dtype=np.int64)
-        A, b, c = self._tableau
+        A, b, c, _ = _TABLEAUX[self.name]
         ev = _event_buffers(plan, y0.size)
-        y, t, status, written = _compiled(erk.FIXED[model.name],
+        y, t, status, written = _compiled(model.compiled.fixed,
             model.chain, plan.extra, model.loads, held, y0, float(t0), t_out, breaks,
             float(self.step), A, b, c, call_budget(y0.size), Y, stats, ev)
-        self.stats.add(stats)
+        carry.stats.add(stats)
         if status not in _RESUMABLE:
             raise _failure(model, erk.STATUS_TEXT[status], t, y, held)
         return _stretch(model, plan, Y, written, y, t, status, ev)
@@ -355,7 +370,7 @@ def _scipy_events(plan):
     return fns
 
 
-@dataclass
+@dataclass(frozen=True)
 class ScipyIntegrator(Integrator):
     """scipy.integrate.solve_ivp with one of its methods on the compiled right-hand side,
     restarted at load breakpoints; latches through solve_ivp's event location. Scenes with
@@ -368,9 +383,9 @@ class ScipyIntegrator(Integrator):
     max_nfev: int = 0
 
     def __post_init__(self):
-        self.order = {"RK45": 5, "DOP853": 8, "Radau": 5, "BDF": 5, "LSODA": 12}[self.name]
+        object.__setattr__(self, "order", _SCIPY_ORDERS[self.name])
 
-    def advance(self, model, plan, y0, t0, t_out, held, breaks) -> Stretch:
+    def advance(self, carry, model, plan, y0, t0, t_out, held, breaks) -> Stretch:
         Y = np.empty((t_out.size, y0.size))
         edges = [float(t0), *[b for b in breaks if t0 < b < t_out[-1]], float(t_out[-1])]
         kernel, chain, extra, loads = model.kernel, model.chain, plan.extra, model.loads
@@ -418,8 +433,8 @@ class ScipyIntegrator(Integrator):
             except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
                 raise _failure(model, f"{self.name} failed ({type(exc).__name__}: {exc})",
                                a, y, held) from None
-            self.stats.nfev += sol.nfev
-            self.stats.steps += max(sol.t.size - 1, 0)
+            carry.stats.nfev += sol.nfev
+            carry.stats.steps += max(sol.t.size - 1, 0)
             if sol.status == -1 or not np.all(np.isfinite(sol.y)):
                 t_fail = float(sol.t[-1]) if sol.t.size else a
                 y_fail = sol.y[:, -1] if sol.t.size else y
@@ -450,8 +465,22 @@ class ScipyIntegrator(Integrator):
         return _no_crossings()
 
 
+@dataclass(frozen=True, eq=False)
+class DriveResult:
+    """What :func:`drive` returns: states ``Y`` (N, size) and fired latches ``modes`` (N, n)
+    at the output times; at the end, the latches ``mode`` (n,), the state ``y`` (size,)
+    (after the impact when a latch fell on the last time) and the stop contacts ``contact``
+    (n,) int8."""
+
+    Y: np.ndarray
+    modes: np.ndarray
+    mode: np.ndarray
+    y: np.ndarray
+    contact: np.ndarray
+
+
 def drive(model, integrator: Integrator, y0, t0: float, t_out, held=None, mode=None,
-          events: list | None = None, contact=None):
+          events: list | None = None, contact=None, carry: Carry | None = None) -> DriveResult:
     """The integration driver: states at the sorted times ``t_out`` [s] from (t0, y0) with
     held nodal forces (n, 2) [N], the latches ``mode`` (n,) bool already fired (None: none)
     and the stop contacts ``contact`` (n,) int (None: as implied by y0), appending
@@ -462,9 +491,8 @@ def drive(model, integrator: Integrator, y0, t0: float, t_out, held=None, mode=N
     compiled integrator returns after a bounded amount of work (:data:`CALL_WORK`) and is
     called again, so that signals (Ctrl-C) are handled within a fraction of a second; a call
     that spent its whole budget with a mean step below :data:`COLLAPSE_STEP` raises
-    IntegrationError (the step size collapsed).
-    Returns (states (N, size), modes (N, n) of the samples, mode at the end, state at the
-    end (after the impact when a latch fell on the last time), contacts at the end).
+    IntegrationError (the step size collapsed). ``carry`` is the integrator's state from
+    the previous call (step size, workspace, counters; None: a fresh one) and is updated.
     Raises IntegrationError, ValueError (bad output times)."""
     t_out = np.atleast_1d(np.asarray(t_out, dtype=float))
     if t_out.size == 0:
@@ -486,17 +514,18 @@ def drive(model, integrator: Integrator, y0, t0: float, t_out, held=None, mode=N
     mode, y = _latch(model, mode, t, y, None, events)
     breaks = np.array(sorted(b for b in model.scene.load_breakpoints() if t < b < t_out[-1]),
                       dtype=float)
-    integrator._drive_steps0 = integrator.stats.steps
+    carry = integrator.init(model) if carry is None else carry
+    carry.steps0 = carry.stats.steps
     while done < t_out.size:
         plan = model.plan(mode, contact)
-        steps0, t0_call = integrator.stats.steps, t
-        s = integrator.advance(model, plan, y, t, t_out[done:], held, breaks)
+        steps0, t0_call = carry.stats.steps, t
+        s = integrator.advance(carry, model, plan, y, t, t_out[done:], held, breaks)
         Y[done:done + s.written] = s.Y[:s.written]
         modes[done:done + s.written] = mode
         done += s.written
         y, t = np.ascontiguousarray(s.y, dtype=float), s.t
         if s.exhausted:
-            steps = integrator.stats.steps - steps0
+            steps = carry.stats.steps - steps0
             mean = (t - t0_call) / steps if steps else 0.0
             if mean < COLLAPSE_STEP * max(1.0, abs(t)):
                 raise IntegrationError(
@@ -516,7 +545,7 @@ def drive(model, integrator: Integrator, y0, t0: float, t_out, held=None, mode=N
         events.append(hinges.HingeEvent(t, name, h, {
             "stop": stop, "angle": float(hinges.hinge_angles(model.phi(y))[h]),
             "rate": float(hinges.hinge_angles(model.phi_rate(y))[h])}))
-    return Y, modes, mode, y, contact
+    return DriveResult(Y, modes, mode, y, contact)
 
 
 def _latch(model, mode, t: float, y, located: int | None, events: list):
@@ -547,22 +576,39 @@ def _latch(model, mode, t: float, y, located: int | None, events: list):
     return new_mode, y1
 
 
+def _adaptive(cls):
+    """Factory of an adaptive integrator class (no fixed step)."""
+    def make(name, rtol, atol, step):
+        return cls(name=name, rtol=rtol, atol=atol)
+    return make
+
+
+def _fixed(name, rtol, atol, step):
+    return JitFixedStep(name=name, step=DEFAULT_STEP if step is None else float(step))
+
+
+INTEGRATORS = {"dop853-jit": _adaptive(JitDop853), "radau-jit": _adaptive(JitRadau),
+               **{name: _fixed for name in _TABLEAUX},
+               **{name: _adaptive(ScipyIntegrator) for name in SCIPY_METHODS}}
+"""The integrator registry: name -> factory (name, rtol, atol, step) -> Integrator. Its keys
+are :data:`rod_sim.core.names.INTEGRATOR_NAMES` (a test checks), which the command line and
+the node's parameters read without importing numba."""
+
+
 def make_integrator(name: str = "dop853-jit", *, rtol: float | None = None,
                     atol: float | None = None, step: float | None = None) -> Integrator:
-    """The integrator called ``name`` with the given tolerances or fixed step [s]."""
+    """The integrator called ``name`` with the given tolerances or fixed step [s] (a fixed
+    step applies to the fixed-step methods only)."""
     rtol = DEFAULT_RTOL if rtol is None else float(rtol)
     if not (np.isfinite(rtol) and rtol > 0):
         raise ValueError(f"rtol: must be a positive number (got {rtol!r})")
     if atol is not None and not (np.isfinite(atol) and atol > 0):
         raise ValueError(f"atol: must be a positive number (got {atol!r})")
-    if name == "dop853-jit":
-        return JitDop853(rtol=rtol, atol=atol)
     if step is not None and not (np.isfinite(step) and step >= MIN_STEP):
         raise ValueError(f"step: must be a number >= {MIN_STEP:g} s (got {step!r})")
-    if name == "radau-jit":
-        return JitRadau(rtol=rtol, atol=atol)
-    if name in _TABLEAUX:
-        return JitFixedStep(name=name, step=DEFAULT_STEP if step is None else float(step))
-    if name in SCIPY_METHODS:
-        return ScipyIntegrator(name=name, rtol=rtol, atol=atol)
-    raise ValueError(f"integrator: unknown integrator {name!r} (choose from {', '.join(INTEGRATORS)})")
+    try:
+        factory = INTEGRATORS[name]
+    except (KeyError, TypeError):
+        raise ValueError(f"integrator: unknown integrator {name!r} "
+                         f"(choose from {', '.join(INTEGRATOR_NAMES)})") from None
+    return factory(name, rtol, atol, step)

@@ -594,6 +594,45 @@ def full_rhs(t, y, chain, extra, loads, held, t_side, out):
         out[5 * n + k] = W[k, W_B]
 
 
+@njit(inline="always")
+def inertia_columns(full, chain, W, V, VA, VB, FP, FA, FB):
+    """Columns FP, FA, FB of W (n, ncol) = the paper's inertia blocks times the velocity
+    columns V, VA, VB, in O(n): FP = m^{pp} V + m^{pa} VA + m^{pb} VB, FA = m^{ap} V + m^{aa}
+    VA + m^{ab} VB, FB likewise, with cos, sin of the rod angles in columns W_C, W_S.
+    ``full`` False: only FP = m^{pp} V (VA, VB, FA, FB unused). The output columns must
+    differ from the input ones."""
+    n = W.shape[0]
+    zx = 0.0
+    zy = 0.0
+    for k in range(n):
+        c = W[k, W_C]
+        s = W[k, W_S]
+        v = W[k, V]
+        ez = c * zx + s * zy                    # e_k . sum_{j<k} l_j e_j v_j
+        W[k, FP] = chain.Akk[k] * v + chain.l[k] * chain.Mt[k] * ez
+        if full:
+            va = W[k, VA]
+            vb = W[k, VB]
+            W[k, FP] += chain.c30[k] * va - chain.c20[k] * vb
+            W[k, FA] = chain.C[k] * ez + chain.c30[k] * v + chain.c105[k] * va \
+                - chain.c140[k] * vb
+            W[k, FB] = -chain.C[k] * ez - chain.c20[k] * v - chain.c140[k] * va \
+                + chain.c105[k] * vb
+        zx += chain.l[k] * c * v
+        zy += chain.l[k] * s * v
+    rx = 0.0
+    ry = 0.0
+    for k in range(n - 1, -1, -1):
+        c = W[k, W_C]
+        s = W[k, W_S]
+        W[k, FP] += chain.l[k] * (c * rx + s * ry)
+        w = chain.l[k] * chain.Mt[k] * W[k, V]
+        if full:
+            w += chain.C[k] * (W[k, VA] - W[k, VB])
+        rx += w * c
+        ry += w * s
+
+
 @njit
 def mass_times(kind, phi, v, va, vb, chain, out, out_a, out_b):
     """out = m^{pp} v + m^{pa} va + m^{pb} vb, out_a = m^{ap} v + m^{aa} va + m^{ab} vb,
@@ -601,32 +640,35 @@ def mass_times(kind, phi, v, va, vb, chain, out, out_a, out_b):
     (kind KIND_REDUCED: only out = m^{pp} v; va, vb ignored)."""
     n = phi.shape[0]
     full = kind == KIND_FULL
-    zx = 0.0
-    zy = 0.0
+    W = np.zeros((n, 8))            # cos, sin, v, va, vb, out, out_a, out_b
     for k in range(n):
-        c = math.cos(phi[k])
-        s = math.sin(phi[k])
-        ez = c * zx + s * zy                    # e_k . sum_{j<k} l_j e_j v_j
-        out[k] = chain.Akk[k] * v[k] + chain.l[k] * chain.Mt[k] * ez
+        W[k, W_C] = math.cos(phi[k])
+        W[k, W_S] = math.sin(phi[k])
+        W[k, 2] = v[k]
         if full:
-            out[k] += chain.c30[k] * va[k] - chain.c20[k] * vb[k]
-            out_a[k] = chain.C[k] * ez + chain.c30[k] * v[k] + chain.c105[k] * va[k] \
-                - chain.c140[k] * vb[k]
-            out_b[k] = -chain.C[k] * ez - chain.c20[k] * v[k] - chain.c140[k] * va[k] \
-                + chain.c105[k] * vb[k]
-        zx += chain.l[k] * c * v[k]
-        zy += chain.l[k] * s * v[k]
-    rx = 0.0
-    ry = 0.0
-    for k in range(n - 1, -1, -1):
-        c = math.cos(phi[k])
-        s = math.sin(phi[k])
-        out[k] += chain.l[k] * (c * rx + s * ry)
-        w = chain.l[k] * chain.Mt[k] * v[k]
+            W[k, 3] = va[k]
+            W[k, 4] = vb[k]
+    inertia_columns(full, chain, W, 2, 3, 4, 5, 6, 7)
+    for k in range(n):
+        out[k] = W[k, 5]
         if full:
-            w += chain.C[k] * (va[k] - vb[k])
-        rx += w * c
-        ry += w * s
+            out_a[k] = W[k, 6]
+            out_b[k] = W[k, 7]
+
+
+def inertia_times(kind, chain, phi, v) -> np.ndarray:
+    """M v (3n,) [for the full kind; the reduced kind fills only the first n] at rod angles
+    phi (n,) [rad] for velocities v: (n,) rod rates, or (3n,) [phi', alpha', beta'] (the
+    slope parts are ignored by the reduced kind), O(n)."""
+    phi = np.ascontiguousarray(phi, dtype=float)
+    n = phi.shape[0]
+    v = np.asarray(v, dtype=float)
+    vv = np.zeros(3 * n)
+    vv[:v.shape[0]] = v
+    out = np.zeros(3 * n)
+    mass_times(kind, phi, vv[:n], vv[n:2 * n], vv[2 * n:], chain, out[:n], out[n:2 * n],
+               out[2 * n:])
+    return out
 
 
 @njit

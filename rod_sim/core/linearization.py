@@ -43,13 +43,7 @@ def stiffness_times(model, v: np.ndarray) -> np.ndarray:
 
 def mass_times(model, phi: np.ndarray, v: np.ndarray) -> np.ndarray:
     """M v (3n,) at rod angles phi (n,) for v (3n,)."""
-    n = model.n
-    out = np.empty(3 * n)
-    kernels.mass_times(kernels.KIND_FULL, np.ascontiguousarray(phi, dtype=float),
-                       np.ascontiguousarray(v[:n]), np.ascontiguousarray(v[n:2 * n]),
-                       np.ascontiguousarray(v[2 * n:]), model.chain, out[:n], out[n:2 * n],
-                       out[2 * n:])
-    return out
+    return kernels.inertia_times(kernels.KIND_FULL, model.chain, phi, v)
 
 
 def shifted_solver(model, phi: np.ndarray, s: float):

@@ -15,11 +15,11 @@ arguments and event table for a mode (cached, a pure function of it).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Callable, NamedTuple, Protocol
 
 import numpy as np
 
-from . import hinges, kernels
+from . import erk, hinges, kernels, radau
 from .kinematics import node_positions
 from .matrices import ChainParams
 from .scene import LOAD_AXES, Scene
@@ -59,23 +59,57 @@ class Plan:
     locked: np.ndarray
 
 
+class Compiled(NamedTuple):
+    """A model's compiled drivers (one specialisation per model kernel, cached on disk):
+    ``dop853`` (erk.dop853_run), ``fixed`` (erk.fixed_run), ``radau`` (radau.radau_run_work
+    with the O(n) Newton solve)."""
+
+    dop853: Callable
+    fixed: Callable
+    radau: Callable
+
+
 class Model(Protocol):
-    """The protocol every model implements (the driver and the tools use only this)."""
+    """The protocol every model implements; the driver, the simulator and the tools use only
+    this. Shapes: state (state_size,) = [q, q'] with q (dof,) = dof_per_rod blocks of n;
+    ``held`` (n, 3) nodal forces X, Y [N] and hinge motor moments T [N m] (or None: zeros;
+    (n, 2) forces); ``mode`` (n,) bool the latches fired (None: none); ``contact`` (n,) int8
+    the stop contacts (+1 upper, -1 lower, 0 free)."""
 
     name: str
     n: int
     dof_per_rod: int
     scene: Scene
+    params: ChainParams
+    chain: kernels.Chain
+    loads: tuple
+    kernel: Callable
+    compiled: Compiled
+    has_latches: bool
 
     @property
     def state_size(self) -> int: ...
+    @property
+    def dof(self) -> int: ...
     def initial_state(self) -> np.ndarray: ...
-    def plan(self, mode: np.ndarray | None = None) -> Plan: ...
-    def rhs(self, t: float, y: np.ndarray, held=None, mode=None) -> np.ndarray: ...
+    def phi(self, y: np.ndarray) -> np.ndarray: ...
+    def phi_rate(self, y: np.ndarray) -> np.ndarray: ...
+    def plan(self, mode: np.ndarray | None = None,
+             contact: np.ndarray | None = None) -> Plan: ...
+    def forces(self, t: float, held=None) -> np.ndarray: ...
+    def contact_state(self, y: np.ndarray) -> np.ndarray: ...
+    def rhs(self, t: float, y: np.ndarray, held=None, mode=None,
+            contact=None) -> np.ndarray: ...
+    def mass_times(self, y: np.ndarray, v: np.ndarray | None = None) -> np.ndarray: ...
     def project_velocity(self, y: np.ndarray, mode=None) -> np.ndarray: ...
-    def kinetic_energy(self, t, y, held=None) -> float: ...
     def bending(self, t, y, held=None, mode=None) -> tuple[np.ndarray, np.ndarray]: ...
+    def bending_rates(self, t, y, held=None) -> tuple[np.ndarray, np.ndarray]: ...
+    def hinge_deflection(self, t, y, held=None, bending=None,
+                         mode=None) -> tuple[np.ndarray, np.ndarray]: ...
+    def contact_moments(self, y: np.ndarray, mode=None) -> np.ndarray: ...
+    def kinetic_energy(self, t, y, held=None) -> float: ...
     def energies(self, t, y, held=None, bending=None, mode=None) -> Energies: ...
+    def powers(self, t, y, held=None, mode=None) -> tuple[float, float]: ...
     def snapshot(self, t, y, held=None, mode=None) -> Snapshot: ...
 
 
@@ -91,10 +125,12 @@ def load_table(scene: Scene):
 
 
 class ChainModel:
-    """Shared machinery; subclasses set ``name``, ``kernel`` and the state layout."""
+    """Shared machinery (implements :class:`Model`); a subclass sets ``name``, ``kernel``,
+    ``compiled`` and the state layout, and is registered in :data:`MODELS`."""
 
     name = "chain"
     kernel = None
+    compiled: Compiled
     dof_per_rod = 1
 
     def __init__(self, scene: Scene):
@@ -213,16 +249,8 @@ class ChainModel:
     def mass_times(self, y: np.ndarray, v: np.ndarray | None = None) -> np.ndarray:
         """M v (dof,) for velocities v (dof,) (default y's own) with M the paper's inertia
         matrix of the model's coordinates at y (rigid and reduced: m^{phi phi}), in O(n)."""
-        n = self.n
-        phi = np.ascontiguousarray(self.phi(y), dtype=float)
-        v = np.ascontiguousarray(y[self.dof:] if v is None else v, dtype=float)
-        out = np.empty(3 * n)
-        z = np.zeros(n)
-        full = self.dof_per_rod == 3
-        kernels.mass_times(self._kind, phi, v[:n], v[n:2 * n] if full else z,
-                           v[2 * n:] if full else z, self.chain, out[:n], out[n:2 * n],
-                           out[2 * n:])
-        return out[:self.dof]
+        v = y[self.dof:] if v is None else v
+        return kernels.inertia_times(self._kind, self.chain, self.phi(y), v)[:self.dof]
 
     def project_velocity(self, y: np.ndarray, mode: np.ndarray | None = None) -> np.ndarray:
         """y with its velocities replaced by the impulsive-constraint projection
@@ -235,13 +263,8 @@ class ChainModel:
             return out
         n, d = self.n, self.dof
         phi = np.ascontiguousarray(self.phi(y), dtype=float)
-        v = out[d:]
-        f = np.empty(3 * n)
-        z = np.zeros(n)
-        full = self.dof_per_rod == 3
         # reduced: (A v, m^{gamma phi} v) as right-hand sides give M_r x = M_r v
-        kernels.mass_times(kernels.KIND_FULL, phi, v[:n], v[n:2 * n] if full else z,
-                           v[2 * n:] if full else z, self.chain, f[:n], f[n:2 * n], f[2 * n:])
+        f = kernels.inertia_times(kernels.KIND_FULL, self.chain, phi, out[d:])
         if self.name == "rigid":
             f[n:] = 0.0
         x = np.empty(3 * n)
@@ -345,6 +368,7 @@ class RigidModel(ChainModel):
 
     name = "rigid"
     kernel = staticmethod(kernels.rigid_rhs)
+    compiled = Compiled(erk.dop853_rigid, erk.fixed_rigid, radau.radau_rigid)
 
     def _pinned(self) -> np.ndarray:
         return np.ones(self.n, dtype=bool)
@@ -359,6 +383,7 @@ class ReducedModel(ChainModel):
 
     name = "reduced"
     kernel = staticmethod(kernels.reduced_rhs)
+    compiled = Compiled(erk.dop853_reduced, erk.fixed_reduced, radau.radau_reduced)
 
     def bending(self, t, y, held=None, mode=None):
         """gamma = (alpha, beta) (n,) each [rad] from the quasi-static rows of (14), which the
@@ -373,6 +398,7 @@ class FullModel(ChainModel):
 
     name = "full"
     kernel = staticmethod(kernels.full_rhs)
+    compiled = Compiled(erk.dop853_full, erk.fixed_full, radau.radau_full)
     dof_per_rod = 3
 
     def __init__(self, scene: Scene):
@@ -394,7 +420,9 @@ class FullModel(ChainModel):
     _kind = kernels.KIND_FULL
 
 
-MODELS = {"full": FullModel, "reduced": ReducedModel, "rigid": RigidModel}
+MODELS = {cls.name: cls for cls in (FullModel, ReducedModel, RigidModel)}
+"""The model registry: name -> class. Its keys are :data:`rod_sim.core.names.MODEL_NAMES`
+(a test checks), which the command line reads without importing numba."""
 
 
 def make_model(name: str, scene: Scene) -> ChainModel:

@@ -109,43 +109,11 @@ def chain_solve(chain, extra, phi_j, nex, nch, g, r, out):
         W[k, _k.W_C] = math.cos(phi_j[k])
         W[k, _k.W_S] = math.sin(phi_j[k])
         W[k, _k.W_GP] = r[m + k] + g * r[k]
-        if full:
-            W[k, _k.W_GA] = r[m + n + k] + g * r[n + k]
-            W[k, _k.W_COR] = r[m + 2 * n + k] + g * r[2 * n + k]
+        W[k, _k.W_GA] = r[m + n + k] + g * r[n + k] if full else 0.0
+        W[k, _k.W_COR] = r[m + 2 * n + k] + g * r[2 * n + k] if full else 0.0
     # inertia product (full kind: the slope rows get m^{gamma phi} c' even for the reduced
     # model, whose Newton system keeps them)
-    zx = 0.0
-    zy = 0.0
-    for k in range(n):
-        c = W[k, _k.W_C]
-        s = W[k, _k.W_S]
-        v = W[k, _k.W_GP]
-        ez = c * zx + s * zy
-        fp = chain.Akk[k] * v + chain.l[k] * chain.Mt[k] * ez
-        fa = chain.C[k] * ez + chain.c30[k] * v
-        fb = -chain.C[k] * ez - chain.c20[k] * v
-        if full:
-            va = W[k, _k.W_GA]
-            vb = W[k, _k.W_COR]
-            fp += chain.c30[k] * va - chain.c20[k] * vb
-            fa += chain.c105[k] * va - chain.c140[k] * vb
-            fb += -chain.c140[k] * va + chain.c105[k] * vb
-        W[k, _k.W_FP] = fp
-        W[k, _k.W_FA] = fa
-        W[k, _k.W_FB] = fb
-        zx += chain.l[k] * c * v
-        zy += chain.l[k] * s * v
-    rx = 0.0
-    ry = 0.0
-    for k in range(n - 1, -1, -1):
-        c = W[k, _k.W_C]
-        s = W[k, _k.W_S]
-        W[k, _k.W_FP] += chain.l[k] * (c * rx + s * ry)
-        w = chain.l[k] * chain.Mt[k] * W[k, _k.W_GP]
-        if full:
-            w += chain.C[k] * (W[k, _k.W_GA] - W[k, _k.W_COR])
-        rx += w * c
-        ry += w * s
+    _k.inertia_columns(True, chain, W, _k.W_GP, _k.W_GA, _k.W_COR, _k.W_FP, _k.W_FA, _k.W_FB)
     # damping C_el r_q
     for h in range(n):
         if extra.locked[h] != 0:

@@ -25,7 +25,8 @@ Interfaces:
   step's ends and a crossing is located on the step's cubic collocation polynomial, written
   into DOP853's nested dense form so that erk's bracketing and Illinois search are reused
   (:func:`_nested_form`).
-- ``RADAU``: per-model cached wrappers, like ``erk.DOP853``.
+- ``radau_rigid``, ``radau_reduced``, ``radau_full``: per-model cached wrappers, like
+  ``erk.dop853_rigid`` (the models' ``compiled`` drivers).
 
 ``stats`` = [rhs evaluations (Jacobian columns included), accepted steps, rejected steps];
 when it has 6 entries, also [Jacobian evaluations, LU factorisation pairs, Newton iterations].
@@ -563,8 +564,8 @@ def chain_radau_workspace(model):
 
 
 @njit
-def _radau_work_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                      max_step, max_steps, budget, Y_out, stats, events, work):
+def radau_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
+                max_step, max_steps, budget, Y_out, stats, events, work):
     return radau_run_work(_k.rigid_rhs, _nw.chain_jac, _nw.chain_factor,
                           _nw.chain_solve, chain, extra, loads, held, y0, t0, t_out,
                           breaks, rtol, atol, h_init, max_step, max_steps, budget, Y_out, stats,
@@ -572,8 +573,8 @@ def _radau_work_rigid(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, at
 
 
 @njit
-def _radau_work_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                        max_step, max_steps, budget, Y_out, stats, events, work):
+def radau_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
+                  max_step, max_steps, budget, Y_out, stats, events, work):
     return radau_run_work(_k.reduced_rhs, _nw.chain_jac, _nw.chain_factor,
                           _nw.chain_solve, chain, extra, loads, held, y0, t0, t_out,
                           breaks, rtol, atol, h_init, max_step, max_steps, budget, Y_out, stats,
@@ -581,13 +582,10 @@ def _radau_work_reduced(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, 
 
 
 @njit
-def _radau_work_full(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
-                     max_step, max_steps, budget, Y_out, stats, events, work):
+def radau_full(chain, extra, loads, held, y0, t0, t_out, breaks, rtol, atol, h_init,
+               max_step, max_steps, budget, Y_out, stats, events, work):
     return radau_run_work(_k.full_rhs, _nw.chain_jac, _nw.chain_factor,
                           _nw.chain_solve, chain, extra, loads, held, y0, t0, t_out,
                           breaks, rtol, atol, h_init, max_step, max_steps, budget, Y_out, stats,
                           events, work)
 
-
-RADAU_WORK = {"rigid": _radau_work_rigid, "reduced": _radau_work_reduced,
-              "full": _radau_work_full}

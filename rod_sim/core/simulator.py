@@ -6,11 +6,12 @@ stamps a ROS node or a log uses (no drift from summing float periods).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .integrators import Integrator, IntegrationError, drive, explain_state, make_integrator
+from .integrators import (Carry, Integrator, IntegrationError, Stats, drive, explain_state,
+                          make_integrator)
 from .models import ChainModel
 from .snapshot import Snapshot
 
@@ -55,12 +56,26 @@ class Trajectory:
 
 
 class Simulator:
-    """Steps one model with one integrator; nodal forces are held between calls."""
+    """Steps one model with one integrator; nodal forces are held between calls. The
+    integrator is settings only: what it carries between calls (step size, workspace, work
+    counters) is the simulator's :attr:`carry`, so two simulators may share one model and
+    one integrator."""
 
     def __init__(self, model: ChainModel, integrator: Integrator | None = None):
         self.model = model
         self.integrator = integrator if integrator is not None else make_integrator()
+        self.carry: Carry = self.integrator.init(model)
         self.reset()
+
+    @property
+    def stats(self) -> Stats:
+        """Work counters of this simulator's integration since it was made (kept by reset)."""
+        return self.carry.stats
+
+    def configure(self, **settings) -> None:
+        """Change integrator settings (e.g. ``max_steps``, ``max_step``) from now on; the
+        carried step size and workspace stay."""
+        self.integrator = replace(self.integrator, **settings)
 
     def reset(self) -> None:
         """Back to the scene's initial state at t = 0 with zero held forces."""
@@ -70,7 +85,7 @@ class Simulator:
         self.y = self.model.initial_state()
         self.contact = self.model.contact_state(self.y)     # stop contacts (+1, -1, 0)
         self.held = np.zeros((self.model.n, 3))     # X, Y [N] at nodes 1..n; T [N m], hinges
-        self.integrator.reset()
+        self.carry.restart()
 
     @property
     def t(self) -> float:
@@ -124,15 +139,14 @@ class Simulator:
         simulator is left as it was (mode, contacts and events included)."""
         n_events = len(self.events)
         try:
-            Y, modes, mode, y_end, contact = drive(self.model, self.integrator, self.y, self.t,
-                                                   t_out, self.held, self.mode, self.events,
-                                                   self.contact)
-            self._check_finite(np.asarray(t_out, dtype=float), Y)
+            out = drive(self.model, self.integrator, self.y, self.t, t_out, self.held,
+                        self.mode, self.events, self.contact, self.carry)
+            self._check_finite(np.asarray(t_out, dtype=float), out.Y)
         except BaseException:
             del self.events[n_events:]
             raise
-        self.mode, self.y, self.contact = mode, y_end, contact
-        return Y, modes
+        self.mode, self.y, self.contact = out.mode, out.y, out.contact
+        return out.Y, out.modes
 
     def _check_finite(self, t: np.ndarray, Y: np.ndarray) -> None:
         """Never hand out a NaN: IntegrationError naming the first non-finite sample."""

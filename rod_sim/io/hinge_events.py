@@ -39,11 +39,12 @@ def write_events(log, events) -> int:
 
 
 def read_hinge_events(path) -> list[dict[str, Any]]:
-    """The events recorded in the MCAP log at ``path`` (``hinge_events`` under any one
-    namespace), in log order (dicts as written)."""
-    from .mcap_log import LogReader
+    """The events recorded in the log at ``path`` (any that
+    :func:`rod_sim.io.log_open.open_log` opens; ``hinge_events`` under any one namespace), in
+    log order (dicts as written)."""
+    from .log_open import open_log
 
-    with LogReader(path) as reader:
-        topic = reader.resolve([HINGE_EVENTS_TOPIC]).get(HINGE_EVENTS_TOPIC,
-                                                         "/" + HINGE_EVENTS_TOPIC)
-        return [json.loads(msg.data) for _, _, msg in reader.messages([topic])]
+    with open_log(path) as log:
+        topic = log.resolve([HINGE_EVENTS_TOPIC]).get(HINGE_EVENTS_TOPIC,
+                                                      "/" + HINGE_EVENTS_TOPIC)
+        return [json.loads(msg.data) for _, _, msg in log.messages([topic])]

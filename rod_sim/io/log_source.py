@@ -1,11 +1,7 @@
-"""Read what ``rod-sim compare`` needs from a log, as a stream: one MCAP file or a rosbag2 bag
-directory (MCAP storage; sqlite3 storage is copied to a temporary MCAP file first,
-:mod:`rod_sim.io.sqlite_bag`).
-
-A bag directory holds ``metadata.yaml`` (rosbag2's ``rosbag2_bagfile_information`` with
-``storage_identifier: mcap`` and ``relative_file_paths``) and the ``.mcap`` files it lists; they
-are read in that order (without ``metadata.yaml``: every ``*.mcap`` in name order) and their
-messages merged in log-time order.
+"""Read what ``rod-sim compare`` needs from a log, as a stream: any log that
+:func:`rod_sim.io.log_open.open_log` opens (an MCAP file; a rosbag2 bag directory of mcap or
+sqlite3 storage, compressed or not, with or without ``metadata.yaml``), the messages of its
+files merged in log-time order.
 
 What is read (n rods; times in integer ns of simulated time), under any one namespace
 (``/arm1/rod_states`` as well as ``/rod_states``):
@@ -21,7 +17,7 @@ What is read (n rods; times in integer ns of simulated time), under any one name
 :meth:`LogStream.groups` yields them one log time at a time, so memory does not grow with the
 log's length (each file's reader holds only the chunks whose time ranges overlap). The time of
 a state message is its header stamp; a log whose stamps and log times disagree is refused
-(:class:`~rod_sim.io.mcap_log.LogFormatError`): ``applied_forces`` has no header, so its log
+(:class:`~rod_sim.io.log_format.LogFormatError`): ``applied_forces`` has no header, so its log
 time is the only clock it has, and that clock must be simulated time. Every problem that makes
 a log unusable is a LogFormatError with a one-line message; problems that only limit what can
 be said (a truncated file, duplicate messages) are collected in ``LogStream.notes``.
@@ -29,10 +25,8 @@ be said (a truncated file, duplicate messages) are collected in ``LogStream.note
 from __future__ import annotations
 
 import contextlib
-import heapq
 import io
 import os
-import tempfile
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,8 +35,10 @@ from typing import Any
 import numpy as np
 import yaml
 
-from rod_sim.io.mcap_log import METADATA_NAME, LogFormatError, LogReader, namespace_of
-from rod_sim.io.sqlite_bag import SQLITE_STORAGE, SqliteBagError, bag_storage, sqlite_bag_to_mcap
+from rod_sim.io.log_format import METADATA_NAME, LogFormatError
+from rod_sim.io.log_open import OpenedLog, open_log
+from rod_sim.io.log_reader import LogReader
+from rod_sim.io.topic_names import base_name, namespace_of, resolve_topics
 
 STATE_TOPIC = "/rod_states"
 BENDING_TOPIC = "/bending"
@@ -72,44 +68,6 @@ class Group:
     torques: np.ndarray | None = None
 
 
-def log_files(path: str | os.PathLike) -> list[Path]:
-    """The MCAP files of ``path``: [path] for a file, the bag's files in order for a directory.
-
-    Raises LogFormatError (one line) for a missing path, a bag without MCAP files or a bag
-    whose metadata.yaml names another storage or a missing file."""
-    path = Path(path)
-    if not path.exists():
-        raise LogFormatError(f"{path}: no such file or directory")
-    if path.is_file():
-        return [path]
-    meta = path / "metadata.yaml"
-    if not meta.is_file():
-        files = sorted(path.glob("*.mcap"))
-        if not files:
-            raise LogFormatError(f"{path}: a directory without metadata.yaml or .mcap files "
-                                 "is not a rosbag2 bag")
-        return files
-    try:
-        info = yaml.safe_load(meta.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
-        storage = str(info.get("storage_identifier", "mcap"))
-        names = [str(p) for p in info["relative_file_paths"]]
-    except (yaml.YAMLError, KeyError, TypeError, AttributeError, UnicodeDecodeError) as exc:
-        raise LogFormatError(f"{meta}: not a rosbag2 metadata file "
-                             f"({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})"
-                             ) from None
-    if storage != "mcap":
-        raise LogFormatError(f"{path}: bag storage is {storage!r}; only 'mcap' and 'sqlite3' "
-                             "bags can be read (convert it with rosbags-convert --src BAG --dst "
-                             "OUT --dst-storage mcap; pip install rosbags)")
-    files = [path / name for name in names]
-    missing = [str(f) for f in files if not f.is_file()]
-    if missing:
-        raise LogFormatError(f"{path}: bag file {missing[0]} listed in metadata.yaml is missing")
-    if not files:
-        raise LogFormatError(f"{path}: metadata.yaml lists no files")
-    return files
-
-
 def _stamp_ns(msg: Any) -> int:
     stamp = msg.header.stamp
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
@@ -135,17 +93,15 @@ class LogStream:
     truncated: bool = False
     notes: list[str] = field(default_factory=list)
     counts: dict[str, int] = field(default_factory=lambda: {t: 0 for t in TOPICS})
-    _readers: list[LogReader] = field(default_factory=list, repr=False)
-    _copy: Any = field(default=None, repr=False)
-    """The temporary directory of a sqlite3 bag's MCAP copy (removed on :meth:`close`)."""
+    _log: OpenedLog | None = field(default=None, repr=False)
+
+    @property
+    def _readers(self) -> list[LogReader]:
+        return self._log.readers if self._log is not None else []
 
     def close(self) -> None:
-        for reader in self._readers:
-            reader.close()
-        self._readers = []
-        if self._copy is not None:
-            self._copy.cleanup()
-            self._copy = None
+        if self._log is not None:
+            self._log.close()
 
     def topic_scene(self):
         """The :class:`~rod_sim.core.scene.Scene` of the log's latched ``scene`` topic (YAML in
@@ -168,14 +124,13 @@ class LogStream:
     def __exit__(self, *exc) -> None:
         self.close()
 
-    def _messages(self) -> Iterator[tuple[int, int, str, Any]]:
-        def one(k: int, reader: LogReader, names: dict[str, str]):
-            ours = {logged: "/" + base for base, logged in names.items()}
-            for logged, log_ns, msg in reader.messages(list(ours)):
-                yield int(log_ns), k, ours[logged], msg
-        streams = [one(k, r, names) for k, (r, names) in enumerate(zip(self._readers,
-                                                                         self.topics))]
-        return heapq.merge(*streams, key=lambda m: (m[0], m[1]))
+    def _messages(self) -> Iterator[tuple[int, str, Any]]:
+        """(log time [ns], our base topic, message) in log-time order. The names found
+        in each file map back to ours by their base name (each file's topics lie in one
+        namespace, :func:`read_log`)."""
+        logged = sorted({name for names in self.topics for name in names.values()})
+        for topic, log_ns, msg in self._log.messages(logged):
+            yield log_ns, "/" + base_name(topic), msg
 
     def groups(self) -> Iterator[Group]:
         """The log's messages grouped by log time, in time order (see :class:`Group`).
@@ -194,7 +149,7 @@ class LogStream:
                     item = next(messages, None)
                 if item is None:
                     break
-                log_ns, _, topic, msg = item
+                log_ns, topic, msg = item
                 if t_group is not None and log_ns != t_group:
                     yield self._group(t_group, pending)
                     pending = {}
@@ -327,35 +282,13 @@ def read_log(path: str | os.PathLike, namespace: str | None = None) -> LogStream
     integrity is checked and its topics are found under any namespace (``/arm1/rod_states``
     as well as ``/rod_states``); a log holding them under two namespaces needs ``namespace``.
     Raises LogFormatError. Close the result (a context manager) when done."""
-    path = Path(path)
-    copy = None
-    if path.is_dir() and bag_storage(path) == SQLITE_STORAGE:
-        copy = tempfile.TemporaryDirectory(prefix="rod_sim_sqlite_bag_")
-        try:
-            files = [sqlite_bag_to_mcap(path, Path(copy.name) / f"{path.name}.mcap")]
-        except SqliteBagError as exc:
-            copy.cleanup()
-            raise LogFormatError(str(exc)) from None
-    else:
-        files = log_files(path)
-    stream = LogStream(path=path, files=files, metadata=None, topics=[], complete=True,
-                       _copy=copy)
+    log = open_log(path)
+    stream = LogStream(path=Path(path), files=log.files, metadata=log.metadata(METADATA_NAME),
+                       topics=[], complete=log.complete, _log=log)
     try:
-        for f in files:
-            try:
-                reader = LogReader(f)
-            except OSError as exc:
-                raise LogFormatError(f"{f}: {exc.strerror or exc}") from None
-            stream._readers.append(reader)
-            names = reader.resolve(TOPICS, namespace)
-            try:
-                meta = reader.metadata(METADATA_NAME)
-            except LogFormatError:
-                meta = None
+        for f, reader in zip(log.files, log.readers):
+            names = resolve_topics(reader.topics(), TOPICS, namespace, str(f))
             stream.topics.append(names)
-            stream.complete &= reader.complete
-            if stream.metadata is None:
-                stream.metadata = meta
             renamed = sorted(v for k, v in names.items() if v != "/" + k)
             if renamed:
                 stream.notes.append(f"{f.name}: read {', '.join(renamed)}")

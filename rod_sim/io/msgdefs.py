@@ -15,6 +15,16 @@ the names found in the referring file::
 :data:`TYPE_HASHES` to the type's RIHS01 hash (channel metadata ``topic_type_hash``).
 :func:`full_definition` rebuilds a text from ``.msg`` files; regenerate the constants with
 ``python -m rod_sim.io.msgdefs SHARE_DIR > constants.txt`` (SHARE_DIR holds ``<pkg>/msg/*.msg``).
+
+Why the texts are copied rather than read from the installed interface packages (issue 21):
+the ROS 2 wheels that ship the ``.msg`` files (``ros-jazzy-common-interfaces``, under
+``<sys.prefix>/share/<pkg>/msg``) are the optional ``ros`` extra, and ``rod-sim simulate``,
+``compare`` and ``repair`` write and read logs without it (``pip install rod_sim``); the
+libraries cannot stand in either: rosbags' ``generate_msgdef`` drops the comments that rosbag2
+keeps in the schema text, and mcap_ros2 has no definitions. test/test_msgdefs.py checks that
+every copied text equals the one rebuilt from the installed ``.msg`` files (and fails, rather
+than skips, when the ``ros`` extra is installed but a file is missing), and the hashes and
+fields against rosbags' Jazzy type store.
 """
 from __future__ import annotations
 

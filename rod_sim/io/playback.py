@@ -1,32 +1,31 @@
 """Reading a log for replay (no ROS here): sources, topic selection, QoS and timing.
 
-:func:`open_source` opens an MCAP log (ours, or any ROS 2 one) or a rosbag2 bag directory
-(``metadata.yaml`` + MCAP files) as a :class:`PlaybackSource`: its :class:`Track` s (topic, ROS
-type, the QoS to offer) and its raw CDR messages in log-time order, merged across the files of
-a bag. :class:`Timeline` maps log time to wall time at a playback rate. The ROS side is
-:mod:`rod_sim.ros.replay`.
+:func:`open_source` opens any log that :func:`rod_sim.io.log_open.open_log` opens (an MCAP
+file, ours or any ROS 2 one; a rosbag2 bag directory) as a :class:`PlaybackSource`: its
+:class:`Track` s (topic, ROS type, the QoS to offer) and its raw CDR messages in log-time order,
+merged across the files of a bag. :class:`Timeline` maps log time to wall time at a playback
+rate. The ROS side is :mod:`rod_sim.ros.replay`.
 
-Errors are :class:`PlaybackError` (a ValueError) with a one-line message naming the file or
-topic, so ``rod-sim replay`` reports them with exit status 2.
+Errors are :class:`PlaybackError`, the same class as every log reader's
+(:class:`~rod_sim.io.log_format.LogFormatError`, a ValueError), with a one-line message naming
+the file or topic, so ``rod-sim replay`` reports them with exit status 2.
 """
 from __future__ import annotations
 
-import heapq
 import os
-import tempfile
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import yaml
 
-from rod_sim.io.mcap_log import MAGIC, ChannelInfo, LogFormatError, LogReader
-from rod_sim.io.sqlite_bag import SQLITE_STORAGE, SqliteBagError, bag_storage, sqlite_bag_to_mcap
+from rod_sim.io.log_format import LogFormatError
+from rod_sim.io.log_open import open_log
+from rod_sim.io.log_reader import ChannelInfo
 
 NS_PER_S = 1_000_000_000
 DEFAULT_DEPTH = 10
 """History depth offered when a channel records none (rclcpp's and rosbag2's default)."""
-BAG_METADATA = "metadata.yaml"
 
 # rmw enum values, as rosbag2 before Jazzy wrote them into offered_qos_profiles
 _RELIABILITY = {0: "system_default", 1: "reliable", 2: "best_effort", 3: "unknown",
@@ -36,8 +35,9 @@ _DURABILITY = {0: "system_default", 1: "transient_local", 2: "volatile", 3: "unk
 _HISTORY = {0: "system_default", 1: "keep_last", 2: "keep_all", 3: "unknown"}
 
 
-class PlaybackError(ValueError):
-    """A log, bag or topic selection that cannot be replayed; ``str(err)`` is one line."""
+PlaybackError = LogFormatError
+"""A log, bag or topic selection that cannot be replayed; ``str(err)`` is one line. The one
+error class of opening and reading logs, under the name replay's callers know."""
 
 
 @dataclass(frozen=True)
@@ -126,38 +126,6 @@ def _track(info: ChannelInfo) -> Track:
                  message_count=info.message_count, note=note)
 
 
-def bag_files(directory: Path) -> list[Path]:
-    """The MCAP files of a rosbag2 bag directory, in the order its ``metadata.yaml`` lists
-    them. Raises PlaybackError for a directory that is not a readable MCAP bag."""
-    meta_path = directory / BAG_METADATA
-    if not meta_path.is_file():
-        raise PlaybackError(f"{directory} is a directory without {BAG_METADATA} (not a "
-                            "rosbag2 bag)")
-    try:
-        meta = yaml.safe_load(meta_path.read_text(encoding="utf-8"))
-        info = meta["rosbag2_bagfile_information"]
-    except (OSError, UnicodeDecodeError, yaml.YAMLError, KeyError, TypeError) as exc:
-        raise PlaybackError(f"{meta_path}: not a rosbag2 metadata file "
-                            f"({' '.join(str(exc).split())})") from None
-    storage = str(info.get("storage_identifier", ""))
-    if storage != "mcap":
-        raise PlaybackError(f"{directory}: storage {storage!r} is not supported (MCAP and "
-                            "sqlite3 bags only; convert it with rosbags-convert --src BAG --dst "
-                            "OUT --dst-storage mcap, pip install rosbags)")
-    if info.get("compression_mode"):
-        raise PlaybackError(f"{directory}: rosbag2 file compression "
-                            f"({info.get('compression_format') or info['compression_mode']}) "
-                            "is not supported")
-    names = info.get("relative_file_paths") or []
-    files = [directory / str(name) for name in names]
-    if not files:
-        raise PlaybackError(f"{meta_path} lists no files")
-    missing = [str(f) for f in files if not f.is_file()]
-    if missing:
-        raise PlaybackError(f"{directory}: bag file {missing[0]} is missing")
-    return files
-
-
 class PlaybackSource:
     """An MCAP file or a rosbag2 bag directory opened for replay (a context manager).
 
@@ -167,51 +135,19 @@ class PlaybackSource:
 
     def __init__(self, path: str | os.PathLike):
         self.path = Path(path)
-        if not self.path.exists():
-            raise PlaybackError(f"{self.path} does not exist")
-        self._copy = None
-        if self.path.is_dir() and bag_storage(self.path) == SQLITE_STORAGE:
-            self._copy = tempfile.TemporaryDirectory(prefix="rod_sim_sqlite_bag_")
-            try:
-                self.files = [sqlite_bag_to_mcap(self.path,
-                                                 Path(self._copy.name) / "bag.mcap")]
-            except SqliteBagError as exc:
-                self._copy.cleanup()
-                raise PlaybackError(str(exc)) from None
-        else:
-            self.files = bag_files(self.path) if self.path.is_dir() else [self.path]
-        self._readers: list[LogReader] = []
+        self._log = open_log(self.path)
+        self.files = self._log.files
         try:
-            for f in self.files:
-                self._readers.append(self._open(f))
             self.tracks = self._collect_tracks()
         except BaseException:
             self.close()
             raise
-        self.complete = all(r.complete for r in self._readers)
-
-    @staticmethod
-    def _open(path: Path) -> LogReader:
-        try:
-            with open(path, "rb") as f:
-                head = f.read(len(MAGIC))
-        except OSError as exc:
-            raise PlaybackError(f"cannot read {path}: {exc.strerror or exc}") from None
-        if head != MAGIC:
-            raise PlaybackError(f"{path} is not an MCAP file")
-        try:
-            return LogReader(path)
-        except (LogFormatError, OSError) as exc:
-            raise PlaybackError(" ".join(str(exc).split())) from None
+        self.complete = self._log.complete
 
     def _collect_tracks(self) -> dict[str, Track]:
         tracks: dict[str, Track] = {}
-        for reader in self._readers:
-            try:
-                channels = reader.channels()
-            except LogFormatError as exc:
-                raise PlaybackError(" ".join(str(exc).split())) from None
-            for topic, info in channels.items():
+        for reader in self._log.readers:
+            for topic, info in reader.channels().items():
                 track = _track(info)
                 known = tracks.get(topic)
                 if known is None:
@@ -229,22 +165,10 @@ class PlaybackSource:
         """``(topic, log_time [ns], CDR bytes)`` of ``topics`` (absolute; default all) in
         log-time order, merged across the files of a bag. Raises PlaybackError for a corrupt
         file."""
-        wanted = None if topics is None else list(topics)
-        streams = [((t, k, topic, data) for topic, t, data in r.raw_messages(wanted))
-                   for k, r in enumerate(self._readers)]
-        try:
-            for t_ns, _, topic, data in heapq.merge(*streams, key=lambda m: (m[0], m[1])):
-                yield topic, t_ns, data
-        except LogFormatError as exc:
-            raise PlaybackError(" ".join(str(exc).split())) from None
+        return self._log.messages(topics, raw=True)
 
     def close(self) -> None:
-        for reader in self._readers:
-            reader.close()
-        if self._copy is not None:
-            self._copy.cleanup()
-            self._copy = None
-        self._readers = []
+        self._log.close()
 
     def __enter__(self) -> "PlaybackSource":
         return self
@@ -254,7 +178,8 @@ class PlaybackSource:
 
 
 def open_source(path: str | os.PathLike) -> PlaybackSource:
-    """Open an MCAP file or a rosbag2 MCAP bag directory for replay (PlaybackError if not)."""
+    """Open a log for replay: any that :func:`rod_sim.io.log_open.open_log` opens
+    (PlaybackError if not)."""
     return PlaybackSource(path)
 
 

@@ -3,8 +3,9 @@ complete one: the same header, metadata, schemas, channels and every message of 
 chunks, then a summary (statistics, chunk and metadata indexes) and message indexes, so that
 readers that need the summary (rosbags, ``ros2 bag``) open it. Like ``mcap recover``.
 
-The source is read by :class:`~rod_sim.io.mcap_log.LogReader`, so a corrupt source (a CRC
-mismatch) is refused, never copied; the incomplete last record is dropped. Memory: the chunks
+The source is opened by :func:`rod_sim.io.log_open.open_mcap` (a
+:class:`~rod_sim.io.log_reader.LogReader`), so a corrupt source (a CRC mismatch) is refused,
+never copied; the incomplete last record is dropped. Memory: the chunks
 whose time ranges overlap, independent of the log length.
 """
 from __future__ import annotations
@@ -16,7 +17,9 @@ from pathlib import Path
 from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
 
-from rod_sim.io.mcap_log import CHUNK_SIZE, LogReader
+from rod_sim.io.log_format import CHUNK_SIZE
+from rod_sim.io.log_open import open_mcap
+from rod_sim.io.log_reader import LogReader
 
 
 @dataclass(frozen=True)
@@ -39,7 +42,7 @@ def repair_log(src: str | os.PathLike, dst: str | os.PathLike) -> RepairResult:
     exists) as a complete MCAP file. Raises LogFormatError for a source that is not MCAP or is
     corrupt; on any error a partly written ``dst`` is removed."""
     dst = Path(dst)
-    with LogReader(src) as reader, open(dst, "xb") as out:
+    with open_mcap(src) as reader, open(dst, "xb") as out:
         try:
             result = _copy(reader, out)
         except BaseException:

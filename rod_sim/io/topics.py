@@ -97,7 +97,13 @@ def header(t: float, frame_id: str) -> Msg:
 
 
 def _floats(a: Iterable[float]) -> list[float]:
-    return [float(v) for v in np.asarray(a, dtype=float).ravel()]
+    return np.asarray(a, dtype=float).ravel().tolist()
+
+
+@functools.lru_cache(maxsize=32)
+def _names(prefix: str, first: int, count: int) -> tuple[str, ...]:
+    """``prefix{first}`` .. ``prefix{first + count - 1}``, built once per chain size."""
+    return tuple(f"{prefix}{k}" for k in range(first, first + count))
 
 
 def _joint_state(t: float, frame_id: str, names: list[str], position, velocity=(),
@@ -111,7 +117,7 @@ def _joint_state(t: float, frame_id: str, names: list[str], position, velocity=(
 def joint_states(snapshot: Snapshot, frame_id: str = "world") -> Msg:
     """``sensor_msgs/JointState``: hinges ``hinge_0..hinge_{n-1}``; position = relative rigid
     hinge angle [rad], velocity = its rate [rad/s], effort = elastic + viscous moment [N m]."""
-    names = [f"hinge_{h}" for h in range(snapshot.n)]
+    names = list(_names("hinge_", 0, snapshot.n))
     return _joint_state(snapshot.t, frame_id, names, snapshot.hinge_angle, snapshot.hinge_rate,
                         snapshot.hinge_moment)
 
@@ -119,7 +125,7 @@ def joint_states(snapshot: Snapshot, frame_id: str = "world") -> Msg:
 def rod_states(snapshot: Snapshot, frame_id: str = "world") -> Msg:
     """``sensor_msgs/JointState``: ``rod_1..rod_n``; position = phi_k [rad], velocity =
     phi_dot_k [rad/s], effort empty."""
-    names = [f"rod_{k}" for k in range(1, snapshot.n + 1)]
+    names = list(_names("rod_", 1, snapshot.n))
     return _joint_state(snapshot.t, frame_id, names, snapshot.phi, snapshot.phi_rate)
 
 
@@ -127,7 +133,7 @@ def bending(snapshot: Snapshot, frame_id: str = "world") -> Msg:
     """``sensor_msgs/JointState``: ``alpha_1..alpha_n, beta_1..beta_n``; position = end slopes
     [rad] in that order; velocity and effort empty."""
     n = snapshot.n
-    names = [f"alpha_{k}" for k in range(1, n + 1)] + [f"beta_{k}" for k in range(1, n + 1)]
+    names = [*_names("alpha_", 1, n), *_names("beta_", 1, n)]
     return _joint_state(snapshot.t, frame_id, names,
                         np.concatenate([snapshot.alpha, snapshot.beta]))
 
@@ -142,11 +148,11 @@ def node_poses(snapshot: Snapshot, frame_id: str = "world") -> Msg:
     chord direction phi_k of rod k, the rod ending at node k (node 0: rod 1)."""
     nodes = np.asarray(snapshot.nodes, dtype=float)
     phi = np.asarray(snapshot.phi, dtype=float)
-    poses = []
-    for k in range(len(nodes)):
-        angle = phi[max(k, 1) - 1]
-        poses.append({"position": {"x": float(nodes[k, 0]), "y": float(nodes[k, 1]), "z": 0.0},
-                      "orientation": yaw_quaternion(float(angle))})
+    half = 0.5 * np.concatenate([phi[:1], phi])[:len(nodes)]      # node k: rod max(k, 1)
+    poses = [{"position": {"x": x, "y": y, "z": 0.0},
+              "orientation": {"x": 0.0, "y": 0.0, "z": qz, "w": qw}}
+             for x, y, qz, qw in zip(nodes[:, 0].tolist(), nodes[:, 1].tolist(),
+                                     np.sin(half).tolist(), np.cos(half).tolist())]
     return {"header": header(snapshot.t, frame_id), "poses": poses}
 
 

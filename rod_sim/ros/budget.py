@@ -48,23 +48,24 @@ class WorkBudget:
     unit_cost_s: float = 0.0
     limit: int = 0
 
-    def apply(self, integrator) -> None:
-        """Set the limit on ``integrator`` (a no-op for fixed-step methods)."""
-        name = limit_attribute(integrator)
+    def apply(self, sim) -> None:
+        """Set the limit on the simulator ``sim``'s integrator (a no-op for fixed-step
+        methods)."""
+        name = limit_attribute(sim.integrator)
         if name is not None and self.limit > 0:
-            setattr(integrator, name, self.limit)
+            sim.configure(**{name: self.limit})
 
     @staticmethod
-    def work(integrator) -> int:
-        """The integrator's cumulative work counter in the budget's unit."""
-        name = limit_attribute(integrator)
+    def work(sim) -> int:
+        """The simulator ``sim``'s cumulative work counter in the budget's unit."""
+        name = limit_attribute(sim.integrator)
         if name is None:
             return 0
-        return getattr(integrator.stats, _UNITS[name][0])
+        return getattr(sim.stats, _UNITS[name][0])
 
-    def exceeded(self, integrator, work_before: int) -> bool:
+    def exceeded(self, sim, work_before: int) -> bool:
         """Whether the call that started at counter ``work_before`` used the whole limit."""
-        return self.limit > 0 and self.work(integrator) - work_before >= self.limit
+        return self.limit > 0 and self.work(sim) - work_before >= self.limit
 
     def describe(self) -> str:
         if self.limit <= 0:
@@ -77,20 +78,19 @@ def measure(sim, period_s: float, seconds: float) -> WorkBudget:
     """The budget for ``seconds`` of wall time per period, timing the scratch simulator
     ``sim`` (advanced and modified) over a few periods of ``period_s`` [s]; its first period
     loads the compiled kernels and is not timed. Raises what ``Simulator.advance`` raises."""
-    integrator = sim.integrator
-    name = limit_attribute(integrator)
+    name = limit_attribute(sim.integrator)
     if name is None:
         sim.advance(period_s)
         return WorkBudget(seconds)
-    if hasattr(integrator, "max_step"):   # many short steps: a per-step cost, not call overhead
-        integrator.max_step = period_s / CALIBRATION_SUBSTEPS
+    if hasattr(sim.integrator, "max_step"):   # many short steps: a per-step cost, not overhead
+        sim.configure(max_step=period_s / CALIBRATION_SUBSTEPS)
     sim.advance(period_s)
     costs = []
     for _ in range(CALIBRATION_PERIODS):
-        before = WorkBudget.work(integrator)
+        before = WorkBudget.work(sim)
         start = time.perf_counter()
         sim.advance(period_s)
-        costs.append((time.perf_counter() - start) / max(WorkBudget.work(integrator) - before, 1))
+        costs.append((time.perf_counter() - start) / max(WorkBudget.work(sim) - before, 1))
     return _budget(name, seconds, statistics.median(costs))
 
 

@@ -104,7 +104,7 @@ from rod_sim.core.validity import ValidityMonitor, balance_sample
 from rod_sim.io import topics
 from rod_sim.io.hinge_events import (HINGE_EVENTS_TOPIC, HINGE_EVENTS_TYPE, event_message,
                                      event_time_ns)
-from rod_sim.io.mcap_log import LogWriter
+from rod_sim.io.log_writer import LogWriter
 from rod_sim.io.scene_yaml import load_scene, scene_to_yaml
 from rod_sim.io.urdf import scene_urdf
 from rod_sim.tools.common import UsageError
@@ -267,7 +267,6 @@ class RodSimNode(Node):
         1e308: non-finite linearization) is a NodeConfigError naming the cause."""
         try:
             self._warm_up()
-            self.sim.reset()          # the scratch run shares the model (hinge latches)
             self._init_state()
         except NodeConfigError:
             raise
@@ -286,7 +285,7 @@ class RodSimNode(Node):
             self._budget = budget.measure(scratch, period_s, self.settings.max_period_cost)
         except (IntegrationError, ArithmeticError):
             self._budget = budget.fallback(self.sim.integrator, self.settings.max_period_cost)
-        self._budget.apply(self.sim.integrator)
+        self._budget.apply(self.sim)
         if scratch.t_ns == 0:
             return  # the first period failed: the real run reports it
         snap = scratch.snapshot()
@@ -686,14 +685,14 @@ class RodSimNode(Node):
         sim.set_hinge_torques(held[:, 2])
         self._publish_applied(sim.t_ns)
         start_sample = balance_sample(self.model, sim.t, sim.y, held, sim.mode)
-        work = self._budget.work(sim.integrator)
+        work = self._budget.work(sim)
         start = time.perf_counter_ns()
         try:
             # advance() never hands out a non-finite state and, when it raises, leaves the
             # simulator at the period's start (hinge latches and events included)
             sim.advance(self.period_ns / NS_PER_S)
         except (IntegrationError, ArithmeticError) as exc:
-            if self._budget.exceeded(sim.integrator, work):
+            if self._budget.exceeded(sim, work):
                 exc = IntegrationError(
                     f"work budget exceeded: the period needs more than {self._budget.limit} "
                     f"{self._budget.unit} (~{self._budget.seconds:g} s of wall time, "

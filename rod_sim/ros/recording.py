@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Callable
 
 from rod_sim.io.hinge_events import HINGE_EVENTS_TOPIC
-from rod_sim.io.mcap_log import LogWriteError, LogWriter, offered_qos_yaml
+from rod_sim.io.log_writer import LogWriteError, LogWriter, offered_qos_yaml
 from rod_sim.ros.errors import NodeConfigError, one_line
 
 MAX_LOG_ROLLS = 10_000

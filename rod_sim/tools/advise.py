@@ -58,7 +58,7 @@ def _run(scene, model_name: str, rtol: float, t_end: float, repeats: int = 1):
         start = time.perf_counter()
         traj = sim.run(t_end, RATE_HZ)
         best = min(best, time.perf_counter() - start)
-        phi, nfev = traj.phi, sim.integrator.stats.nfev
+        phi, nfev = traj.phi, sim.stats.nfev
     return phi, best, nfev
 
 

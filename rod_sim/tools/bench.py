@@ -167,11 +167,11 @@ def describe_setting(settings: dict) -> str:
 
 # ------------------------------------------------------------------ references
 def run_phi(scene, model_name, integrator, t_end=T_END, **settings):
-    """phi (N, n) sampled at RATE_HZ on [0, t_end] and the integrator (for its stats)."""
+    """phi (N, n) sampled at RATE_HZ on [0, t_end] and the run's work counters."""
     _, make_integrator, make_model, Simulator = _core()
-    integ = make_integrator(integrator, **settings)
-    traj = Simulator(make_model(model_name, scene), integ).run(t_end, RATE_HZ)
-    return traj.phi, integ
+    sim = Simulator(make_model(model_name, scene), make_integrator(integrator, **settings))
+    traj = sim.run(t_end, RATE_HZ)
+    return traj.phi, sim.stats
 
 
 def reference(scene, model_name: str, rtol=REFERENCE_RTOL, check_rtol=CHECK_RTOL,
@@ -211,7 +211,7 @@ def _deadline_model(model, deadline):
 
 
 def time_run(scene, model_name, integrator, settings, repeats, cap_s, t_end=T_END):
-    """(median wall [s], median CPU [s], phi (N, n), integrator of the last run, repeats).
+    """(median wall [s], median CPU [s], phi (N, n), work counters of the last run, repeats).
 
     Compiled runs are preceded by a pilot over PILOT_FRACTION of the time span that predicts
     the full wall time; a prediction above ``cap_s`` raises RunTimeout without the long run.
@@ -229,11 +229,10 @@ def time_run(scene, model_name, integrator, settings, repeats, cap_s, t_end=T_EN
             raise RunTimeout(f"predicted {predicted:.3g} s > cap {cap_s:g} s (pilot over "
                              f"{t_end * PILOT_FRACTION:g} s)")
     walls, cpus = [], []
-    phi = integ = None
+    phi = sim = None
     while True:
-        integ = make_integrator(integrator, **settings)
         run_model = model if compiled else _deadline_model(model, time.perf_counter() + cap_s)
-        sim = Simulator(run_model, integ)
+        sim = Simulator(run_model, make_integrator(integrator, **settings))
         cpu0, started = time.process_time(), time.perf_counter()
         traj = sim.run(t_end, RATE_HZ)
         walls.append(time.perf_counter() - started)
@@ -244,7 +243,7 @@ def time_run(scene, model_name, integrator, settings, repeats, cap_s, t_end=T_EN
             break                                       # fast runs: more repeats, same budget
         if total * (len(walls) + 1) / len(walls) > cap_s / 2:
             break                                       # slow runs: fewer repeats
-    return statistics.median(walls), statistics.median(cpus), phi, integ, len(walls)
+    return statistics.median(walls), statistics.median(cpus), phi, sim.stats, len(walls)
 
 
 def _max_err(phi, ref):
@@ -307,16 +306,15 @@ def measure_setting(key, scene, model_name, integrator, settings, ref: Reference
         return row
     reps = 1 if integrator in SCIPY_METHODS and cfg.quick else cfg.repeats
     try:
-        wall, cpu, phi, integ, done = time_run(scene, model_name, integrator, settings, reps,
+        wall, cpu, phi, stats, done = time_run(scene, model_name, integrator, settings, reps,
                                                cfg.cap_s, t_end)
         row.wall_s, row.rtf = wall, t_end / wall
         row.cpu_s, row.rtf_cpu = cpu, t_end / max(cpu, 1e-9)
         row.max_phi_error = _max_err(phi, ref.phi)
         row.max_hinge_error = _hinge_err(phi, ref.phi)
         row.error_vs_full = _max_err(phi, full_ref)
-        row.nfev, row.steps, row.rejected = (integ.stats.nfev, integ.stats.steps,
-                                             integ.stats.rejected)
-        row.njev = getattr(integ.stats, "njev", 0)
+        row.nfev, row.steps, row.rejected = stats.nfev, stats.steps, stats.rejected
+        row.njev = stats.njev
         row.repeats = done
         if not np.isfinite(row.max_phi_error):
             row.status = "diverged (non-finite phi)"
@@ -517,7 +515,7 @@ def hinge_rhs_cost(models=MODELS, rounds: int = 7, span_s: float = 0.2) -> dict:
     its hinge features (no rest angle, stop, latch or locked hinge), per model, and their
     ratio. The two are timed alternately, ``rounds`` times each, and the minimum of each is
     kept, so that a burst of load from other processes hits both or neither."""
-    _, make_integrator, make_model, _ = _core()
+    _, make_integrator, make_model, Simulator = _core()
     scene = load_bench_scene("deployment")
     n = scene.n
     plain = scene.with_changes(hinge_rest_angle=0.0, stop_lower=-math.inf,
@@ -529,12 +527,11 @@ def hinge_rhs_cost(models=MODELS, rounds: int = 7, span_s: float = 0.2) -> dict:
         cost = {"hinge": math.inf, "plain": math.inf}
         for _ in range(rounds):
             for label, model in chains.items():
-                integ = make_integrator("rk4", step=1e-5)
-                y0 = model.initial_state()
+                sim = Simulator(model, make_integrator("rk4", step=1e-5))
                 started = time.perf_counter()
-                integ.integrate(model, y0, 0.0, [span_s])
+                sim.advance(span_s)
                 cost[label] = min(cost[label],
-                                  (time.perf_counter() - started) / integ.stats.nfev)
+                                  (time.perf_counter() - started) / sim.stats.nfev)
         out[m] = {"hinge_s": cost["hinge"], "plain_s": cost["plain"],
                   "ratio": cost["hinge"] / cost["plain"], "n": n, "rounds": rounds,
                   "span_s": span_s}

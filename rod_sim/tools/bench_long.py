@@ -72,18 +72,18 @@ def rhs_cost(model_name: str, scene, budget_s: float = 0.05) -> float:
     state: phi 0.1 rad, rates 0.5 rad/s)."""
     from ..core.integrators import make_integrator
     from ..core.models import make_model
+    from ..core.simulator import Simulator
 
     scene = scene.with_changes(phi0=np.full(scene.n, 0.1), phi_rate0=np.full(scene.n, 0.5))
     model = make_model(model_name, scene)
-    y0 = model.initial_state()
     steps = 1
     while True:
-        integ = make_integrator("rk4", step=1e-5)
+        sim = Simulator(model, make_integrator("rk4", step=1e-5))
         started = time.perf_counter()
-        integ.integrate(model, y0, 0.0, [steps * 1e-5])
+        sim.advance(steps * 1e-5)
         wall = time.perf_counter() - started
         if wall > budget_s or steps >= 1 << 16:
-            return wall / integ.stats.nfev
+            return wall / sim.stats.nfev
         steps *= 4
 
 
@@ -164,11 +164,10 @@ def _phi_run(scene, model_name, integrator, rtol, t_end, rate=50.0):
     from ..core.models import make_model
     from ..core.simulator import Simulator
 
-    integ = make_integrator(integrator, rtol=rtol)
-    sim = Simulator(make_model(model_name, scene), integ)
+    sim = Simulator(make_model(model_name, scene), make_integrator(integrator, rtol=rtol))
     cpu = time.process_time()
     traj = sim.run(t_end, rate)
-    return traj.phi, time.process_time() - cpu, integ.stats
+    return traj.phi, time.process_time() - cpu, sim.stats
 
 
 def work_precision(scene, model_name, t_end, settings, ref_rtol=1e-11, check_rtol=1e-10,

@@ -130,7 +130,7 @@ def cmd_simulate(args) -> int:
     from ..core.models import make_model
     from ..core.simulator import Simulator
     from ..io.log_source import SCENE_TOPIC
-    from ..io.mcap_log import LogWriter, offered_qos_yaml
+    from ..io.log_writer import LogWriter, offered_qos_yaml
     from ..io.scene_yaml import scene_to_yaml
 
     if not args.frame_id:                   # as the node's frame_id parameter
@@ -176,7 +176,7 @@ def cmd_simulate(args) -> int:
     rtf = sim.t / run.wall if run.wall > 0 else math.inf
     print(f"{scene.name}: {model.name} model, {integrator.describe()}, t = 0..{sim.t:g} s, "
           f"{run.samples} samples -> {out} (integration {run.wall:.3f} s wall, {rtf:.0f}x real "
-          f"time, {integrator.stats.nfev} rhs evaluations"
+          f"time, {sim.stats.nfev} rhs evaluations"
           + (f", {run.logged_events} hinge events" if run.logged_events else "") + ")")
     if run.validity.summary():
         print(f"rod-sim simulate: validity warning: {run.validity.summary()}", file=sys.stderr)
@@ -271,7 +271,7 @@ class _LoggedRun:
 def _salvage(path: Path) -> str:
     """After a failed write: keep ``path`` if it holds complete samples (say which), else
     remove it. Returns what was done, for the error line."""
-    from ..io.mcap_log import read_rod_states
+    from ..io.series import read_rod_states
 
     try:
         t, _, _ = read_rod_states(path)
@@ -377,7 +377,7 @@ def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     _pending.clear()
     handle_sigterm()
-    log_module = sys.modules.get("rod_sim.io.mcap_log")
+    log_module = sys.modules.get("rod_sim.io.log_reader")
     if log_module is not None:          # a log's damage warnings: once per command
         log_module._reported.clear()
     if argv[:1] == ["node"]:

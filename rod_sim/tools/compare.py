@@ -46,7 +46,7 @@ def configure(parser) -> None:
 def _scene_for(log, scene_path: str | None):
     """(scene, where it came from, note or None)."""
     from ..io.log_source import metadata_scene
-    from ..io.mcap_log import LogFormatError
+    from ..io.log_format import LogFormatError
     from ..io.scene_yaml import load_scene, scene_to_yaml
 
     if scene_path is None:
@@ -280,8 +280,8 @@ def validity_messages(scene, model_name: str, report) -> list[str]:
 
 
 def run(args) -> int:
+    from ..io.log_format import LogFormatError
     from ..io.log_source import read_log
-    from ..io.mcap_log import LogFormatError
     from .common import new_output_path
     from .comparison import DEFAULT_TOLERANCE, CompareInputError, compare_log
 

@@ -740,7 +740,7 @@ class _Comparison:
         reference: dict[str, Any] = {"model": self.model.name,
                                      "integrator": self.ref.integ.describe(),
                                      "segments": self.segments,
-                                     "rhs_evaluations": self.ref.integ.stats.nfev}
+                                     "rhs_evaluations": self.ref.sim.stats.nfev}
         if self.check is not None:
             reference["check_integrator"] = self.check.integ.describe()
             reference["phi_change"] = self.phi_change
@@ -758,7 +758,7 @@ class _Comparison:
             "log_precision_before_onset": self.eps if self.onset is not None else None,
             "horizon_cause": self.horizon_cause,
             "twin_perturbation": TWIN_DELTA,
-            "twin_rhs_evaluations": self.twin.integ.stats.nfev,
+            "twin_rhs_evaluations": self.twin.sim.stats.nfev,
             "beyond_horizon": None,
         }
         if self.horizon is not None and self.beyond_log.count:

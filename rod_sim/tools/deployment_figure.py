@@ -40,11 +40,11 @@ def finite_time(text: str) -> float:
 
 def _log_scene(path: str):
     """The scene of a log's metadata (UsageError when the log has none or it is invalid)."""
+    from ..io.log_open import open_log
     from ..io.log_source import metadata_scene
-    from ..io.mcap_log import LogReader
 
-    with LogReader(path) as reader:
-        scene = metadata_scene(reader.metadata(), path)   # bounded: YAML bombs refused
+    with open_log(path) as log:
+        scene = metadata_scene(log.metadata(), path)   # bounded: YAML bombs refused
     if scene is None:
         raise UsageError(f"{path}: the log's metadata holds no scene")
     return scene
@@ -52,7 +52,7 @@ def _log_scene(path: str):
 
 def run(args) -> int:
     from ..io.hinge_events import read_hinge_events
-    from ..io.mcap_log import read_rod_states
+    from ..io.series import read_rod_states
 
     png = new_output_path(args.png, "png")
     scene = _log_scene(args.log)

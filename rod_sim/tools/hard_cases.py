@@ -138,10 +138,10 @@ def run_case(case: Case, rtol: float | None = None):
         error = str(exc)
     wall = time.perf_counter() - start
     if error:
-        return None, None, wall, sim.integrator.stats, error
+        return None, None, wall, sim.stats, error
     from ..core.simulator import Trajectory
     traj = Trajectory(model, np.concatenate(t_parts), np.concatenate(y_parts))
-    return traj, np.concatenate(h_parts), wall, sim.integrator.stats, None
+    return traj, np.concatenate(h_parts), wall, sim.stats, None
 
 
 def measure(case: Case) -> dict:

@@ -69,9 +69,9 @@ def measure(scene, model_name="full", rtol=3e-6, t_end=2.0) -> dict:
     Simulator(model, make_integrator("radau-jit", rtol=rtol)).run(t_end, 100.0)   # warm-up
     cpus = []
     for _ in range(5):
-        integ = make_integrator("radau-jit", rtol=rtol)
+        sim = Simulator(model, make_integrator("radau-jit", rtol=rtol))
         started = time.process_time()
-        traj = Simulator(model, integ).run(t_end, 100.0)
+        traj = sim.run(t_end, 100.0)
         cpus.append(time.process_time() - started)
     y = traj.y[len(traj.t) // 2].copy()
     held = np.zeros((model.n, 2))
@@ -80,8 +80,8 @@ def measure(scene, model_name="full", rtol=3e-6, t_end=2.0) -> dict:
     work = radau.chain_radau_workspace(model)
     stats = np.zeros(6, dtype=np.int64)
     f = model.rhs(0.1, y)
-    h = t_end / max(integ.stats.steps, 1)
-    s = integ.stats
+    s = sim.stats
+    h = t_end / max(s.steps, 1)
     unit = {"rhs": _unit_cost(_loop_rhs, 20000, *args, np.empty(n)),
             "jacobian": _unit_cost(_loop_jacobian, 300, *args, f, work, stats),
             "lu_pair": _unit_cost(_loop_factor, 2000, model.chain, model.extra, work, h, stats),
@@ -141,10 +141,10 @@ def hard_case_rows(names=HARD_CASES, settings=SETTINGS) -> list[dict]:
                                                                                100.0).phi
         for name, rtol in settings:
             Simulator(model, make_integrator(name, rtol=rtol)).advance(1e-4)     # compile
-            integ = make_integrator(name, rtol=rtol)
+            sim = Simulator(model, make_integrator(name, rtol=rtol))
             started = time.process_time()
-            phi = Simulator(model, integ).run(case.t_end, 100.0).phi
-            s = integ.stats
+            phi = sim.run(case.t_end, 100.0).phi
+            s = sim.stats
             rows.append({"case": case.name, "t_end": case.t_end, "integrator": name,
                          "rtol": rtol, "cpu_s": time.process_time() - started,
                          "nfev": s.nfev, "steps": s.steps, "rejected": s.rejected,
@@ -178,7 +178,7 @@ def period_rows(scene_files, periods=(0.01, 0.001), span=0.5, rtol=1e-8,
                 for _ in range(int(round(span / period))):
                     sim.advance(period)
                 cpu = time.process_time() - started
-            s = sim.integrator.stats
+            s = sim.stats
             rows.append({"scene": str(path), "integrator": name, "period_s": period,
                          "cpu_s": cpu, "nfev": s.nfev,
                          "njev": s.njev, "steps": s.steps})

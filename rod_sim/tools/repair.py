@@ -7,8 +7,9 @@ and the gap in log time); one flipped bit outside the chunks' data is located by
 data-section CRC and written corrected.
 
 Exit 0 when the repaired copy was written (or LOG was already complete and intact: nothing
-written); 2 with one line for a missing or non-MCAP LOG, a LOG whose record framing is damaged,
-or an existing OUT. LOG itself is never changed.
+written); 2 with one line for a missing or non-MCAP LOG (opened as every command opens a log,
+:mod:`rod_sim.io.log_open`), a directory, a LOG whose record framing is damaged, or an existing
+OUT. LOG itself is never changed.
 """
 from __future__ import annotations
 
@@ -35,13 +36,15 @@ def default_out(log: Path) -> Path:
 
 
 def run(args) -> int:
-    from ..io.mcap_log import LogReader
+    from ..io.log_open import open_log
     from ..io.repair import repair_log
 
     log = Path(args.log)
-    if not log.is_file():
-        raise UsageError(f"{log}: no such file" if not log.exists() else f"{log}: not a file")
-    with LogReader(log) as reader:          # refuses a non-MCAP or corrupt log before writing
+    if log.is_dir():
+        raise UsageError(f"{log}: a directory; repair rewrites one MCAP file (repair each "
+                         ".mcap file of a bag)")
+    with open_log(log) as opened:           # refuses a non-MCAP or corrupt log before writing
+        reader = opened.readers[0]
         if reader.complete:
             print(f"{log} is complete (it has its summary and indexes): nothing to repair")
             return EXIT_OK

@@ -114,11 +114,11 @@ def run_one(task: dict) -> dict:
     except Exception as err:                 # noqa: BLE001
         wall = time.perf_counter() - started
         return _row(task, f"failed: {type(err).__name__}: {' '.join(str(err).split())}", wall,
-                    integrator.stats.nfev, None)
+                    sim.stats.nfev, None)
     wall = time.perf_counter() - started
     try:
         values = metrics(model, traj.t, traj.y)
     except Exception as err:                 # noqa: BLE001
         return _row(task, f"failed: outputs: {type(err).__name__}: {err}", wall,
-                    integrator.stats.nfev, None)
-    return _row(task, "ok", wall, integrator.stats.nfev, values)
+                    sim.stats.nfev, None)
+    return _row(task, "ok", wall, sim.stats.nfev, values)

@@ -1,244 +1,32 @@
-"""The rod_sim log (docs/interface.md section 4): an MCAP file in the ROS 2 profile, as rosbag2 Jazzy writes it.
-
-Layout: header (profile ``ros2``), a metadata record ``rod_sim`` (written first, so that even a
-truncated log can be replayed), then zstd-compressed chunks of CDR messages (encoded by
-:mod:`rod_sim.io.cdr`), then on :meth:`LogWriter.close` the summary (schemas, channels,
-statistics, chunk indexes, metadata index) and message indexes. Schemas are ``ros2msg`` texts
-from :mod:`rod_sim.io.msgdefs`; channels carry ``offered_qos_profiles`` (YAML, rosbag2 Jazzy
-format) and ``topic_type_hash``; log_time = publish_time = the simulated time [ns].
-
-Chunks are written and flushed to the OS as soon as they are full (:data:`CHUNK_SIZE`), so a
-writer killed before ``close`` loses at most the last, unfinished chunk; :class:`LogReader`
-then reads every complete chunk by scanning the file.
+"""Reading one MCAP file with its integrity checked (:class:`LogReader`): the framing of every
+record, each chunk's CRC, the data-section and summary CRCs, built on the ``mcap`` library's
+record parsers. Intact chunks stay readable after damage elsewhere (a flipped bit, a cut file);
+one flipped bit outside the chunks' data is located by the data-section CRC and corrected in
+what is read. Opening a log (a file or a rosbag2 bag) goes through :mod:`rod_sim.io.log_open`.
 """
 from __future__ import annotations
 
-import errno
 import heapq
 import io
 import os
 import struct
 import sys
 import zlib
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.reader import make_reader
 from mcap.records import Channel, Chunk, Header, Message, Metadata, Schema
 from mcap.stream_reader import breakup_chunk, get_chunk_data_stream
-from mcap.writer import CompressionType
-from mcap.writer import Writer as McapWriter
 from mcap_ros2.decoder import DecoderFactory
 
-from rod_sim import __version__
-from rod_sim.core.scene import Scene
-from rod_sim.core.snapshot import Snapshot
-from rod_sim.io import cdr, msgdefs, topics as topic_msgs
 from rod_sim.io.crc_locate import locate_single_bit
-
-METADATA_NAME = "rod_sim"
-REQUIRED_METADATA = ("scene", "model", "integrator")
-CHUNK_SIZE = 256 * 1024
-"""[bytes] uncompressed size at which a chunk is closed and written (rosbag2's is 768 KiB)."""
-MAGIC = b"\x89MCAP0\r\n"
-PROFILE = "ros2"
-
-RMW_DURATION_INFINITE = {"sec": 9223372036, "nsec": 854775807}
-"""rmw's infinite duration, as rosbag2 Jazzy records the default deadline/lifespan/lease."""
-
-
-class LogFormatError(ValueError):
-    """A file is not a (readable) rod_sim MCAP log; ``str(err)`` is one line naming the file."""
-
-
-class LogWriteError(ValueError):
-    """A message cannot be written: unknown type, wrong fields, time going backwards, ..."""
-
-
-def offered_qos_yaml(*, depth: int = 10, reliability: str = "reliable",
-                     durability: str = "volatile", history: str = "keep_last") -> str:
-    """``offered_qos_profiles`` channel metadata: a YAML list of one QoS mapping, as rosbag2
-    Jazzy (metadata version 9, yaml-cpp block style) writes it for a publisher with these
-    policies and default deadline, lifespan and liveliness."""
-    def duration(name: str) -> list[str]:
-        return [f"  {name}:", f"    sec: {RMW_DURATION_INFINITE['sec']}",
-                f"    nsec: {RMW_DURATION_INFINITE['nsec']}"]
-
-    lines = [f"- history: {history}", f"  depth: {int(depth)}",
-             f"  reliability: {reliability}", f"  durability: {durability}",
-             *duration("deadline"), *duration("lifespan"), "  liveliness: automatic",
-             *duration("liveliness_lease_duration"), "  avoid_ros_namespace_conventions: false"]
-    return "\n".join(lines)
-
-
-class _FlushingFile(io.BufferedWriter):
-    """Hands every write to the OS at once, so that complete chunks survive a killed process."""
-
-    def write(self, data) -> int:  # type: ignore[override]
-        count = super().write(data)
-        self.flush()
-        return count
-
-
-class LogWriter:
-    """Writes a rod_sim MCAP log; a context manager (``close`` runs on exit, even on errors).
-
-    ``path``: the ``.mcap`` file; an existing file is refused (FileExistsError) unless
-    ``overwrite``. ``metadata``: str -> str entries of the ``rod_sim`` record; ``scene`` (the
-    resolved scene as YAML), ``model`` and ``integrator`` are required, ``version`` defaults to
-    the rod_sim version. ``qos``: optional absolute topic -> ``offered_qos_profiles`` YAML
-    (default :func:`offered_qos_yaml`). ``chunk_size`` [bytes], ``compression`` 'zstd', 'lz4'
-    or 'none'.
-
-    Messages of one topic must come with non-decreasing times (LogWriteError otherwise);
-    different topics may interleave freely (readers sort by log time).
-    """
-
-    def __init__(self, path: str | os.PathLike, *, metadata: Mapping[str, str],
-                 overwrite: bool = False, qos: Mapping[str, str] | None = None,
-                 chunk_size: int = CHUNK_SIZE, compression: str = "zstd"):
-        self.path = Path(path)
-        record = {"version": __version__, **dict(metadata)}
-        missing = [k for k in REQUIRED_METADATA if k not in record]
-        if missing:
-            raise ValueError(f"log metadata is missing {', '.join(missing)}")
-        bad = [k for k, v in record.items() if not isinstance(k, str) or not isinstance(v, str)]
-        if bad:
-            raise TypeError(f"log metadata keys and values must be str (bad: {', '.join(map(str, bad))})")
-        kinds = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
-                 "none": CompressionType.NONE}
-        if compression not in kinds:
-            raise ValueError(f"compression must be one of {', '.join(kinds)} (got {compression!r})")
-        if chunk_size <= 0:
-            raise ValueError(f"chunk_size must be > 0 bytes (got {chunk_size})")
-        self._qos = dict(qos or {})
-        try:
-            raw = open(self.path, "wb" if overwrite else "xb", buffering=0)
-        except FileExistsError:
-            raise FileExistsError(errno.EEXIST, f"refusing to overwrite the existing log {self.path} "
-                                  "(remove it or pass overwrite=True)", str(self.path)) from None
-        self._file = _FlushingFile(raw)
-        try:
-            self._writer = McapWriter(self._file, chunk_size=chunk_size,
-                                      compression=kinds[compression], enable_data_crcs=True)
-            self._writer.start(profile=PROFILE, library=f"rod_sim/{__version__}")
-            self._writer.add_metadata(METADATA_NAME, record)
-        except BaseException:
-            self._file.close()
-            raise
-        self._schemas: dict[str, int] = {}
-        self._encoders: dict[str, Any] = {}
-        self._channels: dict[str, tuple[int, str]] = {}
-        self._last_ns: dict[str, int] = {}
-        self._sequence: dict[str, int] = {}
-        self._closed = False
-        self._broken = False        # a write to the file failed
-
-    # ----- writing -----
-
-    def _channel(self, topic: str, type_name: str) -> int:
-        if topic in self._channels:
-            channel_id, known = self._channels[topic]
-            if known != type_name:
-                raise LogWriteError(f"{topic}: already logged as {known}, not {type_name}")
-            return channel_id
-        if not topic.startswith("/"):
-            raise LogWriteError(f"topic names in logs are absolute (got {topic!r})")
-        if type_name not in msgdefs.SCHEMAS:
-            raise LogWriteError(f"{topic}: no schema for type {type_name!r} "
-                                f"(known: {', '.join(msgdefs.SCHEMAS)})")
-        if type_name not in self._schemas:
-            text = msgdefs.SCHEMAS[type_name]
-            self._schemas[type_name] = self._writer.register_schema(
-                type_name, "ros2msg", text.encode("utf-8"))
-            self._encoders[type_name] = cdr.encoder(type_name)
-        channel_id = self._writer.register_channel(
-            topic=topic, message_encoding="cdr", schema_id=self._schemas[type_name],
-            metadata={"offered_qos_profiles": self._qos.get(topic, offered_qos_yaml()),
-                      "topic_type_hash": msgdefs.TYPE_HASHES[type_name]})
-        self._channels[topic] = (channel_id, type_name)
-        self._sequence[topic] = 0
-        return channel_id
-
-    def write(self, topic: str, type_name: str, t_ns: int, msg: Mapping[str, Any]) -> None:
-        """Log ``msg`` (nested dicts/lists) on the absolute ``topic`` at ``t_ns`` [ns] (used for
-        both log_time and publish_time). Raises LogWriteError for an unknown type, a field the
-        type does not have, a negative time or a time before the topic's previous message."""
-        if self._closed:
-            raise LogWriteError(f"{self.path} is closed")
-        if isinstance(t_ns, bool) or not isinstance(t_ns, (int, np.integer)) or t_ns < 0:
-            raise LogWriteError(f"{topic}: t_ns must be an integer >= 0 (got {t_ns!r})")
-        t_ns = int(t_ns)
-        channel_id = self._channel(topic, type_name)
-        if t_ns < self._last_ns.get(topic, 0):
-            raise LogWriteError(f"{topic}: time goes backwards ({t_ns} ns after "
-                                f"{self._last_ns[topic]} ns)")
-        try:
-            data = self._encoders[type_name](msg)  # also rejects fields the type lacks
-        except (ValueError, TypeError, KeyError, AttributeError, struct.error,
-                NotImplementedError) as exc:
-            raise LogWriteError(f"{topic}: cannot encode {type_name}: {exc}") from exc
-        self._sequence[topic] += 1
-        self._last_ns[topic] = t_ns
-        try:
-            self._writer.add_message(channel_id=channel_id, log_time=t_ns, publish_time=t_ns,
-                                     sequence=self._sequence[topic], data=data)
-        except OSError:
-            self._broken = True     # the file ends at its last complete chunk: keep it so
-            raise
-
-    def write_snapshot(self, snapshot: Snapshot, scene: Scene, frame_id: str = "world",
-                       topics: Iterable[str] | None = None) -> None:
-        """Log the messages of :func:`rod_sim.io.topics.snapshot_messages` at ``snapshot.t``,
-        on absolute topics (``/rod_states``, ...)."""
-        t_ns = topic_msgs.time_ns(snapshot.t)
-        for name, msg in topic_msgs.snapshot_messages(snapshot, scene, frame_id, topics).items():
-            self.write("/" + name, topic_msgs.TOPIC_TYPES[name], t_ns, msg)
-
-    @property
-    def closed(self) -> bool:
-        return self._closed
-
-    def close(self) -> None:
-        """Write the last chunk, the summary and the footer, and close the file (idempotent).
-        After a failed write (e.g. a full disk) nothing more is written: the file ends with
-        its last complete chunk, as after a killed writer, and readers scan it (a data-end
-        record written now would carry a CRC over bytes that never reached the file)."""
-        if self._closed:
-            return
-        self._closed = True
-        if self._broken:
-            try:
-                self._file.close()
-            except OSError:         # the failed write's bytes may still be buffered
-                pass
-            return
-        try:
-            self._writer.finish()
-        except OSError:
-            self._broken = True
-            raise
-        finally:
-            try:
-                self._file.close()
-            except OSError:
-                if not self._broken:
-                    raise
-
-    def __enter__(self) -> "LogWriter":
-        return self
-
-    def __exit__(self, exc_type, exc, tb) -> None:
-        self.close()
-
-
-# ----- reading -----
+from rod_sim.io.log_format import MAGIC, METADATA_NAME, LogFormatError
 
 _RECORD_READERS = {
     Opcode.HEADER: Header.read,
@@ -675,11 +463,6 @@ class LogReader:
         return {c.topic: (schemas[c.schema_id].name if c.schema_id in schemas else "")
                 for c in channels}
 
-    def resolve(self, names: Iterable[str], namespace: str | None = None) -> dict[str, str]:
-        """The logged topic of each base name in ``names`` (e.g. ``rod_states``): see
-        :func:`resolve_topics`. Raises LogFormatError when two namespaces hold them."""
-        return resolve_topics(self.topics(), names, namespace, str(self.path))
-
     def messages(self, topics: Iterable[str] | str | None = None
                  ) -> Iterator[tuple[str, int, Any]]:
         """``(topic, log_time [ns], decoded message)`` in log-time order (file order on ties).
@@ -767,39 +550,6 @@ class LogReader:
             yield channel.topic, record.log_time, record.data
 
 
-def base_name(topic: str) -> str:
-    """The last component of a topic name: ``/arm1/rod_states`` -> ``rod_states``."""
-    return topic.rstrip("/").rsplit("/", 1)[-1]
-
-
-def namespace_of(topic: str) -> str:
-    """The namespace of an absolute topic: ``/arm1/rod_states`` -> ``/arm1``, ``/x`` -> ``/``."""
-    ns = topic.rstrip("/").rsplit("/", 1)[0]
-    return ns or "/"
-
-
-def resolve_topics(available: Iterable[str], names: Iterable[str], namespace: str | None = None,
-                   where: str = "the log") -> dict[str, str]:
-    """Map base topic names (``rod_states``, ``/rod_states``) to the absolute topics of
-    ``available`` that end in them under any namespace (a node started with ``-r __ns:=/arm1``
-    records ``/arm1/rod_states``). ``namespace`` (e.g. ``/arm1``) picks one namespace. Names
-    not found are left out. Raises LogFormatError when the names are found under more than one
-    namespace and none was chosen (two nodes recorded in one log)."""
-    available = list(available)
-    bases = [base_name(n) for n in names]
-    if namespace is not None:
-        ns = "/" + namespace.strip("/")
-        prefix = ns if ns != "/" else ""
-        return {b: prefix + "/" + b for b in bases if prefix + "/" + b in available}
-    found: dict[str, list[str]] = {b: sorted(t for t in available if base_name(t) == b)
-                                   for b in bases}
-    spaces = sorted({namespace_of(t) for ts in found.values() for t in ts})
-    if len(spaces) > 1:
-        raise LogFormatError(f"{where} holds our topics under {len(spaces)} namespaces "
-                             f"({', '.join(spaces[:6])}); choose one with --namespace NS")
-    return {b: ts[0] for b, ts in found.items() if ts}
-
-
 @dataclass(frozen=True)
 class ChannelInfo:
     """One channel of a log: ``topic`` (absolute), ``type_name`` (schema name, e.g.
@@ -812,51 +562,3 @@ class ChannelInfo:
     encoding: str
     metadata: dict[str, str]
     message_count: int | None = None
-
-
-def _joint_series(path, topic: str, prefix: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    times, position, velocity = [], [], []
-    names = None
-    with LogReader(path) as reader:
-        topic = reader.resolve([topic]).get(base_name(topic), topic)
-        for _, t_ns, msg in reader.messages([topic]):
-            if names is None:
-                names = list(msg.name)
-                expected = [f"{prefix}{k}" for k in range(1, len(names) + 1)]
-                if names != expected:
-                    raise LogFormatError(f"{path}: {topic} names {names} are not {prefix}1..")
-            elif list(msg.name) != names:
-                raise LogFormatError(f"{path}: {topic} changes its joint names at {t_ns} ns")
-            times.append(t_ns)
-            position.append(list(msg.position))
-            velocity.append(list(msg.velocity))
-    if not times:
-        raise LogFormatError(f"{path} has no {topic} messages")
-    return (np.asarray(times, dtype=np.int64) / 1e9, np.asarray(position, dtype=float),
-            np.asarray(velocity, dtype=float))
-
-
-def read_rod_states(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(t (N,) [s], phi (N, n) [rad], phi_rate (N, n) [rad/s])`` from the ``rod_states`` topic
-    of a log (complete or truncated; under any one namespace). Raises LogFormatError if it has
-    none."""
-    return _joint_series(path, "/rod_states", "rod_")
-
-
-def read_applied_forces(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
-    """``(t (N,) [s], forces (N, n, 2) [N])`` from ``/applied_forces`` (rows X_k, Y_k).
-    Raises LogFormatError if the log has none or a message is not of even length."""
-    times, forces = [], []
-    with LogReader(path) as reader:
-        topic = reader.resolve(["applied_forces"]).get("applied_forces", "/applied_forces")
-        for _, t_ns, msg in reader.messages([topic]):
-            data = np.asarray(msg.data, dtype=float)
-            if data.size % 2:
-                raise LogFormatError(f"{path}: /applied_forces at {t_ns} ns has odd length {data.size}")
-            times.append(t_ns)
-            forces.append(data.reshape(-1, 2))
-    if not times:
-        raise LogFormatError(f"{path} has no /applied_forces messages")
-    if len({f.shape for f in forces}) != 1:
-        raise LogFormatError(f"{path}: /applied_forces changes length")
-    return np.asarray(times, dtype=np.int64) / 1e9, np.stack(forces)

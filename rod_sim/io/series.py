@@ -1,0 +1,62 @@
+"""Time series of one topic of a log, as arrays: :func:`read_rod_states` (the rod angles and
+rates) and :func:`read_applied_forces`. The log is any that :func:`rod_sim.io.log_open.open_log`
+opens (an MCAP file, complete or truncated, or a rosbag2 bag); topics are found under any one
+namespace. Errors: LogFormatError (one line).
+"""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from rod_sim.io.log_format import LogFormatError
+from rod_sim.io.log_open import open_log
+from rod_sim.io.topic_names import base_name
+
+
+def _joint_series(path, topic: str, prefix: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    times, position, velocity = [], [], []
+    names = None
+    with open_log(path) as log:
+        topic = log.resolve([topic]).get(base_name(topic), topic)
+        for _, t_ns, msg in log.messages([topic]):
+            if names is None:
+                names = list(msg.name)
+                expected = [f"{prefix}{k}" for k in range(1, len(names) + 1)]
+                if names != expected:
+                    raise LogFormatError(f"{path}: {topic} names {names} are not {prefix}1..")
+            elif list(msg.name) != names:
+                raise LogFormatError(f"{path}: {topic} changes its joint names at {t_ns} ns")
+            times.append(t_ns)
+            position.append(list(msg.position))
+            velocity.append(list(msg.velocity))
+    if not times:
+        raise LogFormatError(f"{path} has no {topic} messages")
+    return (np.asarray(times, dtype=np.int64) / 1e9, np.asarray(position, dtype=float),
+            np.asarray(velocity, dtype=float))
+
+
+def read_rod_states(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(t (N,) [s], phi (N, n) [rad], phi_rate (N, n) [rad/s])`` from the ``rod_states`` topic
+    of a log (complete or truncated; under any one namespace). Raises LogFormatError if it has
+    none."""
+    return _joint_series(path, "/rod_states", "rod_")
+
+
+def read_applied_forces(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
+    """``(t (N,) [s], forces (N, n, 2) [N])`` from ``/applied_forces`` (rows X_k, Y_k).
+    Raises LogFormatError if the log has none or a message is not of even length."""
+    times, forces = [], []
+    with open_log(path) as log:
+        topic = log.resolve(["applied_forces"]).get("applied_forces", "/applied_forces")
+        for _, t_ns, msg in log.messages([topic]):
+            data = np.asarray(msg.data, dtype=float)
+            if data.size % 2:
+                raise LogFormatError(f"{path}: /applied_forces at {t_ns} ns has odd length {data.size}")
+            times.append(t_ns)
+            forces.append(data.reshape(-1, 2))
+    if not times:
+        raise LogFormatError(f"{path} has no /applied_forces messages")
+    if len({f.shape for f in forces}) != 1:
+        raise LogFormatError(f"{path}: /applied_forces changes length")
+    return np.asarray(times, dtype=np.int64) / 1e9, np.stack(forces)
