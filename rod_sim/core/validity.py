@@ -17,18 +17,21 @@ Pure (numpy only). Three checks, each giving :class:`Finding` records:
   :func:`force_jump_slopes` computes and :data:`JUMP_SLOPE_WARN_RAD` judges.
 - **energy balance**: E - E0 - integral(P_load - P_damper + P_unpaired) dt + (kinetic energy
   lost in latch impacts) relative to the energy scale above :data:`ENERGY_RESIDUAL_WARN`
-  (:class:`EnergyBalance`; E includes the stop contacts' elastic energy, P_damper their
-  damping, both with the latched hinges locked; P_unpaired is the power of the full model's
-  velocity terms that E does not account for, :func:`unpaired_power`). The integral is the
-  trapezoid rule over the samples, split at the hinge events (where the power jumps), so the
-  residual is the quadrature and integration error: it shrinks with the sample rate (rtol
-  barely matters at the shipped scenes, docs/hinges.md). The reduced model conserves E only to
-  first order in the bending (see test_physics), so there a growing residual also means the
-  bending is no longer small.
+  (:class:`EnergyBalance`, fed with :func:`balance_sample` s; E includes the stop contacts'
+  elastic energy, P_damper their damping, both with the latched hinges locked; P_unpaired is
+  the power of the full model's velocity term that E does not account for,
+  :func:`unpaired_power`). The integral is the trapezoid rule over the samples corrected by the
+  powers' time derivatives, split at the hinge events where the power jumps, and by parts for
+  the unpaired term where the samples do not resolve the first bending mode, so the residual is
+  integration and quadrature error (README, "Reliability": figures of the shipped scenes). The
+  reduced model conserves E only to first order in the bending (see test_physics), so there a
+  growing residual also means the bending is no longer small.
 
 Entry points: :func:`bending_frequencies` (per-rod, analytic), :func:`chain_bending_frequency`
-(the full model's linearization), :func:`assess_trajectory` (a whole run; what ``simulate``
-and ``compare`` call) and :class:`ValidityMonitor` (incremental, per control period; the node).
+(the full model's linearization), :func:`assess_trajectory` (a whole run: the hard-case
+catalogue, the tests), :class:`ValidityMonitor` (incremental: ``simulate`` per sample, the node
+per control period) and :class:`EnergyBalance` with :func:`balance_sample` (the energy ledger
+both of them keep).
 """
 from __future__ import annotations
 
@@ -227,7 +230,8 @@ class ValidityMonitor:
                 "energy", float(t), 0, abs(residual) / scale, ENERGY_RESIDUAL_WARN,
                 f"energy balance residual {residual:.3g} J is {abs(residual) / scale:.2g}"
                 f" of the energy scale {scale:.3g} J at t = {t:.4g} s (> "
-                f"{ENERGY_RESIDUAL_WARN:g}): bending not small or integration inaccurate")
+                f"{ENERGY_RESIDUAL_WARN:g}): integration inaccurate, samples too sparse for "
+                f"the energy exchange, or (reduced model) bending not small")
 
     def findings(self) -> list[Finding]:
         found = list(self._found.values()) + ([self._energy] if self._energy else [])
