@@ -318,6 +318,9 @@ class RodSimNode(Node):
         self._dropped = 0
         self._applied_last: dict[str, np.ndarray] = {}
         self._ledger = EnergyLedger.for_model(self.model, self._energy(self.sim.held))
+        self._balance_end = None
+        """(t_ns, held, BalanceSample) at the end of the last period (the ledger's next start
+        when the held inputs did not change)."""
         self._validity = ValidityMonitor(self.model)
         self._meter = RateMeter(time.monotonic_ns())
         self._max_alpha = 0.0
@@ -684,7 +687,11 @@ class RodSimNode(Node):
         sim.set_forces(held[:, :2])
         sim.set_hinge_torques(held[:, 2])
         self._publish_applied(sim.t_ns)
-        start_sample = balance_sample(self.model, sim.t, sim.y, held, sim.mode)
+        last = self._balance_end          # the previous period's end, if it starts this one
+        if last is not None and last[0] == sim.t_ns and np.array_equal(last[1], held):
+            start_sample = last[2]
+        else:
+            start_sample = balance_sample(self.model, sim.t, sim.y, held, sim.mode)
         work = self._budget.work(sim)
         start = time.perf_counter_ns()
         try:
@@ -703,9 +710,10 @@ class RodSimNode(Node):
             return False
         self._meter.add_step(self.period_ns, time.perf_counter_ns() - start)
         snap = sim.snapshot()
-        self._ledger.add(start_sample, balance_sample(self.model, sim.t, sim.y, held, sim.mode,
-                                                      (snap.alpha, snap.beta)),
-                         sim.events[self._events_sent:])
+        end_sample = balance_sample(self.model, sim.t, sim.y, held, sim.mode,
+                                    (snap.alpha, snap.beta))
+        self._ledger.add(start_sample, end_sample, sim.events[self._events_sent:])
+        self._balance_end = (sim.t_ns, held.copy(), end_sample)
         self._validity.update(sim.t, sim.y, held, snap.alpha, snap.beta)
         self._validity.update_energy(sim.t, self._ledger.residual, self._ledger.scale)
         self._publish_state(snap)
@@ -877,6 +885,7 @@ class RodSimNode(Node):
         self._error = None
         self._applied_last = {}
         self._ledger.start(self._energy(self.sim.held))
+        self._balance_end = None
         self._validity = ValidityMonitor(self.model)
         self._meter.restart(time.monotonic_ns())
         if self._pacer is not None:
