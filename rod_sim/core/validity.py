@@ -386,8 +386,8 @@ class EnergyBalance:
     latch impacts; ~0 (quadrature and integration error) for an accurate run.
     ``scale`` = max(|E0|, |E|, sum |P| dt, D).
 
-    ``simulate`` (per sample) and the node (per control period) both feed it through
-    :meth:`add_span`, so they book the same terms the same way."""
+    ``simulate`` (per sample) and the node (per control period) both feed it
+    :func:`balance_sample` s through :meth:`add`, so they book the same terms the same way."""
 
     def __init__(self, energy0: float = 0.0, omega: float = 0.0):
         self.omega = float(omega)
@@ -414,7 +414,7 @@ class EnergyBalance:
                    rates: tuple[float, float] | None = None) -> None:
         """One period of ``dt`` [s]: net powers [W] at its ends, energy [J] at its end and the
         kinetic energy [J] lost in latch impacts inside it. ``rates`` [W/s]: the powers' time
-        derivatives at the ends (:func:`power_rate`): the work integral is then the corrected
+        derivatives at the ends (:attr:`BalanceSample.rate`): the work integral is then the corrected
         trapezoid rule dt (p0 + p1) / 2 + dt^2 (d0 - d1) / 12 (exact for cubics), else the
         plain one (also when a rate is nan). ``split`` = (a, b), 0 <= a <= b <= dt: the power
         jumps at a and b [s] after the period's start (hinge events): the start's Taylor
@@ -461,7 +461,7 @@ class EnergyBalance:
         unpaired power's integral is taken by parts, -[sum A_j u_j] + integral sum A_j' u_j
         dt: its integrand oscillates at the bending frequency with a mean much smaller than
         its amplitude, and the boundary term carries that oscillation exactly (measured at
-        100 Hz samples: the whipping-tip hard case 4.7 % of the energy scale -> 0.43 %)."""
+        100 Hz samples: the whipping-tip hard case 4.7 % of the energy scale -> 0.5 %)."""
         dt = end.t - start.t
         jumps = any(e.kind in JUMP_EVENTS for e in events)
         if self.omega * dt > 1.0 and not jumps:
