@@ -25,11 +25,11 @@ MIN_RTF_WINDOW_S = 0.5
 class EnergyLedger(EnergyBalance):
     """Mechanical energy balance of the chain over simulated time: the core's
     :class:`~rod_sim.core.validity.EnergyBalance` (the same balance ``simulate`` judges), fed
-    per control period: ``add_span(t_start, t_end, p_start, p_end, energy_end, events)`` with
-    the net power [W] at the period's ends (:func:`~rod_sim.core.validity.net_power`), the
-    energy at its end [J] and the hinge events of the period (latch impacts' kinetic energy
-    losses booked, the work integral split where the power jumps); ``residual`` = E - E0 - W +
-    D [J]."""
+    per control period: ``add(start, end, events)`` with the
+    :class:`~rod_sim.core.validity.BalanceSample` s of the period's start and end (energy, net
+    power and its rate, the full model's unpaired term) and the hinge events of the period
+    (latch impacts' kinetic energy losses booked, the work integral split where the power
+    jumps); ``residual`` = E - E0 - W + D [J]."""
 
 
 @dataclass
