@@ -15,16 +15,23 @@ Pure (numpy only). Three checks, each giving :class:`Finding` records:
   jump of the forces (step loads, held commands changing at a control rate) excites every
   mode: the bending vibration it starts has the amplitude of the quasi-static slope jump, which
   :func:`force_jump_slopes` computes and :data:`JUMP_SLOPE_WARN_RAD` judges.
-- **energy balance**: E - E0 - integral(P_load - P_damper) dt + (kinetic energy lost in latch
-  impacts) relative to the energy scale above :data:`ENERGY_RESIDUAL_WARN`
-  (:class:`EnergyBalance`; E includes the stop contacts' elastic energy, P_damper their
-  damping, both with the latched hinges locked). The rigid model conserves it to the integrator's
-  tolerance; the bending models only to first order in the bending (see test_physics), so a
-  growing residual means the bending is no longer small or the integration is inaccurate.
+- **energy balance**: E - E0 - integral(P_load - P_damper + P_unpaired) dt + (kinetic energy
+  lost in latch impacts) relative to the energy scale above :data:`ENERGY_RESIDUAL_WARN`
+  (:class:`EnergyBalance`, fed with :func:`balance_sample` s; E includes the stop contacts'
+  elastic energy, P_damper their damping, both with the latched hinges locked; P_unpaired is
+  the power of the full model's velocity term that E does not account for,
+  :func:`unpaired_power`). The integral is the trapezoid rule over the samples corrected by the
+  powers' time derivatives, split at the hinge events where the power jumps, and by parts for
+  the unpaired term where the samples do not resolve the first bending mode, so the residual is
+  integration and quadrature error (README, "Reliability": figures of the shipped scenes). The
+  reduced model conserves E only to first order in the bending (see test_physics), so there a
+  growing residual also means the bending is no longer small.
 
 Entry points: :func:`bending_frequencies` (per-rod, analytic), :func:`chain_bending_frequency`
-(the full model's linearization), :func:`assess_trajectory` (a whole run; what ``simulate``
-and ``compare`` call) and :class:`ValidityMonitor` (incremental, per control period; the node).
+(the full model's linearization), :func:`assess_trajectory` (a whole run: the hard-case
+catalogue, the tests), :class:`ValidityMonitor` (incremental: ``simulate`` per sample, the node
+per control period) and :class:`EnergyBalance` with :func:`balance_sample` (the energy ledger
+both of them keep).
 """
 from __future__ import annotations
 
@@ -176,6 +183,8 @@ class ValidityMonitor:
         self.max_abs_beta = 0.0
         self._held = None
         self._energy: Finding | None = None
+        self.energy_residual = 0.0      # [J] the residual and scale last judged (update_energy)
+        self.energy_scale = 0.0
 
     def _add(self, f: Finding) -> None:
         self._found.setdefault((f.kind, f.rod), f)
@@ -215,12 +224,14 @@ class ValidityMonitor:
         Unlike the other checks this one reflects the latest judgement (not the first
         occurrence): at the start of a run the scale is tiny and the ratio meaningless."""
         self._energy = None
+        self.energy_residual, self.energy_scale = float(residual), float(scale)
         if scale > 0 and math.isfinite(residual) and abs(residual) > ENERGY_RESIDUAL_WARN * scale:
             self._energy = Finding(
                 "energy", float(t), 0, abs(residual) / scale, ENERGY_RESIDUAL_WARN,
                 f"energy balance residual {residual:.3g} J is {abs(residual) / scale:.2g}"
                 f" of the energy scale {scale:.3g} J at t = {t:.4g} s (> "
-                f"{ENERGY_RESIDUAL_WARN:g}): bending not small or integration inaccurate")
+                f"{ENERGY_RESIDUAL_WARN:g}): integration inaccurate, samples too sparse for "
+                f"the energy exchange, or (reduced model) bending not small")
 
     def findings(self) -> list[Finding]:
         found = list(self._found.values()) + ([self._energy] if self._energy else [])
@@ -243,35 +254,226 @@ def latch_losses(events, t_after: float = -math.inf, t_upto: float = math.inf) -
                      if e.kind == "latch" and t_after <= e.t < t_upto))
 
 
+def _unpaired_coefficients(model, y) -> np.ndarray:
+    """A_j (n,) [kg m^2/s] with P_unpaired = -sum_j A_j (alpha_j' - beta_j'):
+    A_j = C_j phi_j' sum_{k<j} l_k phi_k' sin(phi_k - phi_j), C_j = m_j l_j^2 / 12 (prefix
+    sums, O(n))."""
+    n = model.n
+    phi, dphi = y[:n], y[3 * n:4 * n]
+    p = model.params
+    c, s = np.cos(phi), np.sin(phi)
+    w = p.l * dphi
+    before_c = np.concatenate([[0.0], np.cumsum(w * c)[:-1]])      # sum_{k<j}
+    before_s = np.concatenate([[0.0], np.cumsum(w * s)[:-1]])
+    return p.m * p.l**2 / 12.0 * dphi * (before_s * c - before_c * s)
+
+
+def unpaired_power(model, y) -> float:
+    """[W] power of the full model's velocity terms that its energy E does not account for:
+    dE/dt = P_load - P_damper + P_unpaired along the model's own equations (rigid and reduced
+    models: 0).
+
+    The phi rows of eqs. (9)-(10) carry the Coriolis term 2 [g^{phi alpha}] Lambda alpha_dot
+    (and its beta twin) without the partner a Lagrangian with the same kinetic energy would
+    have (README, "Verification"); its net power is
+    -sum_{k<j} l_k C_j phi_k' phi_j' (alpha_j' - beta_j') sin(phi_k - phi_j), C_j = m_j l_j^2 / 12,
+    which is not small when a latch or a stop starts bending vibration: its rates
+    alpha' ~ alpha omega_1 do not fall with EI (measured on config/deployment.yaml: the
+    integral reaches -0.4 J of 35.8 J at EI = 2e3, 2e4 and 2e5 alike). The identity is checked
+    against the model's right-hand side in test_energy_balance. O(n)."""
+    if getattr(model, "dof_per_rod", 1) != 3:
+        return 0.0
+    n = model.n
+    y = np.asarray(y, dtype=float)
+    return -float(np.dot(_unpaired_coefficients(model, y), y[4 * n:5 * n] - y[5 * n:6 * n]))
+
+
+def net_power(model, t: float, y, held=None, mode=None) -> float:
+    """[W] P_load - P_damper + P_unpaired at (t, y) with the latched hinges ``mode`` locked:
+    the rate of change of the model's mechanical energy between hinge events."""
+    load, damper = model.powers(t, y, held, mode=mode)
+    return load - damper + unpaired_power(model, y)
+
+
+def load_jump_power(model, t: float, y, held=None) -> float:
+    """[W] P_load(t-) - P_load(t+): the load power a span ending at t [s] must use when a
+    scripted load jumps exactly at t (a step or a constant load switched on at a sample time;
+    :func:`net_power` gives the value after the jump, which starts the next span). 0 elsewhere."""
+    if not any(b == t for b in model.scene.load_breakpoints()):
+        return 0.0
+    from .kernels import load_forces     # local: the kernels are only needed here
+
+    n = model.n
+    phi, dphi = model.phi(y), model.phi_rate(y)
+    held = model._held(held)
+    before, after = np.zeros((n, 2)), np.zeros((n, 2))
+    load_forces(t, model.loads, held, math.nextafter(t, -math.inf), before)
+    load_forces(t, model.loads, held, t, after)
+    l = model.params.l
+    vx = np.cumsum(-l * np.sin(phi) * dphi)
+    vy = np.cumsum(l * np.cos(phi) * dphi)
+    d = before - after
+    return float(np.sum(d[:, 0] * vx + d[:, 1] * vy))
+
+
+RATE_STEP = 1e-7
+"""[s] step of the central differences of :func:`balance_sample`."""
+
+
 def balance_terms(model, t: float, y, held=None, mode=None, bending=None) -> tuple[float, float]:
-    """(total mechanical energy [J], net power P_load - P_damper [W]) at (t, y) with the
+    """(total mechanical energy [J], net power [W] of :func:`net_power`) at (t, y) with the
     latched hinges ``mode`` locked (stop contacts included in both)."""
     energy = model.energies(t, y, held, bending=bending, mode=mode).total
-    load, damper = model.powers(t, y, held, mode=mode)
-    return energy, load - damper
+    return energy, net_power(model, t, y, held, mode)
+
+
+@dataclass(frozen=True)
+class BalanceSample:
+    """What the energy balance needs of one state (:func:`balance_sample`): time ``t`` [s],
+    ``energy`` [J], net power ``power`` [W] (after a load that jumps at t: it starts a span)
+    and ``power_before`` (before it: it ends one), ``rate`` [W/s] its time derivative (nan at
+    a load breakpoint), and of the full model's unpaired term (zeros otherwise): ``unpaired``
+    [W], ``unpaired_rate`` [W/s], ``boundary`` = -sum_j A_j u_j [J] and ``remainder`` =
+    sum_j A_j' u_j [W] (u = alpha - beta; the integral of the unpaired power by parts)."""
+
+    t: float
+    energy: float
+    power: float
+    power_before: float
+    rate: float
+    unpaired: float = 0.0
+    unpaired_rate: float = 0.0
+    boundary: float = 0.0
+    remainder: float = 0.0
+
+
+def balance_sample(model, t: float, y, held=None, mode=None, bending=None) -> BalanceSample:
+    """The :class:`BalanceSample` of state ``y`` at ``t`` [s] with held inputs ``held`` and the
+    latched hinges ``mode`` locked (``bending`` = (alpha, beta) if known). One right-hand side
+    and a few O(n) power evaluations; the rates are central differences of
+    :data:`RATE_STEP` along the right-hand side."""
+    y = np.asarray(y, dtype=float)
+    energy, power = balance_terms(model, t, y, held, mode, bending)
+    before = power + load_jump_power(model, t, y, held)
+    h = RATE_STEP
+    f = model.rhs(t, y, held, mode)
+    up, down = y + h * f, y - h * f
+    if any(b == t for b in model.scene.load_breakpoints()):
+        rate = math.nan
+    else:
+        rate = (net_power(model, t + h, up, held, mode)
+                - net_power(model, t - h, down, held, mode)) / (2.0 * h)
+    if getattr(model, "dof_per_rod", 1) != 3:
+        return BalanceSample(float(t), energy, power, before, rate)
+    n = model.n
+    u = y[n:2 * n] - y[2 * n:3 * n]
+    a = _unpaired_coefficients(model, y)
+    da = (_unpaired_coefficients(model, up) - _unpaired_coefficients(model, down)) / (2.0 * h)
+    return BalanceSample(float(t), energy, power, before, rate, unpaired_power(model, y),
+                         (unpaired_power(model, up) - unpaired_power(model, down)) / (2.0 * h),
+                         -float(np.dot(a, u)), float(np.dot(da, u)))
+
+
+JUMP_EVENTS = ("latch", "stop_contact_begin")
+"""Hinge events at which the net power jumps: a latch (the locked hinge's damper stops, the
+velocities jump) and a stop contact's start (its damping moment starts at c theta')."""
 
 
 class EnergyBalance:
     """Mechanical energy balance of a run: ``residual`` = E - E0 - W + D [J] with W the
-    trapezoid integral of the net power (loads and motors minus hinge and stop dampers) and D
-    the kinetic energy dissipated in latch impacts; ~0 (integration and quadrature error) for
-    an accurate run of an energy-consistent model. ``scale`` = max(|E0|, |E|, sum |P| dt, D)."""
+    integral of the net power (loads and motors minus hinge and stop dampers, plus the full
+    model's unpaired velocity term: :func:`net_power`) and D the kinetic energy dissipated in
+    latch impacts; ~0 (quadrature and integration error) for an accurate run.
+    ``scale`` = max(|E0|, |E|, sum |P| dt, D).
 
-    def __init__(self, energy0: float = 0.0):
+    ``simulate`` (per sample) and the node (per control period) both feed it
+    :func:`balance_sample` s through :meth:`add`, so they book the same terms the same way."""
+
+    def __init__(self, energy0: float = 0.0, omega: float = 0.0):
+        self.omega = float(omega)
+        """[rad/s] the first bending mode (full model; 0 otherwise): a span longer than
+        1 / omega does not resolve the bending vibration, and the unpaired power is integrated
+        by parts there (:meth:`add`)."""
         self.start(energy0)
+
+    @classmethod
+    def for_model(cls, model, energy0: float = 0.0):
+        """A balance for runs of ``model``: omega from the rods' analytic bending frequencies
+        (:func:`bending_frequencies`, the stiffest rod) for the full model, else 0."""
+        omega = 0.0
+        if getattr(model, "dof_per_rod", 1) == 3:
+            omega = 2.0 * math.pi * float(np.max(bending_frequencies(model.scene)))
+        return cls(energy0, omega)
 
     def start(self, energy0: float) -> None:
         self.energy0 = self.energy = float(energy0)
         self.work = self.abs_work = self.impacts = 0.0
 
     def add_period(self, dt: float, p_start: float, p_end: float, energy_end: float,
-                   impacts: float = 0.0) -> None:
+                   impacts: float = 0.0, split: tuple[float, float] | None = None,
+                   rates: tuple[float, float] | None = None) -> None:
         """One period of ``dt`` [s]: net powers [W] at its ends, energy [J] at its end and the
-        kinetic energy [J] lost in latch impacts inside it."""
-        self.work += 0.5 * float(dt) * (float(p_start) + float(p_end))
-        self.abs_work += 0.5 * float(dt) * abs(float(p_start) + float(p_end))
+        kinetic energy [J] lost in latch impacts inside it. ``rates`` [W/s]: the powers' time
+        derivatives at the ends (:attr:`BalanceSample.rate`): the work integral is then the corrected
+        trapezoid rule dt (p0 + p1) / 2 + dt^2 (d0 - d1) / 12 (exact for cubics), else the
+        plain one (also when a rate is nan). ``split`` = (a, b), 0 <= a <= b <= dt: the power
+        jumps at a and b [s] after the period's start (hinge events): the start's Taylor
+        expansion holds up to a, the end's from b on, their mean in between."""
+        dt, p0, p1 = float(dt), float(p_start), float(p_end)
+        d0, d1 = (0.0, 0.0) if rates is None else (float(rates[0]), float(rates[1]))
+        if not (math.isfinite(d0) and math.isfinite(d1)):
+            d0 = d1 = 0.0
+            rates = None
+        if split is None:
+            work = 0.5 * dt * (p0 + p1)
+            if rates is not None:
+                work += dt * dt * (d0 - d1) / 12.0
+            abs_work = abs(work)
+        else:
+            a, b = (min(max(float(x), 0.0), dt) for x in split)
+            c = dt - b
+            head = a * p0 + 0.5 * a * a * d0
+            tail = c * p1 - 0.5 * c * c * d1
+            mid = 0.5 * (b - a) * (p0 + p1)
+            work = head + tail + mid
+            abs_work = abs(head) + abs(tail) + abs(mid)
+        self.work += work
+        self.abs_work += abs_work
         self.impacts += float(impacts)
         self.energy = float(energy_end)
+
+    def add_span(self, t_start: float, t_end: float, p_start: float, p_end: float,
+                 energy_end: float, events=(), rates: tuple[float, float] | None = None) -> None:
+        """One span of simulated time [s] between two states the caller holds (samples or
+        control periods), with the net powers [W] there (and their time derivatives [W/s],
+        ``rates``), the energy [J] at its end and the hinge events of the span (HingeEvent):
+        the latch impacts' kinetic energy losses are booked and the work integral is split at
+        the events where the power jumps."""
+        jumps = [e.t for e in events if e.kind in JUMP_EVENTS]
+        split = None if not jumps else (min(jumps) - t_start, max(jumps) - t_start)
+        self.add_period(t_end - t_start, p_start, p_end, energy_end,
+                        latch_losses(events), split, rates)
+
+    def add(self, start: BalanceSample, end: BalanceSample, events=()) -> None:
+        """The span between two :class:`BalanceSample` s with the hinge events inside it: the
+        corrected trapezoid rule of :meth:`add_span`, except that when the span does not
+        resolve the bending vibration (omega dt > 1) and no event makes the power jump, the
+        unpaired power's integral is taken by parts, -[sum A_j u_j] + integral sum A_j' u_j
+        dt: its integrand oscillates at the bending frequency with a mean much smaller than
+        its amplitude, and the boundary term carries that oscillation exactly (measured at
+        100 Hz samples: the whipping-tip hard case 4.7 % of the energy scale -> 0.5 %)."""
+        dt = end.t - start.t
+        jumps = any(e.kind in JUMP_EVENTS for e in events)
+        if self.omega * dt > 1.0 and not jumps:
+            self.add_period(dt, start.power - start.unpaired, end.power_before - end.unpaired,
+                            end.energy, latch_losses(events), None,
+                            (start.rate - start.unpaired_rate, end.rate - end.unpaired_rate))
+            work = end.boundary - start.boundary + 0.5 * dt * (start.remainder + end.remainder)
+            self.work += work
+            self.abs_work += abs(work)
+        else:
+            self.add_span(start.t, end.t, start.power, end.power_before, end.energy, events,
+                          (start.rate, end.rate))
 
     def add_impact(self, loss: float) -> None:
         self.impacts += float(loss)
@@ -285,13 +487,20 @@ class EnergyBalance:
         return self.energy - self.energy0 - self.work + self.impacts
 
 
+def span_events(events, t_start: float, t_end: float) -> list:
+    """The hinge events of the span between samples at t_start and t_end [s]: t_start <= t <
+    t_end (a sample at an event's time is the state before it, as ``Simulator.run`` gives)."""
+    return [e for e in events if t_start <= e.t < t_end]
+
+
 def assess_trajectory(model, t, y, held=None, command_rate_hz: float | None = None,
                       modes=None, events=()) -> ValidityMonitor:
     """Run every check over samples ``t`` (N,) [s], states ``y`` (N, state_size) with held
-    forces ``held`` ((n, 2), or (N, n, 2) per sample); the energy balance uses the trapezoid
-    rule over the samples, ``modes`` (N, n) are the latches fired at each sample and
-    ``events`` the run's hinge events (latch impacts dissipate energy). Returns the monitor
-    (``findings()``, ``summary()``)."""
+    forces ``held`` ((n, 2), or (N, n, 2) per sample); the energy balance
+    (:class:`EnergyBalance`, as ``simulate`` books it) runs over the samples, ``modes`` (N, n)
+    are the latches fired at each sample and ``events`` the run's hinge events (latch impacts
+    dissipate energy, the power jumps at them). Returns the monitor (``findings()``,
+    ``summary()``); the energy finding is judged at the sample of the largest residual."""
     mon = ValidityMonitor(model, command_rate_hz)
     t = np.asarray(t, float)
     n = model.n
@@ -299,18 +508,21 @@ def assess_trajectory(model, t, y, held=None, command_rate_hz: float | None = No
         held = np.zeros((n, 2))
     held = np.asarray(held, float)
     per_sample = held.ndim == 3
-    energy, power, lost = np.empty(t.size), np.empty(t.size), np.zeros(t.size)
+    balance = EnergyBalance.for_model(model)
+    worst = None
+    prev = None
     for i in range(t.size):
         h = held[i] if per_sample else held
         mode = None if modes is None else modes[i]
         mon.update(t[i], y[i], h)
-        energy[i], power[i] = balance_terms(model, t[i], y[i], h, mode)
-        lost[i] = latch_losses(events, t[0], t[i])
-    if t.size > 1:
-        work = np.concatenate([[0.0], np.cumsum(0.5 * np.diff(t) * (power[1:] + power[:-1]))])
-        residual = energy - energy[0] - work + lost
-        scale = max(float(np.max(np.abs(energy))), float(lost[-1]),
-                    float(np.sum(0.5 * np.diff(t) * np.abs(power[1:] + power[:-1]))))
-        i = int(np.argmax(np.abs(residual)))
-        mon.update_energy(t[i], float(residual[i]), scale)
+        sample = balance_sample(model, t[i], y[i], h, mode)
+        if prev is None:
+            balance.start(sample.energy)
+        else:
+            balance.add(prev, sample, span_events(events, prev.t, t[i]))
+            if worst is None or abs(balance.residual) > abs(worst[1]):
+                worst = (t[i], balance.residual)
+        prev = sample
+    if worst is not None:
+        mon.update_energy(worst[0], worst[1], balance.scale)
     return mon

@@ -1,7 +1,7 @@
 """Health bookkeeping for the node's ``diagnostics`` topic (pure Python, no ROS).
 
-- :class:`EnergyLedger`: the energy balance E - E0 - integral(P_load - P_damper) dt, the
-  integral taken with the trapezoid rule over each control period.
+- :class:`EnergyLedger`: the energy balance E - E0 - integral(net power) dt + (latch impact
+  losses), the integral taken per control period (split at the hinge events).
 - :class:`DiagnosticReport`: the values of one ``diagnostics`` message and its level/message,
   from plain numbers the node collects.
 """
@@ -25,9 +25,11 @@ MIN_RTF_WINDOW_S = 0.5
 class EnergyLedger(EnergyBalance):
     """Mechanical energy balance of the chain over simulated time: the core's
     :class:`~rod_sim.core.validity.EnergyBalance` (the same balance ``simulate`` judges), fed
-    per control period: ``add_period(dt, p_start, p_end, energy_end, impacts)`` with the net
-    power [W] at the period's ends, the energy at its end [J] and the kinetic energy lost in
-    the latch impacts of the period [J]; ``residual`` = E - E0 - W + D [J]."""
+    per control period: ``add(start, end, events)`` with the
+    :class:`~rod_sim.core.validity.BalanceSample` s of the period's start and end (energy, net
+    power and its rate, the full model's unpaired term) and the hinge events of the period
+    (latch impacts' kinetic energy losses booked, the work integral split where the power
+    jumps); ``residual`` = E - E0 - W + D [J]."""
 
 
 @dataclass

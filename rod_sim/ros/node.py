@@ -105,7 +105,7 @@ from rod_sim.core.models import ModelError, make_model
 from rod_sim.core.scene import SceneError
 from rod_sim.core.simulator import Simulator
 from rod_sim.core.units import NS_PER_S
-from rod_sim.core.validity import ValidityMonitor, latch_losses
+from rod_sim.core.validity import ValidityMonitor, balance_sample
 from rod_sim.io import topics
 from rod_sim.io.hinge_events import (HINGE_EVENTS_TOPIC, HINGE_EVENTS_TYPE, event_message,
                                      event_time_ns)
@@ -317,7 +317,10 @@ class RodSimNode(Node):
         command of one topic keeps the other topic's last command)."""
         self._dropped = 0
         self._applied_last: dict[str, np.ndarray] = {}
-        self._ledger = EnergyLedger(self._energy(self.sim.held))
+        self._ledger = EnergyLedger.for_model(self.model, self._energy(self.sim.held))
+        self._balance_end = None
+        """(t_ns, held, BalanceSample) at the end of the last period (the ledger's next start
+        when the held inputs did not change)."""
         self._validity = ValidityMonitor(self.model)
         self._meter = RateMeter(time.monotonic_ns())
         self._max_alpha = 0.0
@@ -684,7 +687,11 @@ class RodSimNode(Node):
         sim.set_forces(held[:, :2])
         sim.set_hinge_torques(held[:, 2])
         self._publish_applied(sim.t_ns)
-        p_start = self._net_power(held)
+        last = self._balance_end          # the previous period's end, if it starts this one
+        if last is not None and last[0] == sim.t_ns and np.array_equal(last[1], held):
+            start_sample = last[2]
+        else:
+            start_sample = balance_sample(self.model, sim.t, sim.y, held, sim.mode)
         work = self._budget.work(sim)
         start = time.perf_counter_ns()
         try:
@@ -703,9 +710,10 @@ class RodSimNode(Node):
             return False
         self._meter.add_step(self.period_ns, time.perf_counter_ns() - start)
         snap = sim.snapshot()
-        self._ledger.add_period(self.period_ns / NS_PER_S, p_start, self._net_power(held),
-                                self._energy(held, bending=(snap.alpha, snap.beta)),
-                                latch_losses(sim.events[self._events_sent:]))
+        end_sample = balance_sample(self.model, sim.t, sim.y, held, sim.mode,
+                                    (snap.alpha, snap.beta))
+        self._ledger.add(start_sample, end_sample, sim.events[self._events_sent:])
+        self._balance_end = (sim.t_ns, held.copy(), end_sample)
         self._validity.update(sim.t, sim.y, held, snap.alpha, snap.beta)
         self._validity.update_energy(sim.t, self._ledger.residual, self._ledger.scale)
         self._publish_state(snap)
@@ -726,10 +734,6 @@ class RodSimNode(Node):
     def _energy(self, held: np.ndarray, bending=None) -> float:
         return self.model.energies(self.sim.t, self.sim.y, held, bending=bending,
                                    mode=self.sim.mode).total
-
-    def _net_power(self, held: np.ndarray) -> float:
-        load, damper = self.model.powers(self.sim.t, self.sim.y, held, mode=self.sim.mode)
-        return load - damper
 
     def _fail(self, exc: Exception) -> None:
         """Pause after a failed period (the state stays at the period's start), log the cause
@@ -881,6 +885,7 @@ class RodSimNode(Node):
         self._error = None
         self._applied_last = {}
         self._ledger.start(self._energy(self.sim.held))
+        self._balance_end = None
         self._validity = ValidityMonitor(self.model)
         self._meter.restart(time.monotonic_ns())
         if self._pacer is not None:

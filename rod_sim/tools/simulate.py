@@ -130,7 +130,7 @@ class _LoggedRun:
         self.sim, self.scene, self.log, self.frame_id = sim, scene, log, frame_id
         self.validity = ValidityMonitor(sim.model)
         self.balance = None             # the energy balance (the node judges the same one)
-        self._last = None               # (t, net power) of the previous sample
+        self._last = None               # BalanceSample of the previous sample
         self.balanced_events = 0
         self.samples = 0
         self.logged_events = 0
@@ -138,24 +138,23 @@ class _LoggedRun:
         self.t_logged = 0.0
 
     def _write(self, t: float, y, mode=None) -> None:
-        from ..core.validity import EnergyBalance, balance_terms, latch_losses
+        from ..core.validity import EnergyBalance, balance_sample
 
         model = self.sim.model
         snap = model.snapshot(t, y, None, mode)
         self.validity.update(snap.t, y, None, snap.alpha, snap.beta)
-        energy, power = balance_terms(model, t, y, None, mode, (snap.alpha, snap.beta))
+        sample = balance_sample(model, t, y, None, mode, (snap.alpha, snap.beta))
         if self.balance is None:
-            self.balance = EnergyBalance(energy)
+            self.balance = EnergyBalance.for_model(model, sample.energy)
         else:
             events = self.sim.events
             k = self.balanced_events
             while k < len(events) and events[k].t < t:    # a sample at a latch's time: before it
                 k += 1
-            loss = latch_losses(events[self.balanced_events:k])
+            self.balance.add(self._last, sample, events[self.balanced_events:k])
             self.balanced_events = k
-            self.balance.add_period(t - self._last[0], self._last[1], power, energy, loss)
             self.validity.update_energy(t, self.balance.residual, self.balance.scale)
-        self._last = (t, power)
+        self._last = sample
         with signals_deferred():            # every record of a sample whole, or none
             self.log.write_snapshot(snap, self.scene, frame_id=self.frame_id)
             self.samples += 1
