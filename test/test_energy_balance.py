@@ -182,7 +182,7 @@ def test_latch_of_two_rigid_rods_against_the_momentum_balance(tmp_path):
     assert loss > 0.5                       # a real impact (0.93 J of 1.50 J)
 
     from rod_sim.io.log_writer import LogWriter
-    from rod_sim.tools.cli import _LoggedRun
+    from rod_sim.tools.simulate import _LoggedRun
 
     sim = Simulator(make_model("rigid", sc), make_integrator("dop853-jit", rtol=1e-11,
                                                                 atol=1e-11))

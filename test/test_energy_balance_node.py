@@ -18,7 +18,7 @@ from rod_sim.core.models import make_model  # noqa: E402
 from rod_sim.core.simulator import Simulator  # noqa: E402
 from rod_sim.io.log_writer import LogWriter  # noqa: E402
 from rod_sim.io.scene_yaml import load_scene, scene_to_yaml  # noqa: E402
-from rod_sim.tools.cli import _LoggedRun  # noqa: E402
+from rod_sim.tools.simulate import _LoggedRun  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
 
