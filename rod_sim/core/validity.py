@@ -331,8 +331,10 @@ def balance_terms(model, t: float, y, held=None, mode=None, bending=None) -> tup
 class BalanceSample:
     """What the energy balance needs of one state (:func:`balance_sample`): time ``t`` [s],
     ``energy`` [J], net power ``power`` [W] (after a load that jumps at t: it starts a span)
-    and ``power_before`` (before it: it ends one), ``rate`` [W/s] its time derivative (nan at
-    a load breakpoint), and of the full model's unpaired term (zeros otherwise): ``unpaired``
+    and ``power_before`` (before it: it ends one), ``rate`` [W/s] its time derivative after t
+    and ``rate_before`` before t (one-sided at a load breakpoint, where the load's derivative
+    may jump; else both the central difference), and of the full model's unpaired term
+    (zeros otherwise): ``unpaired``
     [W], ``unpaired_rate`` [W/s], ``boundary`` = -sum_j A_j u_j [J] and ``remainder`` =
     sum_j A_j' u_j [W] (u = alpha - beta; the integral of the unpaired power by parts)."""
 
@@ -341,6 +343,7 @@ class BalanceSample:
     power: float
     power_before: float
     rate: float
+    rate_before: float
     unpaired: float = 0.0
     unpaired_rate: float = 0.0
     boundary: float = 0.0
@@ -351,25 +354,27 @@ def balance_sample(model, t: float, y, held=None, mode=None, bending=None) -> Ba
     """The :class:`BalanceSample` of state ``y`` at ``t`` [s] with held inputs ``held`` and the
     latched hinges ``mode`` locked (``bending`` = (alpha, beta) if known). One right-hand side
     and a few O(n) power evaluations; the rates are central differences of
-    :data:`RATE_STEP` along the right-hand side."""
+    :data:`RATE_STEP` along the right-hand side (one-sided at a load breakpoint)."""
     y = np.asarray(y, dtype=float)
     energy, power = balance_terms(model, t, y, held, mode, bending)
     before = power + load_jump_power(model, t, y, held)
     h = RATE_STEP
     f = model.rhs(t, y, held, mode)
     up, down = y + h * f, y - h * f
+    p_up = net_power(model, t + h, up, held, mode)
+    p_down = net_power(model, t - h, down, held, mode)
     if any(b == t for b in model.scene.load_breakpoints()):
-        rate = math.nan
+        rate, rate_before = (p_up - power) / h, (before - p_down) / h
     else:
-        rate = (net_power(model, t + h, up, held, mode)
-                - net_power(model, t - h, down, held, mode)) / (2.0 * h)
+        rate = rate_before = (p_up - p_down) / (2.0 * h)
     if getattr(model, "dof_per_rod", 1) != 3:
-        return BalanceSample(float(t), energy, power, before, rate)
+        return BalanceSample(float(t), energy, power, before, rate, rate_before)
     n = model.n
     u = y[n:2 * n] - y[2 * n:3 * n]
     a = _unpaired_coefficients(model, y)
     da = (_unpaired_coefficients(model, up) - _unpaired_coefficients(model, down)) / (2.0 * h)
-    return BalanceSample(float(t), energy, power, before, rate, unpaired_power(model, y),
+    return BalanceSample(float(t), energy, power, before, rate, rate_before,
+                         unpaired_power(model, y),
                          (unpaired_power(model, up) - unpaired_power(model, down)) / (2.0 * h),
                          -float(np.dot(a, u)), float(np.dot(da, u)))
 
@@ -467,13 +472,14 @@ class EnergyBalance:
         if self.omega * dt > 1.0 and not jumps:
             self.add_period(dt, start.power - start.unpaired, end.power_before - end.unpaired,
                             end.energy, latch_losses(events), None,
-                            (start.rate - start.unpaired_rate, end.rate - end.unpaired_rate))
+                            (start.rate - start.unpaired_rate,
+                             end.rate_before - end.unpaired_rate))
             work = end.boundary - start.boundary + 0.5 * dt * (start.remainder + end.remainder)
             self.work += work
             self.abs_work += abs(work)
         else:
             self.add_span(start.t, end.t, start.power, end.power_before, end.energy, events,
-                          (start.rate, end.rate))
+                          (start.rate, end.rate_before))
 
     def add_impact(self, loss: float) -> None:
         self.impacts += float(loss)
@@ -493,6 +499,27 @@ def span_events(events, t_start: float, t_end: float) -> list:
     return [e for e in events if t_start <= e.t < t_end]
 
 
+def balance_run(model, t, y, held=None, modes=None, events=()):
+    """The energy balance over samples ``t`` (N,) [s], states ``y`` (N, state_size), held
+    inputs ``held`` ((n, 2) or (n, 3), or per sample (N, n, 2|3); None: zeros), latches
+    ``modes`` (N, n) fired at each sample and the run's hinge ``events``, booked as
+    ``simulate`` books it: yields (i, the :class:`EnergyBalance` after sample i) for every
+    sample (i = 0: started)."""
+    t = np.asarray(t, float)
+    per_sample = held is not None and np.ndim(held) == 3
+    balance = EnergyBalance.for_model(model)
+    prev = None
+    for i in range(t.size):
+        h = held[i] if per_sample else held
+        sample = balance_sample(model, t[i], y[i], h, None if modes is None else modes[i])
+        if prev is None:
+            balance.start(sample.energy)
+        else:
+            balance.add(prev, sample, span_events(events, prev.t, t[i]))
+        prev = sample
+        yield i, balance
+
+
 def assess_trajectory(model, t, y, held=None, command_rate_hz: float | None = None,
                       modes=None, events=()) -> ValidityMonitor:
     """Run every check over samples ``t`` (N,) [s], states ``y`` (N, state_size) with held
@@ -503,26 +530,13 @@ def assess_trajectory(model, t, y, held=None, command_rate_hz: float | None = No
     ``summary()``); the energy finding is judged at the sample of the largest residual."""
     mon = ValidityMonitor(model, command_rate_hz)
     t = np.asarray(t, float)
-    n = model.n
-    if held is None:
-        held = np.zeros((n, 2))
-    held = np.asarray(held, float)
+    held = np.zeros((model.n, 2)) if held is None else np.asarray(held, float)
     per_sample = held.ndim == 3
-    balance = EnergyBalance.for_model(model)
     worst = None
-    prev = None
-    for i in range(t.size):
-        h = held[i] if per_sample else held
-        mode = None if modes is None else modes[i]
-        mon.update(t[i], y[i], h)
-        sample = balance_sample(model, t[i], y[i], h, mode)
-        if prev is None:
-            balance.start(sample.energy)
-        else:
-            balance.add(prev, sample, span_events(events, prev.t, t[i]))
-            if worst is None or abs(balance.residual) > abs(worst[1]):
-                worst = (t[i], balance.residual)
-        prev = sample
+    for i, balance in balance_run(model, t, y, held, modes, events):
+        mon.update(t[i], y[i], held[i] if per_sample else held)
+        if i and (worst is None or abs(balance.residual) > abs(worst[1])):
+            worst = (t[i], balance.residual)
     if worst is not None:
         mon.update_energy(worst[0], worst[1], balance.scale)
     return mon
