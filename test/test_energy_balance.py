@@ -296,3 +296,21 @@ def test_a_load_whose_derivative_jumps_at_a_sample_keeps_the_balance_closed(mode
     res = np.array([b.residual for _, b in balance_run(sim.model, traj.t, traj.y, None,
                                                        traj.modes, sim.events)])
     assert abs(res[-1]) < 1e-6 and np.max(np.abs(res)) < 1e-5, (res[-1], np.abs(res).max())
+
+
+def test_a_chain_at_rest_is_not_reported(monkeypatch):
+    """A resting chain has an energy scale of round-off only (~1e-13 J at n = 2048): the
+    residual's ratio to it is ~1 and meaningless; below the chain's reference energy times
+    ENERGY_FLOOR nothing is reported. Without the floor the same run is reported."""
+    from rod_sim.core import validity
+    from rod_sim.tools.bench.long_chains import uniform_chain
+
+    sc = uniform_chain(256)
+    sim = Simulator(make_model("reduced", sc), make_integrator("rk4", step=1e-4))
+    traj = sim.run(4e-4, 10000.0)
+    mon = assess_trajectory(sim.model, traj.t, traj.y, modes=traj.modes, events=sim.events)
+    assert not [f for f in mon.findings() if f.kind == "energy"], mon.summary()
+    assert 0.0 < abs(mon.energy_residual) < mon.energy_floor
+    monkeypatch.setattr(validity, "ENERGY_FLOOR", 0.0)
+    mon = assess_trajectory(sim.model, traj.t, traj.y, modes=traj.modes, events=sim.events)
+    assert [f for f in mon.findings() if f.kind == "energy"]

@@ -9,10 +9,11 @@ Every timing is one core, in this run; the rows name the settings that reproduce
 from __future__ import annotations
 
 import math
-import resource
+import os
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -126,14 +127,19 @@ def startup(ns=STARTUP_NS, log=None) -> list[dict]:
             cmd = [sys.executable, "-m", "rod_sim.tools.cli", "simulate", str(scene_file),
                    "--model", "reduced", "--integrator", "rk4", "--step", "1e-4",
                    "--t-end", "4e-4", "--out", str(out)]
-            before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
             started = time.perf_counter()
-            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
+            proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            timer = threading.Timer(900.0, proc.kill)
+            timer.start()
+            try:
+                _, status, usage = os.wait4(proc.pid, 0)     # this child's own peak RSS
+            finally:
+                timer.cancel()
             wall = time.perf_counter() - started
-            peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * 1024
+            proc.returncode = os.waitstatus_to_exitcode(status)
             rows.append({"n": n, "wall_s": wall, "exit": proc.returncode,
-                         "peak_rss_bytes": peak if peak > before * 1024 else math.nan,
-                         "command": " ".join(["rod-sim"] + cmd[3:5] + ["CHAIN.yaml"] + cmd[6:-2])})
+                         "peak_rss_bytes": usage.ru_maxrss * 1024,
+                         "command": " ".join(["rod-sim"] + cmd[3:4] + ["CHAIN.yaml"] + cmd[5:-2])})
             say(f"start-up n={n}: {wall:.2f} s, exit {proc.returncode}")
             out.unlink(missing_ok=True)
     return rows
