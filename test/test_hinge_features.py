@@ -391,7 +391,7 @@ def test_a_failed_advance_leaves_latches_and_events_as_they_were(monkeypatch):
     def latch_then_fail(self, carry, model, plan, y0, t0, t_out, held, breaks):
         calls.append(t0)
         if len(calls) == 1:        # a latch of hinge 1 at once, then a failure
-            latch = int(np.flatnonzero(plan.events[0] == 1)[0])
+            latch = int(np.flatnonzero(plan.events.hinge == 1)[0])
             return Stretch(np.empty((t_out.size, y0.size)), 0, y0, t0, latch,
                            (np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros((0, y0.size))))
         raise IntegrationError("step size underflow", t0)

@@ -34,10 +34,11 @@ Y0_LIN = np.array([1.0, -0.5, 0.0, 2.0])
 
 
 def event_buffers(hinge=(), angle=(), kind=(), size=4, cap=64):
-    """erk's event tuple for the linear problem (the 'hinge angle' of hinge 0 is y[0])."""
-    return (np.array(hinge, dtype=np.int64), np.array(angle, dtype=float),
-            np.array(kind, dtype=np.int64), np.empty(cap), np.empty(cap, dtype=np.int64),
-            np.empty((cap, size)), np.zeros(1, dtype=np.int64))
+    """erk's events for the linear problem (the 'hinge angle' of hinge 0 is y[0])."""
+    return kernels.Events(np.array(hinge, dtype=np.int64), np.array(angle, dtype=float),
+                          np.array(kind, dtype=np.int64), np.empty(cap),
+                          np.empty(cap, dtype=np.int64), np.empty((cap, size)),
+                          np.zeros(1, dtype=np.int64))
 
 
 NO_EVENTS = event_buffers()
@@ -144,9 +145,9 @@ def test_run_stops_at_an_event_located_on_the_collocation_polynomial():
         kernels.Span(Y0_LIN, 0.0, t_out, np.zeros(0)),
         kernels.Control(1e-10, 1e-10, 0.0, np.inf, 100_000, 1 << 62),
         kernels.Output(Y, np.zeros(6, dtype=np.int64), ev))
-    assert status == erk.STATUS_EVENT and ev[6][0] == 1 and ev[4][0] == 0     # falling
+    assert status == erk.STATUS_EVENT and ev.count[0] == 1 and ev.code[0] == 0     # falling
     assert abs(t - exact) < 1e-8, (t, exact)
-    assert ev[3][0] == t and abs(y[0] - 0.2) < 1e-10
+    assert ev.t[0] == t and abs(y[0] - 0.2) < 1e-10
     np.testing.assert_allclose(y, expm(A_LIN * t) @ Y0_LIN, atol=1e-7)
     assert written == np.count_nonzero(t_out <= t) and np.isnan(Y[written:]).all()
 

@@ -104,8 +104,8 @@ def _theta_dense(F, y, x, h):
 
 @njit
 def _event_values(y, events, g):
-    ev_h = events[0]
-    ev_a = events[1]
+    ev_h = events.hinge
+    ev_a = events.angle
     for e in range(ev_h.shape[0]):
         g[e] = _theta(y, ev_h[e]) - ev_a[e]
 
@@ -153,7 +153,7 @@ def _bracket(F, y, e, g0, g1, events):
     """(x_lo, g(x_lo)) of a crossing of event e in the step, or (-1, 0): a sign change between
     the step's ends, or, for a step that starts on the function's root, a return across it
     seen at x = 1/8 ... 7/8 on the interpolant (leaving and coming back within the step)."""
-    ev_h, ev_a = events[0], events[1]
+    ev_h, ev_a = events.hinge, events.angle
     if (g0[e] < 0.0 and g1[e] >= 0.0) or (g0[e] > 0.0 and g1[e] <= 0.0):
         return 0.0, g0[e]
     if g1[e] == 0.0 or not _on_root(g0[e], ev_a[e]):
@@ -170,10 +170,10 @@ def _bracket(F, y, e, g0, g1, events):
 def _event_start(y, events):
     """(number of event functions m, their values at y (m,), scratch for the step's end (m,),
     capacity of the event buffer) at the start of a driver call."""
-    m_ev = events[0].shape[0]
+    m_ev = events.hinge.shape[0]
     g0 = np.empty(m_ev)
     _event_values(y, events, g0)
-    return m_ev, g0, np.empty(m_ev), events[3].shape[0]
+    return m_ev, g0, np.empty(m_ev), events.t.shape[0]
 
 
 @njit
@@ -182,7 +182,7 @@ def _may_cross(g0, g1, events):
     for e in range(g0.shape[0]):
         if (g0[e] < 0.0 and g1[e] >= 0.0) or (g0[e] > 0.0 and g1[e] <= 0.0):
             return True
-        if _on_root(g0[e], events[1][e]):
+        if _on_root(g0[e], events.angle[e]):
             return True
     return False
 
@@ -336,7 +336,7 @@ def dop853_run(rhs, problem, span, control, output):
                               rtol, atol, stats)
         rejected = False
         while t < seg_end:
-            if m_ev > 0 and events[6][0] + m_ev > cap:
+            if m_ev > 0 and events.count[0] + m_ev > cap:
                 return y, t, h, STATUS_EVENTS_FULL, i_out
             h = min(h, max_step)
             min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
@@ -485,7 +485,7 @@ def fixed_run(rhs, problem, span, control, tableau, output):
         t_start = t
         for step in range(n_sub):
             ts = t_start + step * hs
-            if m_ev > 0 and events[6][0] + m_ev > cap:
+            if m_ev > 0 and events.count[0] + m_ev > cap:
                 return y, ts, STATUS_EVENTS_FULL, i_out
             if stats[0] - nfev0 >= budget and stats[0] > nfev0:
                 return y, ts, STATUS_BUDGET, i_out

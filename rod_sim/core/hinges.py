@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from .kernels import EventTable
 from .scene import Scene
 
 # event kinds of the compiled drivers' event tables (erk.py)
@@ -83,10 +84,9 @@ def locked_hinges(scene: Scene, mode: np.ndarray | None) -> np.ndarray:
     return locked if mode is None else locked | np.asarray(mode, dtype=bool)
 
 
-def event_table(scene: Scene, locked: np.ndarray):
-    """The compiled drivers' event functions g = theta_h - angle for the unlocked hinges:
-    (hinge (m,) int64, angle (m,) [rad], kind (m,) int64: EV_LATCH terminal, EV_UPPER and
-    EV_LOWER stop crossings, recorded)."""
+def event_table(scene: Scene, locked: np.ndarray) -> EventTable:
+    """The compiled drivers' event functions g = theta_h - angle for the unlocked hinges
+    (kind EV_LATCH terminal, EV_UPPER and EV_LOWER stop crossings, recorded)."""
     hinge, angle, kind = [], [], []
     for h in range(scene.n):
         if locked[h]:
@@ -97,8 +97,8 @@ def event_table(scene: Scene, locked: np.ndarray):
                 hinge.append(h)
                 angle.append(float(value))
                 kind.append(code)
-    return (np.array(hinge, dtype=np.int64), np.array(angle, dtype=float),
-            np.array(kind, dtype=np.int64))
+    return EventTable(np.array(hinge, dtype=np.int64), np.array(angle, dtype=float),
+                      np.array(kind, dtype=np.int64))
 
 
 def crossing_kind(kind: int, rising: bool) -> tuple[str, str | None]:

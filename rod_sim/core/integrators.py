@@ -25,7 +25,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from . import erk, hinges, radau
-from .kernels import Control, Output, Problem, Span
+from .kernels import Control, Events, Output, Problem, Span
 
 DEFAULT_RTOL = 1e-8
 DEFAULT_STEP = 1e-3
@@ -149,9 +149,9 @@ class Stretch:
 
 
 def _event_buffers(plan, size: int):
-    cap = 64 + 2 * plan.events[0].size
-    return (*plan.events, np.empty(cap), np.empty(cap, dtype=np.int64), np.empty((cap, size)),
-            np.zeros(1, dtype=np.int64))
+    cap = 64 + 2 * plan.events.hinge.size
+    return Events(*plan.events, np.empty(cap), np.empty(cap, dtype=np.int64),
+                  np.empty((cap, size)), np.zeros(1, dtype=np.int64))
 
 
 def _no_crossings() -> tuple:
@@ -160,9 +160,9 @@ def _no_crossings() -> tuple:
 
 
 def _stretch(model, plan, Y, written, y, t, status, ev) -> Stretch:
-    k = int(ev[6][0])
-    crossings = (ev[3][:k].copy(), ev[4][:k].copy(), ev[5][:k].copy())
-    event = int(ev[4][k - 1]) // 2 if status == erk.STATUS_EVENT else None
+    k = int(ev.count[0])
+    crossings = (ev.t[:k].copy(), ev.code[:k].copy(), ev.y[:k].copy())
+    event = int(ev.code[k - 1]) // 2 if status == erk.STATUS_EVENT else None
     return Stretch(Y, int(written), np.array(y), float(t), event, crossings,
                    status == erk.STATUS_BUDGET)
 
@@ -285,8 +285,8 @@ class JitDop853(Integrator):
         if status not in _RESUMABLE:
             raise _failure(model, erk.STATUS_TEXT[status] + f" (t = {t:.9g} s, step {h:.3g} s)",
                            t, y, held)
-        latch = status == erk.STATUS_EVENT and plan.events[2][int(ev[4][0]) // 2] == \
-            hinges.EV_LATCH
+        latch = status == erk.STATUS_EVENT and \
+            plan.events.kind[int(ev.code[0]) // 2] == hinges.EV_LATCH
         carry.h = 0.0 if latch else h          # a fresh start after an impact
         return _stretch(model, plan, Y, written, y, t, status, ev)
 
@@ -365,7 +365,7 @@ def _scipy_events(plan):
     """solve_ivp event functions (terminal) for the plan's table: latches only (stops are
     refused, see ScipyIntegrator)."""
     fns = []
-    for h, angle in zip(*plan.events[:2]):
+    for h, angle in zip(plan.events.hinge, plan.events.angle):
         h = int(h)
         if h == 0:
             f = (lambda t, y, a=angle: y[0] - a)
@@ -395,7 +395,7 @@ class ScipyIntegrator(Integrator):
         Y = np.empty((t_out.size, y0.size))
         edges = [float(t0), *[b for b in breaks if t0 < b < t_out[-1]], float(t_out[-1])]
         kernel, chain, extra, loads = model.kernel, model.chain, plan.extra, model.loads
-        if np.any(plan.events[2] != hinges.EV_LATCH):
+        if np.any(plan.events.kind != hinges.EV_LATCH):
             raise ValueError(f"integrator: {self.name} cannot follow hinge stop contacts "
                              "(hinges.stop); use dop853-jit, radau-jit, rk4, rk2 or euler")
         fns = _scipy_events(plan) or None
@@ -458,9 +458,9 @@ class ScipyIntegrator(Integrator):
                 first = None
                 for e, ts in enumerate(sol.t_events):
                     if ts.size and ts[-1] == t_end and (
-                            first is None or plan.events[2][e] == hinges.EV_LATCH):
+                            first is None or plan.events.kind[e] == hinges.EV_LATCH):
                         first = e
-                h = int(plan.events[0][first])
+                h = int(plan.events.hinge[first])
                 rising = hinges.hinge_angles(model.phi_rate(y))[h] > 0.0
                 crossing = (np.array([t_end]), np.array([2 * first + int(rising)]), y[None, :])
                 return Stretch(Y, done, y, t_end, first, crossing)
@@ -540,7 +540,7 @@ def drive(model, integrator: Integrator, y0, t0: float, t_out, held=None, mode=N
                     f"smooth for {integrator.describe()}", t)
         if s.event is None:
             continue
-        h, kind = int(plan.events[0][s.event]), int(plan.events[2][s.event])
+        h, kind = int(plan.events.hinge[s.event]), int(plan.events.kind[s.event])
         if kind == hinges.EV_LATCH:
             mode, y = _latch(model, mode, t, y, h, events)
             contact[h] = 0

@@ -176,11 +176,35 @@ class Control(NamedTuple):
     budget: int
 
 
+class EventTable(NamedTuple):
+    """The event functions g_e = theta_{hinge_e} - angle_e of one mode (m of them):
+    ``hinge`` (m,) int64, ``angle`` (m,) [rad], ``kind`` (m,) int64 (``hinges.EV_LATCH``:
+    terminal; ``EV_UPPER``, ``EV_LOWER``: stop crossings)."""
+
+    hinge: np.ndarray
+    angle: np.ndarray
+    kind: np.ndarray
+
+
+class Events(NamedTuple):
+    """An :class:`EventTable` and the buffer a compiled driver records located crossings in:
+    ``t`` (cap,) [s], ``code`` (cap,) int64 = 2 e + (1 if g_e rises), ``y`` (cap, size) the
+    states there, ``count`` (1,) int64 the crossings recorded."""
+
+    hinge: np.ndarray
+    angle: np.ndarray
+    kind: np.ndarray
+    t: np.ndarray
+    code: np.ndarray
+    y: np.ndarray
+    count: np.ndarray
+
+
 class Output(NamedTuple):
     """Where a compiled driver call writes: states ``Y`` (N, size) at the output times, work
     counters ``stats`` (int64: rhs evaluations, accepted, rejected steps[, Jacobians, LU
     factorisations, Newton iterations]) accumulated, and the event table and buffers
-    ``events`` (see :mod:`rod_sim.core.erk`)."""
+    ``events`` (:class:`Events`)."""
 
     Y: np.ndarray
     stats: np.ndarray

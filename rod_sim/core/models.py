@@ -51,11 +51,11 @@ class Energies:
 @dataclass(frozen=True, eq=False)
 class Plan:
     """What the compiled drivers need in one mode: ``extra`` (kernels' argument, see
-    :mod:`rod_sim.core.kernels`), ``events`` (hinge (m,), angle (m,), kind (m,)) of
+    :mod:`rod_sim.core.kernels`), ``events`` (:class:`~rod_sim.core.kernels.EventTable`) of
     :func:`hinges.event_table` and ``locked`` (n,) bool (hinges held rigid)."""
 
     extra: kernels.Extra
-    events: tuple
+    events: kernels.EventTable
     locked: np.ndarray
 
 

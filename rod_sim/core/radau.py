@@ -515,7 +515,7 @@ def radau_run_work(rhs, jac_fn, factor_fn, solve_fn, problem, span, control, out
             radau_restart(work)
         resume = False
         while t < seg_end:
-            if m_ev > 0 and events[6][0] + m_ev > cap:
+            if m_ev > 0 and events.count[0] + m_ev > cap:
                 return y, t, h, STATUS_EVENTS_FULL, i_out
             h = min(h, max_step)
             status, t_new, h_next = radau_step(rhs, jac_fn, factor_fn, solve_fn, chain, extra, loads, held, t_side, t,
