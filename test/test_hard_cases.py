@@ -302,6 +302,33 @@ def test_force_jump_reported_only_when_it_bends_the_rods():
     assert [x.kind for x in mon.findings()] == ["force_jump"]
 
 
+def test_a_hinge_torque_jump_is_judged_like_a_force_jump():
+    """A motor moment switched on bends the rods quasi-statically as a force does (T acts on
+    the hinge deflection, whose generalized forces reach the end slopes): held (n, 3) inputs
+    whose torque jumps are reported; the same torque held is not, and neither is a jump too
+    small to bend the rods."""
+    model = make_model("reduced", chain(EI=1e3, loads=[]))
+    y = model.initial_state()
+    held = np.zeros((8, 3))
+    small = validity.ValidityMonitor(model)
+    small.update(0.0, y, held)
+    held[3, 2] = 1e-3
+    small.update(0.01, y, held)
+    assert small.findings() == []
+    mon = validity.ValidityMonitor(model)
+    held[3, 2] = 0.0
+    mon.update(0.0, y, held)
+    held[3, 2] = 2000.0                                   # [N m] at hinge 3
+    mon.update(0.01, y, held)
+    found = [x for x in mon.findings() if x.kind == "force_jump"]
+    assert found and "hinge torques" in found[0].message and found[0].rod in (3, 4)
+    a0, b0 = model.bending(0.0, y, np.zeros((8, 3)))
+    a1, b1 = model.bending(0.0, y, held)
+    assert found[0].value == pytest.approx(max(np.max(np.abs(a1 - a0)), np.max(np.abs(b1 - b0))))
+    mon.update(0.02, y, held)                             # held: no new jump
+    assert len([x for x in mon.findings() if x.kind == "force_jump"]) == 1
+
+
 def test_energy_warning_reflects_the_latest_balance_not_an_early_tiny_scale():
     mon = validity.ValidityMonitor(make_model("reduced", chain(loads=[])))
     mon.update_energy(0.01, residual=3e-6, scale=5e-6)       # the first period: meaningless

@@ -130,9 +130,10 @@ def load_frequency(scene) -> float:
 
 
 def force_jump_slopes(scene, y_phi, phi_rate, before, after) -> np.ndarray:
-    """|jump| of the quasi-static end slopes (2n,) [rad] when the nodal forces (n, 2) [N] jump
-    from ``before`` to ``after`` at the rod angles/rates given: the amplitude of the bending
-    vibration that such a jump starts (and the reduced model does not carry)."""
+    """|jump| of the quasi-static end slopes (2n,) [rad] when the held inputs jump from
+    ``before`` to ``after`` (each (n, 2) nodal forces [N], or (n, 3) with the hinge motor
+    moments T [N m]) at the rod angles/rates given: the amplitude of the bending vibration
+    that such a jump starts (and the reduced model does not carry)."""
     model = _reduced_cache(scene)
     y = np.concatenate([np.asarray(y_phi, float), np.asarray(phi_rate, float)])
     a0, b0 = model.bending(0.0, y, before)
@@ -207,10 +208,11 @@ class ValidityMonitor:
     def update(self, t: float, y, held=None, alpha=None, beta=None) -> None:
         """Check one state (alpha, beta [rad] may be given to save recomputing them)."""
         n = self.model.n
-        held = np.zeros((n, 2)) if held is None else np.asarray(held, float).reshape(n, -1)
+        given = np.zeros((n, 2)) if held is None else np.asarray(held, float).reshape(n, -1)
+        held = np.zeros((n, 3))           # forces X, Y and hinge motor moments T
+        held[:, :given.shape[1]] = given
         if alpha is None or beta is None:
             alpha, beta = self.model.bending(t, y, held)
-        held = held[:, :2]        # the jump check is of the nodal forces ((n, 3): + torques)
         a, b = np.abs(alpha), np.abs(beta)
         self.max_abs_alpha = max(self.max_abs_alpha, float(np.max(a, initial=0.0)))
         self.max_abs_beta = max(self.max_abs_beta, float(np.max(b, initial=0.0)))
@@ -228,7 +230,8 @@ class ValidityMonitor:
             if jump[k] > JUMP_SLOPE_WARN_RAD:
                 self._add(Finding("force_jump", float(t), k % n + 1, float(jump[k]),
                                   JUMP_SLOPE_WARN_RAD,
-                                  f"a jump of the held forces at t = {t:.4g} s starts bending "
+                                  f"a jump of the held forces or hinge torques at t = {t:.4g} s "
+                                  f"starts bending "
                                   f"vibration of ~{jump[k]:.2g} rad at rod {k % n + 1} (first "
                                   f"bending mode {self.f1:.3g} Hz) that the reduced model "
                                   f"does not carry"))
