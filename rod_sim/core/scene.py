@@ -322,25 +322,22 @@ class _SceneParser:
         stop = hinges.get("stop")
         if stop is not None:
             out.update(self._stop(stop, n))
-            theta0 = np.diff(fields["phi0"], prepend=0.0)
-            outside = np.flatnonzero((theta0 < out["stop_lower"]) | (theta0 > out["stop_upper"]))
-            if outside.size:
-                h = int(outside[0])
-                raise SceneError("hinges.stop.angle",
-                                 f"hinge {h}: the initial hinge angle {theta0[h]:g} rad lies "
-                                 f"outside its stops [{out['stop_lower'][h]:g}, "
-                                 f"{out['stop_upper'][h]:g}]")
-            latch = out.get("latch_angle")
-            if latch is not None:
+            lower, upper = out["stop_lower"], out["stop_upper"]
+
+            def check_inside(key: str, angle: np.ndarray, what: str, why: str = "") -> None:
+                """SceneError at the first hinge whose angle (nan: none) is outside its stops."""
                 with np.errstate(invalid="ignore"):
-                    beyond = np.flatnonzero(~np.isnan(latch) & ((latch < out["stop_lower"])
-                                                                | (latch > out["stop_upper"])))
-                if beyond.size:
-                    h = int(beyond[0])
-                    raise SceneError("hinges.latch",
-                                     f"hinge {h}: the latch angle {latch[h]:g} rad lies outside "
-                                     f"its stops [{out['stop_lower'][h]:g}, "
-                                     f"{out['stop_upper'][h]:g}], so it can never latch")
+                    outside = np.flatnonzero((angle < lower) | (angle > upper))
+                if outside.size:
+                    h = int(outside[0])
+                    raise SceneError(key, f"hinge {h}: the {what} {angle[h]:g} rad lies outside "
+                                          f"its stops [{lower[h]:g}, {upper[h]:g}]{why}")
+
+            check_inside("hinges.stop.angle", np.diff(fields["phi0"], prepend=0.0),
+                         "initial hinge angle")
+            if out.get("latch_angle") is not None:
+                check_inside("hinges.latch", out["latch_angle"], "latch angle",
+                             ", so it can never latch")
         return out
 
     def _stop(self, stop, n) -> dict[str, np.ndarray]:

@@ -98,16 +98,8 @@ def command_forces(msg: Any, n: int) -> np.ndarray:
     ``msg.data[data_offset:]`` must hold exactly 2n finite values [X_1, Y_1, ..., X_n, Y_n];
     the layout's dims are not needed and not checked. Raises CommandError naming the problem.
     """
-    offset = int(getattr(getattr(msg, "layout", None), "data_offset", 0) or 0)
-    data = np.asarray(msg.data, dtype=float)[offset:]
-    if data.size != 2 * n:
-        raise CommandError(f"expected {2 * n} values [X_1, Y_1, ..., X_{n}, Y_{n}] for {n} "
-                           f"nodes, got {data.size}")
-    bad = np.flatnonzero(~np.isfinite(data))
-    if bad.size:
-        i = int(bad[0]) + offset
-        raise CommandError(f"non-finite value {msg.data[i]!r} at data[{i}]")
-    return data.reshape(n, 2).copy()
+    return _command_values(msg, 2 * n, f"[X_1, Y_1, ..., X_{n}, Y_{n}] for {n} nodes"
+                           ).reshape(n, 2)
 
 
 def command_torques(msg: Any, n: int) -> np.ndarray:
@@ -118,11 +110,18 @@ def command_torques(msg: Any, n: int) -> np.ndarray:
     order hinge_0..hinge_{n-1} (the ``joint_states`` names; the convention of a joint-group
     effort controller); the layout's dims are not needed and not checked. Raises CommandError
     naming the problem."""
+    return _command_values(msg, n, f"[T_0, ..., T_{n - 1}] [N m] for hinges "
+                                   f"hinge_0..hinge_{n - 1}")
+
+
+def _command_values(msg: Any, size: int, layout: str) -> np.ndarray:
+    """The ``size`` finite values of a ``Float64MultiArray`` command after its
+    ``layout.data_offset`` (a copy), else CommandError naming the count (``layout`` describes
+    the expected values) or the first non-finite entry."""
     offset = int(getattr(getattr(msg, "layout", None), "data_offset", 0) or 0)
     data = np.asarray(msg.data, dtype=float)[offset:]
-    if data.size != n:
-        raise CommandError(f"expected {n} values [T_0, ..., T_{n - 1}] [N m] for hinges "
-                           f"hinge_0..hinge_{n - 1}, got {data.size}")
+    if data.size != size:
+        raise CommandError(f"expected {size} values {layout}, got {data.size}")
     bad = np.flatnonzero(~np.isfinite(data))
     if bad.size:
         i = int(bad[0]) + offset
