@@ -293,7 +293,7 @@ def test_a_load_whose_derivative_jumps_at_a_sample_keeps_the_balance_closed(mode
     sc = load_scene(REPO / "config" / "paper_example.yaml")
     assert {0.5, 1.0} <= set(sc.load_breakpoints())
     traj, sim = run(sc, model, 1.0, 1000.0, rtol=1e-11)
-    res = np.array([b.residual for _, b in balance_run(sim.model, traj.t, traj.y, None,
+    res = np.array([b.residual for _, b, _ in balance_run(sim.model, traj.t, traj.y, None,
                                                        traj.modes, sim.events)])
     assert abs(res[-1]) < 1e-6 and np.max(np.abs(res)) < 1e-5, (res[-1], np.abs(res).max())
 

@@ -260,7 +260,7 @@ def independent_row(index, stiffness, amplitude, model="reduced", t_end=0.2, rat
     tips = np.array([node_positions(scene.length, p)[-1] for p in phi])
     bend = [m.bending(t, y) for t, y in zip(traj.t, traj.y)]
     energy = [m.energies(t, y).total for t, y in zip(traj.t, traj.y)]
-    *_, (_, balance) = balance_run(m, traj.t, traj.y, None, traj.modes, sim.events)
+    *_, (_, balance, _) = balance_run(m, traj.t, traj.y, None, traj.modes, sim.events)
     return {"run": index, "hinges.stiffness": stiffness, "loads[0].amplitude": amplitude,
             "model": model, "status": "ok", "nfev": sim.stats.nfev,
             "max_abs_phi": np.abs(phi).max(), "tip_phi_final": phi[-1, -1],

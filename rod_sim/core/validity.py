@@ -522,21 +522,24 @@ def balance_run(model, t, y, held=None, modes=None, events=()):
     """The energy balance over samples ``t`` (N,) [s], states ``y`` (N, state_size), held
     inputs ``held`` ((n, 2) or (n, 3), or per sample (N, n, 2|3); None: zeros), latches
     ``modes`` (N, n) fired at each sample and the run's hinge ``events``, booked as
-    ``simulate`` books it: yields (i, the :class:`EnergyBalance` after sample i) for every
-    sample (i = 0: started)."""
+    ``simulate`` books it: yields (i, the :class:`EnergyBalance` after sample i, the end slopes
+    (alpha, beta) (n,) each [rad] at sample i in its mode) for every sample (i = 0: started).
+    The slopes are solved once per sample, for the balance and for the caller."""
     t = np.asarray(t, float)
     per_sample = held is not None and np.ndim(held) == 3
     balance = EnergyBalance.for_model(model)
     prev = None
     for i in range(t.size):
         h = held[i] if per_sample else held
-        sample = balance_sample(model, t[i], y[i], h, None if modes is None else modes[i])
+        mode = None if modes is None else modes[i]
+        slopes = model.bending(t[i], y[i], h, mode)
+        sample = balance_sample(model, t[i], y[i], h, mode, slopes)
         if prev is None:
             balance.start(sample.energy)
         else:
             balance.add(prev, sample, span_events(events, prev.t, t[i]))
         prev = sample
-        yield i, balance
+        yield i, balance, slopes
 
 
 def assess_trajectory(model, t, y, held=None, command_rate_hz: float | None = None,
@@ -552,8 +555,8 @@ def assess_trajectory(model, t, y, held=None, command_rate_hz: float | None = No
     held = np.zeros((model.n, 2)) if held is None else np.asarray(held, float)
     per_sample = held.ndim == 3
     worst = None
-    for i, balance in balance_run(model, t, y, held, modes, events):
-        mon.update(t[i], y[i], held[i] if per_sample else held)
+    for i, balance, (alpha, beta) in balance_run(model, t, y, held, modes, events):
+        mon.update(t[i], y[i], held[i] if per_sample else held, alpha, beta)
         if i and (worst is None or abs(balance.residual) > abs(worst[1])):
             worst = (t[i], balance.residual)
     if worst is not None:

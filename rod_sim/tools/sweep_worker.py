@@ -61,10 +61,8 @@ def metrics(model, t: np.ndarray, y: np.ndarray, modes=None, events=()) -> dict:
     tip = np.stack([np.cos(phi) @ l, np.sin(phi) @ l], axis=1)        # (N, 2)
     alpha = np.empty_like(phi)
     beta = np.empty_like(phi)
-    for i in range(t.size):
-        alpha[i], beta[i] = model.bending(t[i], y[i], None, None if modes is None else modes[i])
-    for _, balance in balance_run(model, t, y, None, modes, events):
-        pass
+    for i, balance, (a, b) in balance_run(model, t, y, None, modes, events):
+        alpha[i], beta[i] = a, b
     return {
         "max_abs_phi": float(np.max(np.abs(phi))),
         "tip_phi_final": float(phi[-1, -1]),
