@@ -278,8 +278,7 @@ class RodSimNode(Node):
     def _warm_up(self) -> None:
         """Load the compiled kernels and message types once, before the clock starts, so that
         the first real period does not pay for them, and measure the work budget."""
-        scratch = Simulator(self.model, make_integrator(self.settings.integrator,
-                                                        rtol=self.settings.rtol))
+        scratch = Simulator(self.model, self.sim.integrator)   # same settings, its own Carry
         period_s = self.period_ns / NS_PER_S
         try:
             self._budget = budget.measure(scratch, period_s, self.settings.max_period_cost)
