@@ -106,9 +106,8 @@ from rod_sim.core.scene import SceneError
 from rod_sim.core.simulator import Simulator
 from rod_sim.core.units import NS_PER_S
 from rod_sim.core.validity import ValidityMonitor, balance_sample
-from rod_sim.io import topics
-from rod_sim.io.hinge_events import (HINGE_EVENTS_TOPIC, HINGE_EVENTS_TYPE, event_message,
-                                     event_time_ns)
+from rod_sim.io import encoders, topics
+from rod_sim.io.hinge_events import HINGE_EVENTS_TOPIC
 from rod_sim.io.log_writer import LogWriter
 from rod_sim.io.scene_yaml import load_scene, scene_to_yaml
 from rod_sim.io.urdf import scene_urdf
@@ -116,7 +115,7 @@ from rod_sim.tools.common import UsageError
 from rod_sim.tools.limits import check_model_memory
 from rod_sim.ros import budget
 from rod_sim.ros.commands import FORCES, TORQUES, Command, CommandIntake
-from rod_sim.ros.conversions import message_class, message_to_dict, to_message
+from rod_sim.ros.conversions import message_class, message_to_dict
 from rod_sim.ros.errors import NodeConfigError, one_line
 from rod_sim.ros.monitor import DiagnosticReport, EnergyLedger
 from rod_sim.ros.pacing import RateMeter, RealTimePacer, period_ns, tick_period_s
@@ -127,6 +126,7 @@ from rod_sim.ros.qos import (APPLIED_QOS, COMMAND_QOS, DIAGNOSTICS_QOS, EVENTS_Q
                              LOCKSTEP_STATE_DEPTH, LOCKSTEP_STATE_QOS, SERVICE_QOS, STATE_DEPTH,
                              STATE_QOS, clock_qos)
 from rod_sim.ros.qos import SERVICE_QUEUE_DEPTH  # noqa: F401  (the node's stated limit)
+from rod_sim.ros.outputs import BY_NAME, LOG_DEPTHS, OUTPUTS, STATE_TOPICS, Outputs, divider
 from rod_sim.ros.recording import NodeRecording, create_log, offered_qos
 from rod_sim.ros.scene_path import ScenePathError, resolve_scene_file
 
@@ -138,8 +138,6 @@ COMMAND_TOPICS = (COMMAND_TOPIC, TORQUE_TOPIC)
 COMMAND_TYPE = "std_msgs/msg/Float64MultiArray"
 APPLIED_TOPICS = {COMMAND_TOPIC: "applied_forces", TORQUE_TOPIC: "applied_torques"}
 """Command topic -> the output topic of what is applied (recorded every period)."""
-STATE_TOPICS = ("joint_states", "rod_states", "bending", "node_poses", "markers")
-"""Published at the end of every control period (if subscribed or recorded)."""
 DESCRIPTION_TOPICS = ("robot_description", "scene")
 """Published once, transient local, and recorded at t = 0 of every log: the chain as URDF
 (:mod:`rod_sim.io.urdf`) and the resolved scene as YAML (a converted log stays
@@ -216,7 +214,7 @@ class RodSimNode(Node):
             self.destroy_node()
             raise
         self._publish_descriptions()
-        self._publish_state(self.sim.snapshot(), force=self.settings.sync_mode)
+        self._publish_state(self.sim.snapshot())
         self._warn_unknown_parameters()
         self.get_logger().info(
             f"{self.get_fully_qualified_name()}: scene {self.scene.name!r} (n = {self.scene.n}), "
@@ -290,9 +288,8 @@ class RodSimNode(Node):
         snap = scratch.snapshot()
         self.model.energies(snap.t, scratch.y, scratch.held)
         self.model.powers(snap.t, scratch.y, scratch.held)
-        for name, data in topics.snapshot_messages(snap, self.scene, "world",
-                                                   STATE_TOPICS).items():
-            to_message(topics.TOPIC_TYPES[name], data)
+        for name in STATE_TOPICS:                 # the layouts of this chain and frame
+            BY_NAME[name].encode(snap, self.scene, self.settings.frame_id)
 
     def _init_state(self) -> None:
         n = self.scene.n
@@ -315,7 +312,6 @@ class RodSimNode(Node):
         """Lockstep: the held inputs [X, Y, T] as of the last queued command processed (a
         command of one topic keeps the other topic's last command)."""
         self._dropped = 0
-        self._applied_last: dict[str, np.ndarray] = {}
         self._ledger = EnergyLedger.for_model(self.model, self._energy(self.sim.held))
         self._balance_end = None
         """(t_ns, held, BalanceSample) at the end of the last period (the ledger's next start
@@ -331,35 +327,31 @@ class RodSimNode(Node):
         self._tick_timer = None
         self._frame_id = self.settings.frame_id
         self._rtf = self.settings.real_time_factor
-        rate = self.settings.markers_rate_hz
-        self._markers_every = max(1, round(self.settings.rate_hz / rate)) if rate > 0 else 1
 
     def _resolve_topic_names(self) -> dict[str, str]:
         """Relative topic name -> the resolved name it is published and recorded under
         (namespace and remappings applied, as rosbag2 records)."""
         names = {name: self.resolve_topic_name(name)
-                 for name in STATE_TOPICS + DESCRIPTION_TOPICS
-                 + ("applied_forces", "applied_torques", HINGE_EVENTS_TOPIC)
-                 + COMMAND_TOPICS}
+                 for name in tuple(o.name for o in OUTPUTS) + COMMAND_TOPICS}
         names["diagnostics"] = self.resolve_topic_name(DIAGNOSTICS_TOPIC)
         return names
 
     def _create_interfaces(self) -> None:
-        state_qos = LOCKSTEP_STATE_QOS if self.settings.sync_mode else STATE_QOS
-        self._pubs = {name: self._publisher(
-            topics.TOPIC_TYPES[name], self._topic_names[name],
-            APPLIED_QOS if name in ("applied_forces", "applied_torques") else
-            DIAGNOSTICS_QOS if name == "diagnostics" else state_qos)
-            for name in STATE_TOPICS + ("applied_forces", "applied_torques", "diagnostics")}
-        self._pubs.update({name: self._publisher(topics.TOPIC_TYPES[name],
-                                                 self._topic_names[name], LATCHED_QOS)
-                           for name in DESCRIPTION_TOPICS})
+        s = self.settings
+        qos = {"state": LOCKSTEP_STATE_QOS if s.sync_mode else STATE_QOS,
+               "applied": APPLIED_QOS, "latched": LATCHED_QOS, "diagnostics": DIAGNOSTICS_QOS,
+               "events": EVENTS_QOS}
+        self._pubs = {o.name: self._publisher(o.type_name, self._topic_names[o.name],
+                                              qos[o.qos])
+                      for o in OUTPUTS
+                      if o.name != HINGE_EVENTS_TOPIC or has_hinge_events(self.scene)}
+        self._outputs = Outputs(self.scene, self._topic_names, self._pubs, self._recording,
+                                self.period_ns, self._frame_id,
+                                {o.name: divider(s.rate_hz, getattr(s, o.rate_parameter))
+                                 for o in OUTPUTS if o.rate_parameter})
         self._clock_pub = (self._publisher(topics.TOPIC_TYPES["clock"], "/clock",
                                            clock_qos(self.settings.clock_reliability))
                            if self.settings.publish_clock else None)
-        self._events_pub = (self._publisher(HINGE_EVENTS_TYPE,
-                                            self._topic_names[HINGE_EVENTS_TOPIC], EVENTS_QOS)
-                            if has_hinge_events(self.scene) else None)
         self._events_sent = 0
         # raw: the length of a command is checked before it is deserialized
         for topic, intake in self._intakes.items():
@@ -464,10 +456,10 @@ class RodSimNode(Node):
                 for intake in self._intakes.values():
                     intake.set_timeout(float(p.value))
             elif p.name == "frame_id":
-                self._frame_id = str(p.value)
-                self._pubs["robot_description"].publish(to_message(
-                    topics.TOPIC_TYPES["robot_description"],
-                    {"data": scene_urdf(self.scene, self._frame_id)}))
+                self._frame_id = self._outputs.frame_id = str(p.value)
+                self._outputs.message("robot_description", self.sim.t_ns,
+                                      {"data": scene_urdf(self.scene, self._frame_id)},
+                                      record=False)
             elif p.name == "step_count":
                 self._step_count = int(p.value)
 
@@ -722,12 +714,7 @@ class RodSimNode(Node):
     def _publish_events(self) -> None:
         """Hinge events (latch, stop contact; docs/hinges.md) since the last period, stamped
         at their simulated times: recorded and published."""
-        for event in self.sim.events[self._events_sent:]:
-            data = event_message(event.to_dict())
-            self._recording.record(self._topic_names[HINGE_EVENTS_TOPIC], HINGE_EVENTS_TYPE,
-                                   event_time_ns(event.to_dict()), data)
-            if self._events_pub is not None:
-                self._events_pub.publish(to_message(HINGE_EVENTS_TYPE, data))
+        self._outputs.events(self.sim.events[self._events_sent:])
         self._events_sent = len(self.sim.events)
 
     def _energy(self, held: np.ndarray, bending=None) -> float:
@@ -752,83 +739,40 @@ class RodSimNode(Node):
 
     # ----- publishing -----
 
-    def _wants(self, name: str) -> bool:
-        return self._recording.writer is not None or self._listened(name)
-
-    def _listened(self, name: str) -> bool:
-        """Publish ``name``: someone listens, or lockstep (its transient-local state topics
-        keep the latest state for a client that joins later)."""
-        return ((self.settings.sync_mode and name in STATE_TOPICS)
-                or self._pubs[name].get_subscription_count() > 0)
-
-    def _emit(self, name: str, t_ns: int, data: dict, force: bool = False) -> None:
-        """Record ``data`` on the resolved topic ``name`` at ``t_ns`` and publish it if anyone
-        listens (or ``force``)."""
-        type_name = topics.TOPIC_TYPES[name]
-        self._recording.record(self._topic_names[name], type_name, t_ns, data)
-        if force or self._listened(name):
-            self._pubs[name].publish(to_message(type_name, data))
-
     def _publish_applied(self, t_ns: int) -> None:
         """Applied forces (scripted + held) and hinge torques (held) from ``t_ns`` on: each
         recorded every period, published when it changes (and the first time)."""
-        values = {"applied_forces": self.model.forces(t_ns / NS_PER_S, self.sim.held),
-                  "applied_torques": self.sim.held[:, 2].copy()}
-        for name, applied in values.items():
-            data = (topics.force_array(applied) if name == "applied_forces" else
-                    topics.torque_array(applied))
-            self._recording.record(self._topic_names[name], topics.TOPIC_TYPES[name], t_ns, data)
-            last = self._applied_last.get(name)
-            if last is None or not np.array_equal(applied, last):
-                self._applied_last[name] = applied
-                self._pubs[name].publish(to_message(topics.TOPIC_TYPES[name], data))
+        self._outputs.applied(t_ns, self.model.forces(t_ns / NS_PER_S, self.sim.held),
+                              self.sim.held[:, 2].copy())
 
-    def _publish_state(self, snap, force: bool = False) -> None:
-        """Everything a state determines, stamped at its simulated time (``force``: publish
-        every state topic even without subscribers, e.g. lockstep's t = 0 state)."""
-        t_ns = self.sim.t_ns
+    def _publish_state(self, snap) -> None:
+        """Everything a state determines, stamped at its simulated time: recorded and always
+        published (the transient-local store keeps the latest state for late subscribers)."""
         self._max_alpha = max(self._max_alpha, float(np.max(np.abs(snap.alpha), initial=0.0)))
         self._max_beta = max(self._max_beta, float(np.max(np.abs(snap.beta), initial=0.0)))
         self._publish_clock()       # /clock first: no output is stamped later than it
-        wanted = [name for name in STATE_TOPICS if (force or self._wants(name))
-                  and (name != "markers" or self._markers_due(t_ns))]
-        if wanted:
-            for name, data in topics.snapshot_messages(snap, self.scene, self._frame_id,
-                                                       wanted).items():
-                self._emit(name, t_ns, data, force)
+        self._outputs.state(snap, self.sim.t_ns)
 
     def _publish_descriptions(self) -> None:
         """``robot_description`` (URDF, root link = ``frame_id``) and ``scene`` (YAML): published
         (transient local) and recorded at the current simulated time (t = 0 at start and after
         ``~/reset``)."""
-        texts = {"robot_description": scene_urdf(self.scene, self._frame_id),
-                 "scene": scene_to_yaml(self.scene)}
-        for name, text in texts.items():
-            self._recording.record(self._topic_names[name], topics.TOPIC_TYPES[name],
-                                   self.sim.t_ns, {"data": text})
-            self._pubs[name].publish(to_message(topics.TOPIC_TYPES[name], {"data": text}))
+        self._outputs.message("robot_description", self.sim.t_ns,
+                              {"data": scene_urdf(self.scene, self._frame_id)})
+        self._outputs.message("scene", self.sim.t_ns, {"data": scene_to_yaml(self.scene)})
 
     def _republish_waiting(self) -> None:
         """Lockstep, before the first valid command (at start and after ``~/reset``): publish
         the waiting state again, not recorded, for volatile subscribers that joined since."""
         if self._any_command() or self._sync_queue or self._error is not None:
             return
-        wanted = [name for name in STATE_TOPICS
-                  if name != "markers" or self._markers_due(self.sim.t_ns)]
-        for name, data in topics.snapshot_messages(self.sim.snapshot(), self.scene,
-                                                   self._frame_id, wanted).items():
-            self._pubs[name].publish(to_message(topics.TOPIC_TYPES[name], data))
+        self._outputs.state(self.sim.snapshot(), self.sim.t_ns, record=False)
 
     def _publish_clock(self) -> None:
         """Simulated time on /clock (if enabled and someone listens)."""
         if self._clock_pub is not None and self._clock_pub.get_subscription_count() > 0:
-            self._clock_pub.publish(to_message(topics.TOPIC_TYPES["clock"],
-                                               {"clock": topics.stamp_from_ns(self.sim.t_ns)}))
+            self._clock_pub.publish(encoders.clock_ns(self.sim.t_ns))
             self._clock_wall_ns = time.monotonic_ns()
-
-    def _markers_due(self, t_ns: int) -> bool:
-        """Whether the state at ``t_ns`` (on the control-period grid) gets markers."""
-        return (t_ns // self.period_ns) % self._markers_every == 0
 
     def diagnostic_report(self) -> DiagnosticReport:
         """The health of the simulation over the window since the last diagnostics."""
@@ -865,7 +809,7 @@ class RodSimNode(Node):
         level, message, values = self.diagnostic_report().status()
         data = topics.diagnostics(self.sim.t, values, self.scene.name, level=level,
                                   message=message, frame_id="", name=DIAGNOSTICS_STATUS_NAME)
-        self._emit("diagnostics", self.sim.t_ns, data)
+        self._outputs.message("diagnostics", self.sim.t_ns, data)
         self._meter.restart(time.monotonic_ns())
         self._max_alpha = self._max_beta = 0.0
 
@@ -882,7 +826,7 @@ class RodSimNode(Node):
         self._sync_queue.clear()
         self._sync_held = np.zeros((self.scene.n, 3))
         self._error = None
-        self._applied_last = {}
+        self._outputs.forget_applied()
         self._ledger.start(self._energy(self.sim.held))
         self._balance_end = None
         self._validity = ValidityMonitor(self.model)
@@ -972,10 +916,8 @@ class RodSimNode(Node):
                     "rtol": repr(s.rtol), "rate_hz": repr(s.rate_hz),
                     "source": "rod_sim node", "mode": self._mode(),
                     "node": self.get_fully_qualified_name()}
-        state_depth = LOCKSTEP_STATE_DEPTH if s.sync_mode else STATE_DEPTH
-        latched = {"applied_forces": 1, "applied_torques": 1, HINGE_EVENTS_TOPIC: 100,
-                   **{name: 1 for name in DESCRIPTION_TOPICS},
-                   **{name: state_depth for name in STATE_TOPICS}}
+        depths = {**LOG_DEPTHS, "state": LOCKSTEP_STATE_DEPTH if s.sync_mode else STATE_DEPTH}
+        latched = {o.name: depths[o.qos] for o in OUTPUTS if o.qos in depths}
         return create_log(path, metadata, offered_qos(self._topic_names, latched))
 
     @property

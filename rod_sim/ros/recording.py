@@ -97,6 +97,16 @@ class NodeRecording:
             self._stopped(one_line(exc))
             self.close()
 
+    def record_cdr(self, topic: str, type_name: str, t_ns: int, data: bytes) -> None:
+        """Write the encoded message ``data`` (the bytes published) as :meth:`record` does."""
+        if self.writer is None:
+            return
+        try:
+            self.writer.write_cdr(topic, type_name, t_ns, data)
+        except (LogWriteError, OSError) as exc:
+            self._stopped(one_line(exc))
+            self.close()
+
     def close(self) -> None:
         """Close the log with its summary (idempotent)."""
         log, self.writer = self.writer, None
