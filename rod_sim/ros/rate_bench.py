@@ -134,7 +134,8 @@ def lockstep_force(k: int, n: int) -> np.ndarray:
 
 
 def _node_process(args, params: dict) -> subprocess.Popen:
-    cmd = [sys.executable, "-m", "rod_sim.ros.node", "--ros-args"]
+    cmd = [sys.executable, *os.environ.get("ROD_SIM_BENCH_NODE", "-m rod_sim.ros.node").split(),
+           "--ros-args"]
     for key, value in params.items():
         cmd += ["-p", f"{key}:={ros_arg(value)}"]
     env = dict(os.environ)
