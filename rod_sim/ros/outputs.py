@@ -74,6 +74,15 @@ LOG_DEPTHS = {"applied": 1, "latched": 1, "events": 100}
 the state topics: the mode's state depth; diagnostics: the writer's default, volatile)."""
 
 
+def has_hinge_events(scene: Scene) -> bool:
+    """Whether the scene has latches or stops, the only sources of ``hinge_events`` (its
+    publisher exists only then; events are recorded in any case)."""
+    def given(values, default_test) -> bool:
+        return values is not None and bool(np.any(default_test(np.asarray(values, float))))
+    return (given(scene.latch_angle, lambda v: ~np.isnan(v))
+            or given(scene.stop_lower, np.isfinite) or given(scene.stop_upper, np.isfinite))
+
+
 def divider(rate_hz: float, topic_rate_hz: float) -> int:
     """Control periods per message of a topic at ``topic_rate_hz`` (0: every period)."""
     return max(1, round(rate_hz / topic_rate_hz)) if topic_rate_hz > 0 else 1

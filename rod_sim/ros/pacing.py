@@ -24,7 +24,10 @@ kept by :class:`rod_sim.core.simulator.Simulator`.
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
+
+import numpy as np
 
 from rod_sim.core.units import NS_PER_S
 
@@ -200,3 +203,18 @@ class RateMeter:
     @property
     def steps(self) -> int:
         return len(self._costs_ns)
+
+
+class CostEstimate:
+    """The wall cost of one period [ns] the pacer catches up with: the median of the last
+    ``ticks`` ticks' cost per period (stepping, publishing, recording); a tick that was itself
+    preempted by another process does not inflate it; when every tick is slow, the median is
+    slow too. ``value`` is None until a tick was measured."""
+
+    def __init__(self, ticks: int = 50):
+        self._costs: deque[float] = deque(maxlen=ticks)
+        self.value: float | None = None
+
+    def add(self, cost_ns: float) -> None:
+        self._costs.append(cost_ns)
+        self.value = float(np.median(self._costs))

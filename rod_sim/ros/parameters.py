@@ -3,6 +3,7 @@ units, range, read-only), the settings read once at start and their checks, the 
 rejected values, and the run-time check of a parameter change."""
 from __future__ import annotations
 
+import textwrap
 from dataclasses import dataclass
 from typing import Any
 
@@ -173,3 +174,24 @@ def unknown_overrides(node) -> list[str]:
     """Overrides (-p, params files) given to ``node`` that name none of its parameters."""
     known = {spec.name for spec in PARAMETERS} | {"use_sim_time"}
     return sorted(set(getattr(node, "_parameter_overrides", {})) - known)
+
+
+def parameter_help(specs=PARAMETERS, width: int = 79) -> str:
+    """The parameters for ``--help``: one per line (``name  type, default: ...``), its
+    description wrapped and indented below it."""
+    kinds = {bool: "bool", float: "double", int: "integer", str: "string"}
+    lines = ["parameters (set with --ros-args -p NAME:=VALUE or --params-file FILE):"]
+    for spec in specs:
+        default = (str(spec.default).lower() if isinstance(spec.default, bool)
+                   else repr(spec.default))
+        run_time = "" if spec.read_only else ", settable at run time"
+        lines.append(f"  {spec.name} ({kinds[type(spec.default)]}, default {default}"
+                     f"{run_time})")
+        text = spec.description
+        if spec.range is not None:
+            text += f"; range {spec.range[0]:g} .. {spec.range[1]:g}"
+        if spec.constraints and spec.constraints not in text:
+            text += f"; {spec.constraints}"
+        lines += textwrap.wrap(text, width, initial_indent=" " * 6, subsequent_indent=" " * 6,
+                               break_on_hyphens=False)
+    return "\n".join(lines)
