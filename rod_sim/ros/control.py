@@ -110,3 +110,15 @@ class RunControl:
                         f"step failed: {self.error}")
         finally:
             self.stepping = False
+
+    def waiting_line(self, t: float, forces: str, torques: str, any_command: bool) -> str | None:
+        """What a node waiting at its start waits for (None when it does not wait);
+        ``forces``, ``torques``: the resolved command topics."""
+        if self.start_hold:
+            return (f"paused at t = {t:g} s (start_paused): waiting for ~/pause false or the "
+                    f"first {forces} or {torques} command")
+        if self.sync_mode and not any_command and self.running():
+            return (f"lockstep: waiting for the first nodal_forces command on {forces} (or "
+                    f"hinge_torques on {torques}; the t = {t:g} s state is published transient "
+                    "local)")
+        return None

@@ -54,6 +54,18 @@ class Inputs:
         return (f"rejected a {intake.kind} command: {intake.last_rejection} "
                 f"({intake.rejected} rejected so far); keeping the last valid command")
 
+    def receive(self, data: bytes, intake: CommandIntake, sim_ns: int, record
+                ) -> tuple[Command | None, str]:
+        """A serialized command of ``intake``'s topic received at simulated time ``sim_ns``:
+        refused by its length before decoding (an 80 MB message must not stall the node),
+        decoded, passed to ``record(msg)`` (rejected ones included; undecodable ones not),
+        validated. Returns (the valid command or None, the warning line of a rejection)."""
+        msg = intake.decode(data)
+        if msg is not None:
+            record(msg)
+        command = None if msg is None else intake.accept(msg, sim_ns)
+        return command, ("" if command is not None else self.note_rejection(intake))
+
     def held(self, sim_ns: int, wall_age: bool) -> tuple[np.ndarray, list[tuple[str, str]]]:
         """The inputs to hold over the next period (n, 3) [X, Y, T] (command ages: wall time
         if ``wall_age``, else simulated time at ``sim_ns``), and (topic, line) for each topic

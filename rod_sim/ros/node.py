@@ -1,28 +1,18 @@
 """The rod_sim ROS 2 node (docs/interface.md section 3): a chain of elastic rods driven by nodal
-forces and hinge torques. Run it as ``sim_node`` / ``rod-sim node`` / ``python -m
-rod_sim.ros.node --ros-args -p scene_file:=config/paper_example.yaml [-p sync_mode:=true]``.
+forces and hinge torques; ``sim_node`` / ``rod-sim node`` / ``python -m rod_sim.ros.node
+--ros-args -p scene_file:=config/paper_example.yaml [-p sync_mode:=true]``.
 
-This module is wiring: it creates the ROS entities and connects their callbacks to parts that
-each have one job and need no ROS graph -- :mod:`~rod_sim.ros.parameters` (declarations,
-settings, checks), :mod:`~rod_sim.ros.simulation` (scene, model, simulator, work budget),
-:mod:`~rod_sim.ros.inputs` (command intakes, held inputs, lockstep queue),
-:mod:`~rod_sim.ros.period` (one control period: integration within the budget, energy ledger,
-validity monitor), :mod:`~rod_sim.ros.pacing` (real-time pace), :mod:`~rod_sim.ros.outputs`
-(the table of output topics: each message encoded once, the same bytes published and
-recorded), :mod:`~rod_sim.ros.control` (pause, step, reset: the services' logic),
-:mod:`~rod_sim.ros.recording` (the log) and :mod:`~rod_sim.ros.process` (the process).
-
-Time advances in whole control periods dt = 1/rate_hz of simulated time with the inputs held
-(zero-order hold): at a real-time pace (a steady timer; the periods that are due, a backlog
-caught up as far as the measured cost affords, the rest dropped and counted), as fast as
-possible (a zero-period timer, a bounded budget per tick), or in lockstep (one period per
-valid command; nothing advances before the first). Each period: applied inputs, advance,
-states (always published: the transient-local store holds the latest), hinge events. Every
-stamp and log time is simulated time; ``/clock`` comes before each period's outputs.
+This module is wiring: ROS entities whose callbacks call parts with one job each, none needing
+a ROS graph: parameters (settings), simulation (scene, model, simulator, work budget), inputs
+(command intakes, held inputs, lockstep queue), period (one control period: integration within
+the budget, energy ledger, validity), pacing (real-time pace), outputs (the table of output
+topics: each message encoded once, the same bytes published and recorded), control (pause,
+step, reset), recording (the log) and process (the process). Time advances in whole control
+periods of simulated time with the inputs held, paced in real time, as fast as possible, or
+one period per command in lockstep; every stamp and log time is simulated time.
 """
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import functools
 import sys
@@ -35,28 +25,25 @@ from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import SetBool, Trigger
 
-from rod_sim import __version__
 from rod_sim.core.units import NS_PER_S
-from rod_sim.io import encoders, topics
+from rod_sim.io import topics
 from rod_sim.io.log_writer import LogWriter
 from rod_sim.io.scene_yaml import scene_to_yaml
-from rod_sim.io.urdf import scene_urdf
 from rod_sim.ros import simulation
 from rod_sim.ros.commands import FORCES, TORQUES, CommandIntake
 from rod_sim.ros.control import NextTurn, RunControl
 from rod_sim.ros.conversions import message_class, message_to_dict
 from rod_sim.ros.errors import NodeConfigError, ThrottledLog
 from rod_sim.ros.inputs import Inputs
-from rod_sim.ros.monitor import DiagnosticReport
-from rod_sim.ros.outputs import LOG_DEPTHS, OUTPUTS, Outputs, divider, has_hinge_events
-from rod_sim.ros.pacing import CostEstimate, RealTimePacer, tick_period_s
-from rod_sim.ros.parameters import (NODE_NAME, PARAMETERS, declare_settings, parameter_help,
-                                    unknown_overrides, validate_change)
-from rod_sim.ros.process import params_files, parse_cli, run_node
-from rod_sim.ros.qos import (APPLIED_QOS, COMMAND_QOS, DIAGNOSTICS_QOS, EVENTS_QOS, LATCHED_QOS,
-                             LOCKSTEP_STATE_DEPTH, LOCKSTEP_STATE_QOS, SERVICE_QOS, STATE_DEPTH,
-                             STATE_QOS, SERVICE_QUEUE_DEPTH, clock_qos)
-from rod_sim.ros.recording import NodeRecording, create_log, offered_qos
+from rod_sim.ros.monitor import DiagnosticReport, node_report
+from rod_sim.ros.outputs import (OUTPUTS, Outputs, SimClock, create_publishers, divider,
+                                 has_hinge_events, log_depths)
+from rod_sim.ros.pacing import Pacing
+from rod_sim.ros.parameters import (NODE_NAME, PARAMETERS, build_parser, declare_settings,
+                                    unknown_overrides, unknown_warning, validate_change)
+from rod_sim.ros.process import params_files, parse_cli, run_node, same_name_count
+from rod_sim.ros.qos import COMMAND_QOS, SERVICE_QOS, SERVICE_QUEUE_DEPTH, clock_qos
+from rod_sim.ros.recording import NodeRecording, create_log, node_log_metadata, offered_qos
 
 __all__ = ["RodSimNode", "NodeConfigError", "main", "PARAMETERS", "SERVICE_QUEUE_DEPTH",
            "params_files", "has_hinge_events"]
@@ -69,7 +56,6 @@ IDLE_CLOCK_PERIOD_S = 0.1    # [s] wall period of /clock while no period advance
 WAITING_LOG_PERIOD_S = 3.0   # [s] wall period of the "waiting for ..." line at t = 0
 WAITING_REPUBLISH_PERIOD_S = 0.5  # [s] lockstep before the first command: state again
 NAME_CHECK_DELAY_S = 2.0     # [s] after start: another node of the same name on the graph?
-FAST_TICK_BUDGET_NS = 20_000_000  # [ns] stepping per tick as fast as possible
 SYNC_BATCH = 16              # lockstep periods per callback before yielding to others
 STEP_SLICE_S = 0.1           # [s] ~/step stepping before the executor serves others
 
@@ -100,8 +86,8 @@ class RodSimNode(Node):
             self._budget = built.budget
             self.inputs = Inputs(self.scene.n, s.command_timeout)
             self.control = RunControl(s.sync_mode, s.start_paused, s.real_time_factor)
-            self._dropped, self._clock_wall_ns, self._tick_timer = 0, 0, None
-            self._cost = CostEstimate()
+            self._tick_timer = None
+            self._pacing = Pacing(self.period_ns, s.real_time_factor)
             self._topic_names = {o.name: self.resolve_topic_name(o.name) for o in OUTPUTS}
             self._topic_names.update({t: self.resolve_topic_name(t) for t in (FORCES, TORQUES)})
             self._topic_names["diagnostics"] = self.resolve_topic_name(DIAGNOSTICS_TOPIC)
@@ -110,35 +96,25 @@ class RodSimNode(Node):
         except BaseException:
             self.destroy_node()
             raise
-        self._publish_descriptions()
+        self._outputs.descriptions(self.sim.t_ns)
         self._publish_state(self.sim.snapshot())
         self.unknown_parameters = unknown_overrides(self)
         if self.unknown_parameters:
-            self.get_logger().warning(
-                f"unknown parameter(s) ignored: {', '.join(self.unknown_parameters)} "
-                f"(parameters of this node: {', '.join(p.name for p in PARAMETERS)})")
-        self.get_logger().info(
-            f"{self.get_fully_qualified_name()}: scene {self.scene.name!r} (n = {self.scene.n}), "
-            f"model {self.model.name}, {self.sim.integrator.describe()}, {s.rate_hz:g} Hz, "
-            f"{self.control.mode()}, work budget {self._budget.describe()}; commands on "
-            f"{self._topic_names[FORCES]} and {self._topic_names[TORQUES]}"
-            + (f", recording to {self.log_path}" if self.log_path else "")
-            + (", paused until ~/pause false or the first command" if s.start_paused else ""))
+            self.get_logger().warning(unknown_warning(self.unknown_parameters))
+        self.get_logger().info(simulation.start_line(
+            self.get_fully_qualified_name(), built, self.control.mode(),
+            (self._topic_names[FORCES], self._topic_names[TORQUES]), self.log_path, s))
 
     def _create_interfaces(self) -> None:
         s = self.settings
-        qos = {"state": LOCKSTEP_STATE_QOS if s.sync_mode else STATE_QOS, "applied": APPLIED_QOS,
-               "latched": LATCHED_QOS, "diagnostics": DIAGNOSTICS_QOS, "events": EVENTS_QOS}
-        self._pubs = {o.name: self.create_publisher(message_class(o.type_name),
-                                                    self._topic_names[o.name], qos[o.qos])
-                      for o in OUTPUTS if o.qos != "events" or has_hinge_events(self.scene)}
+        self._pubs = create_publishers(self, self._topic_names, self.scene, s.sync_mode)
         self._outputs = Outputs(self.scene, self._topic_names, self._pubs, self._recording,
                                 self.period_ns, s.frame_id,
                                 {o.name: divider(s.rate_hz, getattr(s, o.rate_parameter))
                                  for o in OUTPUTS if o.rate_parameter})
-        self._clock_pub = (self.create_publisher(message_class(topics.TOPIC_TYPES["clock"]),
-                                                 "/clock", clock_qos(s.clock_reliability))
-                           if s.publish_clock else None)
+        self._sim_clock = SimClock(self.create_publisher(
+            message_class(topics.TOPIC_TYPES["clock"]), "/clock", clock_qos(s.clock_reliability))
+            if s.publish_clock else None, IDLE_CLOCK_PERIOD_S)
         for topic, intake in self.inputs.intakes.items():   # raw: length checked first
             self.create_subscription(Float64MultiArray, self._topic_names[topic],
                                      functools.partial(self._on_command_bytes, intake=intake),
@@ -154,8 +130,8 @@ class RodSimNode(Node):
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         timers = [(DIAGNOSTICS_PERIOD_S, self.publish_diagnostics),
                   (WAITING_LOG_PERIOD_S, self._log_waiting)]
-        if self._clock_pub is not None:
-            timers.append((IDLE_CLOCK_PERIOD_S, self._on_idle_clock))
+        if s.publish_clock:
+            timers.append((IDLE_CLOCK_PERIOD_S, lambda: self._sim_clock.idle(self.sim.t_ns)))
         if s.sync_mode:
             timers.append((WAITING_REPUBLISH_PERIOD_S, self._republish_waiting))
         for period, callback in timers:
@@ -167,9 +143,7 @@ class RodSimNode(Node):
     def _check_name_unique(self) -> None:
         """Once, after discovery: warn when another node has this node's full name."""
         self._name_timer.cancel()
-        full = self.get_fully_qualified_name()
-        same = sum(1 for name, ns in self.get_node_names_and_namespaces()
-                   if f"{ns.rstrip('/')}/{name}" == full)
+        full, same = self.get_fully_qualified_name(), same_name_count(self)
         if same > 1:
             self.name_conflict = True
             self.get_logger().warning(
@@ -179,29 +153,18 @@ class RodSimNode(Node):
 
     def _log_waiting(self) -> None:
         """Every few seconds while the simulation waits at its start: say what it waits for."""
-        commands = f"{self._topic_names[FORCES]} or {self._topic_names[TORQUES]}"
-        if self.control.start_hold:
-            self.get_logger().info(f"paused at t = {self.sim.t:g} s (start_paused): waiting for "
-                                   f"~/pause false or the first {commands} command")
-        elif self.settings.sync_mode and not self.inputs.any_command() and self.control.running():
-            self.get_logger().info(f"lockstep: waiting for the first command on {commands} "
-                                   f"(the t = {self.sim.t:g} s state is published transient local)")
-
-    def _on_idle_clock(self) -> None:
-        if time.monotonic_ns() - self._clock_wall_ns >= IDLE_CLOCK_PERIOD_S * NS_PER_S:
-            self._publish_clock()
+        line = self.control.waiting_line(self.sim.t, self._topic_names[FORCES],
+                                         self._topic_names[TORQUES], self.inputs.any_command())
+        if line:
+            self.get_logger().info(line)
 
     def _configure_pacing(self) -> None:
-        """(Re)create the pacing timer for the current mode and real-time factor."""
+        """(Re)create the pacing timer for the current real-time factor (none in lockstep)."""
         if self._tick_timer is not None:
             self.destroy_timer(self._tick_timer)
-            self._tick_timer = None
-        rtf, lockstep = self.control.rtf, self.control.sync_mode
-        self._pacer = RealTimePacer(self.period_ns, rtf) if rtf > 0 and not lockstep else None
-        if not lockstep:
-            self._tick_timer = self.create_timer(
-                tick_period_s(self.period_ns, rtf) if rtf > 0 else 0.0, self._on_tick,
-                clock=self._steady)
+        self._pacing.set_rtf(self.control.rtf)
+        self._tick_timer = (None if self.control.sync_mode else self.create_timer(
+            self._pacing.tick_period_s(), self._on_tick, clock=self._steady))
 
     def _apply_parameters(self, params) -> None:
         for p in params:
@@ -213,8 +176,8 @@ class RodSimNode(Node):
                 self.inputs.set_timeout(float(p.value))
             elif p.name == "frame_id":
                 self._outputs.frame_id = str(p.value)
-                self._outputs.message("robot_description", self.sim.t_ns, {"data": scene_urdf(
-                    self.scene, self._outputs.frame_id)}, record=False)
+                self._outputs.descriptions(self.sim.t_ns, record=False,
+                                           which=("robot_description",))
             elif p.name == "step_count":
                 self.settings = dataclasses.replace(self.settings, step_count=int(p.value))
 
@@ -240,20 +203,16 @@ class RodSimNode(Node):
     # ----- inputs -----
 
     def _on_command_bytes(self, data: bytes, intake: CommandIntake | None = None) -> None:
-        """A serialized command: refused by its length before decoding, recorded as received
-        (rejected ones included), validated and held (lockstep: queued for its period)."""
+        """A serialized command: checked, recorded, validated, held (lockstep: queued)."""
         intake = self.inputs.forces if intake is None else intake
-        msg = intake.decode(data)
-        if msg is not None:
+        command, warning = self.inputs.receive(data, intake, self.sim.t_ns, lambda msg: (
             self._recording.record(self._topic_names[intake.kind], COMMAND_TYPE, self.sim.t_ns,
-                                   message_to_dict(msg))
-        command = None if msg is None else intake.accept(msg, self.sim.t_ns)
+                                   message_to_dict(msg))))
         if command is None:
-            self._log_throttled(f"rejected {intake.kind}", "warning",
-                                self.inputs.note_rejection(intake))
+            self._log_throttled(f"rejected {intake.kind}", "warning", warning)
             return
         if self.control.first_command():
-            self._unanchor()
+            self._pacing.unanchor()
             self.get_logger().info(f"first command received: running from t = {self.sim.t:g} s")
         if self.settings.sync_mode and self.control.running():
             self.inputs.queue.append(command)
@@ -270,29 +229,11 @@ class RodSimNode(Node):
     def _on_tick(self) -> None:
         """Pacing timer: advance the periods that are due (never in lockstep)."""
         if not self.control.running():
-            self._unanchor()
+            self._pacing.unanchor()
             return
-        if self._pacer is None:
-            deadline = time.monotonic_ns() + FAST_TICK_BUDGET_NS
-            while self.control.running() and time.monotonic_ns() < deadline:
-                self._step_period(self._held(wall_age=False))
-            return
-        decision = self._pacer.decide(time.monotonic_ns(), self.sim.t_ns, self._cost.value)
-        if decision.dropped:
-            self._dropped += decision.dropped
-            self._log_throttled("dropped", "warning", (
-                f"cannot keep up with real time x{self.control.rtf:g}: dropped "
-                f"{decision.dropped} period(s) of backlog ({self._dropped} in all; a period "
-                f"costs {(self._cost.value or 0) / 1e6:.3g} ms of wall time)"))
-        start = time.monotonic_ns()
-        deadline, stepped = start + self._budget.seconds * NS_PER_S, 0
-        for _ in range(decision.periods):       # the rest of a slow tick waits for the next
-            ok = self._step_period(self._held(wall_age=True))
-            stepped += ok
-            if not ok or time.monotonic_ns() > deadline:
-                break
-        if stepped:
-            self._cost.add((time.monotonic_ns() - start) / stepped)
+        self._pacing.tick(self.sim.t_ns, lambda wall_age: self._step_period(self._held(wall_age)),
+                          self.control.running, self._budget.seconds,
+                          lambda text: self._log_throttled("dropped", "warning", text))
 
     def _on_sync_trigger(self) -> None:
         """Lockstep: one period per queued command, a bounded batch per callback."""
@@ -313,17 +254,13 @@ class RodSimNode(Node):
             self.control.fail(self.period.error)
             self.get_logger().error(f"integration failed: {self.control.error}; simulation "
                                     "paused (call ~/reset, or ~/pause false to retry)")
-            self._unanchor()
+            self._pacing.unanchor()
             self.publish_diagnostics()
             return False
         self._publish_state(snap)
         self._outputs.events(self.sim.events[self.period.events_seen:])
         self.period.events_seen = len(self.sim.events)
         return True
-
-    def _unanchor(self) -> None:
-        if self._pacer is not None:
-            self._pacer.unanchor()
 
     # ----- outputs -----
 
@@ -333,49 +270,22 @@ class RodSimNode(Node):
 
     def _publish_state(self, snap) -> None:
         self.period.note_state(snap)
-        self._publish_clock()       # /clock first: no output is stamped later than it
+        self._sim_clock.publish(self.sim.t_ns)   # /clock first: no output is stamped later
         self._outputs.state(snap, self.sim.t_ns)
-
-    def _publish_descriptions(self) -> None:
-        """``robot_description`` (URDF, root link = ``frame_id``) and ``scene`` (YAML),
-        published (transient local) and recorded at the current simulated time."""
-        self._outputs.message("robot_description", self.sim.t_ns,
-                              {"data": scene_urdf(self.scene, self._outputs.frame_id)})
-        self._outputs.message("scene", self.sim.t_ns, {"data": scene_to_yaml(self.scene)})
 
     def _republish_waiting(self) -> None:
         """Lockstep before the first command: the waiting state again (not recorded)."""
         if not (self.inputs.any_command() or self.inputs.queue or self.control.error):
             self._outputs.state(self.sim.snapshot(), self.sim.t_ns, record=False)
 
-    def _publish_clock(self) -> None:
-        if self._clock_pub is not None and self._clock_pub.get_subscription_count() > 0:
-            self._clock_pub.publish(encoders.clock_ns(self.sim.t_ns))
-            self._clock_wall_ns = time.monotonic_ns()
-
     def diagnostic_report(self) -> DiagnosticReport:
         """The health of the simulation over the window since the last diagnostics."""
-        wall, p, c, i = time.monotonic_ns(), self.period, self.control, self.inputs
-        mean_ms, max_ms = p.meter.step_cost_ms()
-        rtf_target = None if c.sync_mode else c.rtf
-        return DiagnosticReport(
-            mode=c.mode(), state=c.state(i.any_command()), sim_time=self.sim.t,
-            rtf_target=rtf_target, rtf_measured=p.meter.real_time_factor(wall),
-            wall_window=p.meter.window_s(wall), step_cost_mean=mean_ms, step_cost_max=max_ms,
-            step_budget=(self.period_ns / 1e6 / c.rtf) if rtf_target else None,
-            steps=p.meter.steps, dropped_periods=self._dropped, energy=p.ledger.energy,
-            energy_residual=p.ledger.residual,
-            commands_received=i.forces.received + i.torques.received,
-            commands_rejected=i.forces.rejected + i.torques.rejected,
-            last_rejection=i.rejection, command_active=i.forces.active or i.torques.active,
-            max_abs_alpha=p.max_alpha, max_abs_beta=p.max_beta, model=self.model.name,
-            integrator=self.sim.integrator.describe(), error=c.error,
-            recording_error=self._recording.error,
-            validity=[f.message for f in p.validity.findings() if f.kind != "bending"],
-            extra={"scene": self.scene.name, "rate_hz": f"{self.settings.rate_hz:g}",
-                   "recording": str(self.log_path) if self.log_path else "off",
-                   "work_budget": self._budget.describe(),
-                   "node": self.get_fully_qualified_name(), **i.counts()})
+        return node_report(
+            self.control, self.period, self.inputs, self._pacing.dropped, self.sim.t,
+            self.period_ns, self.sim.integrator.describe(), self._recording.error,
+            {"scene": self.scene.name, "rate_hz": f"{self.settings.rate_hz:g}",
+             "recording": str(self.log_path) if self.log_path else "off",
+             "work_budget": self._budget.describe(), "node": self.get_fully_qualified_name()})
 
     def publish_diagnostics(self) -> None:
         """Publish (and record) one ``diagnostics`` message and start a new window."""
@@ -395,9 +305,9 @@ class RodSimNode(Node):
         self.period.reset()
         self.inputs.clear()
         self._outputs.forget_applied()
-        self._unanchor()
+        self._pacing.unanchor()
         note = self._recording.roll()
-        self._publish_descriptions()
+        self._outputs.descriptions(self.sim.t_ns)
         self._publish_state(self.sim.snapshot())
         response.success, response.message = True, "reset to the initial state at t = 0 s" + note
         self.get_logger().info(response.message)
@@ -418,7 +328,7 @@ class RodSimNode(Node):
         response.message = self.control.pause(request.data, self.sim.t)
         if not request.data and self.inputs.queue:
             self._sync_trigger.trigger()  # commands received before the pause
-        self._unanchor()
+        self._pacing.unanchor()
         response.success = True
         self.get_logger().info(response.message)
         return response
@@ -427,28 +337,15 @@ class RodSimNode(Node):
 
     def _open_log(self, path: Path) -> LogWriter:
         """A new log at ``path`` with this run's metadata (raises NodeConfigError)."""
-        s = self.settings
-        metadata = {"scene": scene_to_yaml(self.scene), "model": self.model.name,
-                    "integrator": self.sim.integrator.describe(), "version": __version__,
-                    "rtol": repr(s.rtol), "rate_hz": repr(s.rate_hz), "source": "rod_sim node",
-                    "mode": self.control.mode(), "node": self.get_fully_qualified_name()}
-        depths = {**LOG_DEPTHS, "state": LOCKSTEP_STATE_DEPTH if s.sync_mode else STATE_DEPTH}
-        latched = {o.name: depths[o.qos] for o in OUTPUTS if o.qos in depths}
-        return create_log(path, metadata, offered_qos(self._topic_names, latched))
+        return create_log(path, node_log_metadata(
+            scene_to_yaml(self.scene), self.model.name, self.sim.integrator.describe(),
+            self.settings, self.control.mode(), self.get_fully_qualified_name()),
+            offered_qos(self._topic_names, log_depths(self.settings.sync_mode)))
 
     def destroy_node(self) -> None:
         """Close the log (with its summary), then destroy the node."""
         self._recording.close()
         super().destroy_node()
-
-
-def build_parser(prog: str = "sim_node") -> argparse.ArgumentParser:
-    return argparse.ArgumentParser(
-        prog=prog, formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="rod_sim ROS 2 node: a chain of elastic rods driven by nodal forces\n"
-        "(docs/interface.md section 3). Configure it with ROS arguments, e.g.\n"
-        "  --ros-args --params-file config/sim_node.params.yaml -p scene_file:=SCENE.yaml",
-        epilog=parameter_help())
 
 
 def main(argv: list[str] | None = None, prog: str = "sim_node") -> int:

@@ -14,6 +14,7 @@ Nothing here needs a ROS graph: publishers are anything with ``publish(bytes)``
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 from typing import Callable, Iterable, Mapping
 
@@ -88,6 +89,27 @@ def divider(rate_hz: float, topic_rate_hz: float) -> int:
     return max(1, round(rate_hz / topic_rate_hz)) if topic_rate_hz > 0 else 1
 
 
+def log_depths(sync_mode: bool) -> dict[str, int]:
+    """Relative topic -> history depth of the transient-local topics, as offered in a log."""
+    from rod_sim.ros.qos import LOCKSTEP_STATE_DEPTH, STATE_DEPTH
+
+    depths = {**LOG_DEPTHS, "state": LOCKSTEP_STATE_DEPTH if sync_mode else STATE_DEPTH}
+    return {o.name: depths[o.qos] for o in OUTPUTS if o.qos in depths}
+
+
+def create_publishers(node, names: Mapping[str, str], scene: Scene, sync_mode: bool) -> dict:
+    """A publisher on ``node`` for each output of :data:`OUTPUTS` under its resolved name
+    (``hinge_events`` only for a scene with latches or stops), with the QoS of its entry."""
+    from rod_sim.ros import qos as profiles
+    from rod_sim.ros.conversions import message_class
+
+    qos = {"state": profiles.LOCKSTEP_STATE_QOS if sync_mode else profiles.STATE_QOS,
+           "applied": profiles.APPLIED_QOS, "latched": profiles.LATCHED_QOS,
+           "diagnostics": profiles.DIAGNOSTICS_QOS, "events": profiles.EVENTS_QOS}
+    return {o.name: node.create_publisher(message_class(o.type_name), names[o.name], qos[o.qos])
+            for o in OUTPUTS if o.qos != "events" or has_hinge_events(scene)}
+
+
 class Outputs:
     """Encodes and sends the outputs of a node. ``names``: relative -> resolved topic names;
     ``publishers``: relative name -> publisher (``publish(bytes)``; a topic without one is
@@ -155,8 +177,41 @@ class Outputs:
         :mod:`rod_sim.io.cdr`, recorded and published."""
         self.send(name, t_ns, cdr.encoder(BY_NAME[name].type_name)(data), record=record)
 
+    def descriptions(self, t_ns: int, *, record: bool = True, which=("robot_description",
+                                                                      "scene")) -> None:
+        """``robot_description`` (URDF, root link = ``frame_id``) and ``scene`` (YAML) at
+        ``t_ns``: published (transient local) and recorded."""
+        from rod_sim.io.scene_yaml import scene_to_yaml
+        from rod_sim.io.urdf import scene_urdf
+
+        texts = {"robot_description": lambda: scene_urdf(self.scene, self.frame_id),
+                 "scene": lambda: scene_to_yaml(self.scene)}
+        for name in which:
+            self.message(name, t_ns, {"data": texts[name]()}, record=record)
+
     def events(self, events) -> None:
         """Hinge events (objects with ``to_dict``), each stamped at its simulated time."""
         for event in events:
             d = event.to_dict()
             self.message(HINGE_EVENTS_TOPIC, event_time_ns(d), event_message(d))
+
+
+class SimClock:
+    """``/clock`` through ``publisher`` (None: not published): the simulated time of every
+    period before that period's outputs, and while nothing advances the frozen time again every
+    ``idle_s`` [s] of wall time; sent only while someone listens. Not recorded."""
+
+    def __init__(self, publisher, idle_s: float):
+        self.publisher = publisher
+        self.idle_ns = int(idle_s * 1e9)
+        self._wall_ns = 0
+
+    def publish(self, t_ns: int) -> None:
+        if self.publisher is not None and self.publisher.get_subscription_count() > 0:
+            self.publisher.publish(encoders.clock_ns(t_ns))
+            self._wall_ns = time.monotonic_ns()
+
+    def idle(self, t_ns: int) -> None:
+        """A timer's call: publish ``t_ns`` again if no period published for ``idle_s``."""
+        if time.monotonic_ns() - self._wall_ns >= self.idle_ns:
+            self.publish(t_ns)

@@ -3,6 +3,7 @@ units, range, read-only), the settings read once at start and their checks, the 
 rejected values, and the run-time check of a parameter change."""
 from __future__ import annotations
 
+import argparse
 import textwrap
 from dataclasses import dataclass
 from typing import Any
@@ -176,6 +177,12 @@ def unknown_overrides(node) -> list[str]:
     return sorted(set(getattr(node, "_parameter_overrides", {})) - known)
 
 
+def unknown_warning(unknown: list[str]) -> str:
+    """The warning about overrides that name no parameter of the node."""
+    return (f"unknown parameter(s) ignored: {', '.join(unknown)} (parameters of this node: "
+            f"{', '.join(spec.name for spec in PARAMETERS)})")
+
+
 def parameter_help(specs=PARAMETERS, width: int = 79) -> str:
     """The parameters for ``--help``: one per line (``name  type, default: ...``), its
     description wrapped and indented below it."""
@@ -195,3 +202,13 @@ def parameter_help(specs=PARAMETERS, width: int = 79) -> str:
         lines += textwrap.wrap(text, width, initial_indent=" " * 6, subsequent_indent=" " * 6,
                                break_on_hyphens=False)
     return "\n".join(lines)
+
+
+def build_parser(prog: str = "sim_node") -> argparse.ArgumentParser:
+    """The node's command line (its own options: --help; the rest are ROS arguments)."""
+    return argparse.ArgumentParser(
+        prog=prog, formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="rod_sim ROS 2 node: a chain of elastic rods driven by nodal forces\n"
+        "(docs/interface.md section 3). Configure it with ROS arguments, e.g.\n"
+        "  --ros-args --params-file config/sim_node.params.yaml -p scene_file:=SCENE.yaml",
+        epilog=parameter_help())

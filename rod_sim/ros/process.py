@@ -108,3 +108,10 @@ def run_node(prog: str, make_node, args: list[str], config_errors) -> int:
             rclpy.try_shutdown()
     return 0
 
+
+
+def same_name_count(node) -> int:
+    """Nodes on the graph with ``node``'s fully qualified name (itself included)."""
+    full = node.get_fully_qualified_name()
+    return sum(1 for name, ns in node.get_node_names_and_namespaces()
+               if f"{ns.rstrip('/')}/{name}" == full)

@@ -96,3 +96,16 @@ def _warm_up(simulation: Simulation, settings) -> None:
     model.powers(snap.t, scratch.y, scratch.held)
     for name in STATE_TOPICS:
         BY_NAME[name].encode(snap, simulation.scene, settings.frame_id)
+
+
+def start_line(node: str, simulation: Simulation, mode: str, command_topics, log_path,
+               settings) -> str:
+    """The node's start-up log line: what it simulates, how, and where its commands go."""
+    sim = simulation.sim
+    return (f"{node}: scene {simulation.scene.name!r} (n = {simulation.scene.n}), model "
+            f"{simulation.model.name}, {sim.integrator.describe()}, {settings.rate_hz:g} Hz, "
+            f"{mode}, work budget {simulation.budget.describe()}; commands on "
+            f"{command_topics[0]} and {command_topics[1]}"
+            + (f", recording to {log_path}" if log_path else "")
+            + (", paused until ~/pause false or the first command"
+               if settings.start_paused else ""))
