@@ -35,6 +35,7 @@ from rod_sim.ros.control import NextTurn, RunControl
 from rod_sim.ros.conversions import message_class, message_to_dict
 from rod_sim.ros.errors import NodeConfigError, ThrottledLog
 from rod_sim.ros.inputs import Inputs
+from rod_sim.ros.live import NodeLiveView
 from rod_sim.ros.monitor import DiagnosticReport, node_report
 from rod_sim.ros.outputs import (OUTPUTS, Outputs, SimClock, create_publishers, divider,
                                  has_hinge_events, log_depths)
@@ -139,6 +140,7 @@ class RodSimNode(Node):
         self._name_timer = self.create_timer(NAME_CHECK_DELAY_S, self._check_name_unique,
                                              clock=self._steady)
         self._configure_pacing()
+        self._live = None if not s.live_view_port else NodeLiveView(self, s.live_view_port)
 
     def _check_name_unique(self) -> None:
         """Once, after discovery: warn when another node has this node's full name."""
@@ -301,6 +303,10 @@ class RodSimNode(Node):
     def _on_reset(self, request, response):
         """Back to the initial state at t = 0 (commands and errors cleared); a ~/step in
         progress ends ("interrupted"); the log continues in the next file."""
+        response.success, response.message = True, self.reset()
+        return response
+
+    def reset(self) -> str:
         self.control.reset()
         self.period.reset()
         self.inputs.clear()
@@ -309,9 +315,9 @@ class RodSimNode(Node):
         note = self._recording.roll()
         self._outputs.descriptions(self.sim.t_ns)
         self._publish_state(self.sim.snapshot())
-        response.success, response.message = True, "reset to the initial state at t = 0 s" + note
-        self.get_logger().info(response.message)
-        return response
+        message = "reset to the initial state at t = 0 s" + note
+        self.get_logger().info(message)
+        return message
 
     async def _on_step(self, request, response):
         """``step_count`` periods while paused, in slices (see RunControl.step)."""
@@ -324,14 +330,17 @@ class RodSimNode(Node):
         return response
 
     def _on_pause(self, request, response):
-        """data true: pause; false: resume (re-anchors the real-time clock)."""
-        response.message = self.control.pause(request.data, self.sim.t)
-        if not request.data and self.inputs.queue:
+        response.success, response.message = True, self.pause(request.data)
+        return response
+
+    def pause(self, pause: bool) -> str:
+        """True: pause; False: resume (re-anchors the real-time clock)."""
+        message = self.control.pause(pause, self.sim.t)
+        if not pause and self.inputs.queue:
             self._sync_trigger.trigger()  # commands received before the pause
         self._pacing.unanchor()
-        response.success = True
-        self.get_logger().info(response.message)
-        return response
+        self.get_logger().info(message)
+        return message
 
     # ----- recording -----
 
@@ -343,8 +352,10 @@ class RodSimNode(Node):
             offered_qos(self._topic_names, log_depths(self.settings.sync_mode)))
 
     def destroy_node(self) -> None:
-        """Close the log (with its summary), then destroy the node."""
+        """Close the log (with its summary) and the live view, then destroy the node."""
         self._recording.close()
+        if getattr(self, "_live", None) is not None:
+            self._live.close()
         super().destroy_node()
 
 

@@ -127,9 +127,14 @@ class Outputs:
         self.period_ns = int(period_ns)
         self.frame_id = frame_id
         self.dividers = dict(dividers or {})
-        self.taps: list[Callable[[Snapshot], None]] = []
-        """Called with every published state snapshot (e.g. the live view)."""
+        self.taps: list[Callable[[Snapshot, int, dict], None]] = []
+        """Called with every published state: ``tap(snapshot, t_ns, encoded)``, ``encoded``
+        the bytes of the topics sent (e.g. the live view)."""
         self._applied_last: dict[str, np.ndarray] = {}
+
+    def encode(self, name: str, snapshot: Snapshot) -> bytes:
+        """The CDR bytes of state topic ``name`` for ``snapshot``."""
+        return BY_NAME[name].encode(snapshot, self.scene, self.frame_id)
 
     def due(self, name: str, t_ns: int) -> bool:
         """Whether the state at ``t_ns`` (on the control-period grid) carries topic ``name``."""
@@ -149,13 +154,15 @@ class Outputs:
               names: Iterable[str] = STATE_TOPICS) -> None:
         """Every state topic due at ``t_ns`` [ns], each encoded once from ``snapshot``:
         recorded (if ``record``) and published (always: the transient-local store then holds
-        the latest state for a subscriber that joins later); then the taps."""
+        the latest state for a subscriber that joins later); then the taps get the snapshot
+        and the same bytes."""
+        encoded = {}
         for name in names:
             if self.due(name, t_ns):
-                self.send(name, t_ns, BY_NAME[name].encode(snapshot, self.scene, self.frame_id),
-                          record=record)
+                encoded[name] = BY_NAME[name].encode(snapshot, self.scene, self.frame_id)
+                self.send(name, t_ns, encoded[name], record=record)
         for tap in self.taps:
-            tap(snapshot)
+            tap(snapshot, t_ns, encoded)
 
     def applied(self, t_ns: int, forces: np.ndarray, torques: np.ndarray) -> None:
         """The applied forces (n, 2) [N] and hinge torques (n,) [N m] from ``t_ns`` on: each

@@ -90,6 +90,9 @@ PARAMETERS = (
                   "for display (RViz, Foxglove): published and recorded with the states of "
                   "every k-th control period, k = max(1, round(rate_hz / markers_rate_hz)), "
                   "counted from t = 0; 0 = every control period", range=(0.0, 10000.0)),
+    ParameterSpec("live_view_port", 0, "TCP port of the live view (a Foxglove WebSocket "
+                  "server on 127.0.0.1, foxglove-sdk: 3-D scene, frame transforms, joint states, "
+                  "plot series, pause/step/reset); 0 = off", range=(0, 65535)),
 )
 
 
@@ -113,6 +116,7 @@ class NodeSettings:
     start_paused: bool
     step_count: int
     max_period_cost: float
+    live_view_port: int = 0
 
     def check(self, full_name: str = NODE_NAME, params_files: tuple[str, ...] = ()) -> None:
         """Raise NodeConfigError for values the descriptors' ranges do not cover. The node's
