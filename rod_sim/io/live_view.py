@@ -95,6 +95,7 @@ class LiveView:
             raise LiveViewError(f"live view: cannot listen on {host}:{port}: {exc}") from None
         self._min_gap_ns = int(1e9 / max_frame_hz)
         self._last_ns = -self._min_gap_ns
+        self._forwarded: dict[str, int] = {}
         self.frames = 0
 
     @property
@@ -130,6 +131,19 @@ class LiveView:
         if self._series.has_sinks():
             self._series.log({"t": t_ns / 1e9, **{k: (float(v) if math.isfinite(v) else None)
                                                   for k, v in series.items()}}, log_time=t_ns)
+
+    def forward(self, topic: str, t_ns: int, data: bytes) -> None:
+        """A recorded message (replay): ``data`` of a topic ending in one of
+        :data:`CDR_TOPICS` goes to its channel, at most :data:`MAX_FRAME_HZ` per topic per
+        wall second; other topics are ignored."""
+        name = topic.rsplit("/", 1)[-1]
+        channel = self._cdr.get(name)
+        if channel is None or not channel.has_sinks():
+            return
+        now = time.monotonic_ns()
+        if now - self._forwarded.get(name, -self._min_gap_ns) >= self._min_gap_ns:
+            self._forwarded[name] = now
+            channel.log(data, log_time=t_ns)
 
     def _transforms(self, t_ns: int, nodes: np.ndarray, phi: np.ndarray):
         m = self._messages
