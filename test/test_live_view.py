@@ -215,3 +215,24 @@ def test_node_live_view_scene_services_and_a_killed_viewer(tmp_path):
                   if c.topic.endswith("/rod_states")]
     assert stamps == [k * 10_000_000 for k in range(len(stamps))]
     assert stamps[-1] >= t2
+
+
+def test_simulate_live_view_shows_the_run_and_logs_the_same_bytes(tmp_path):
+    port = free_port()
+    scene = REPO / "config" / "paper_example.yaml"
+    args = [sys.executable, "-m", "rod_sim.tools.cli", "simulate", str(scene), "--t-end", "1.5"]
+    plain = subprocess.run([*args, "--out", str(tmp_path / "plain.mcap")], cwd=REPO,
+                           capture_output=True, text=True, timeout=120)
+    assert plain.returncode == 0, plain.stderr
+    shown = subprocess.Popen([*args, "--out", str(tmp_path / "shown.mcap"), "--live-view",
+                              str(port), "--real-time-factor", "1"], cwd=REPO,
+                             stderr=subprocess.PIPE, text=True)
+    try:
+        for line in shown.stderr:
+            if "live view on" in line:
+                break
+        _, got, t, _ = asyncio.run(collect(port, {"/markers", "/node_poses", "/tf"}))
+        assert check_scene(got["/markers"][t], got["/node_poses"][t]) == 8
+    finally:
+        assert shown.wait(60) == 0
+    assert (tmp_path / "shown.mcap").read_bytes() == (tmp_path / "plain.mcap").read_bytes()
