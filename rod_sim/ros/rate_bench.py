@@ -58,6 +58,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--domain", type=int, default=226,
                    help="ROS_DOMAIN_ID of both processes (FastDDS allows 0..232)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.add_argument("--live-view", action="store_true",
+                   help="give the node a live view (live_view_port) with a client connected "
+                        "that subscribes to every channel for the whole run")
     p.add_argument("--lockstep", type=int, default=0, metavar="K",
                    help="lockstep: K command/state round trips with this process as controller")
     p.add_argument("--keep-log", type=Path, default=None,
@@ -122,6 +125,62 @@ def summarize(wall_ns: np.ndarray, stamp_ns: np.ndarray, rate_hz: float) -> dict
                                 "max": float(dt_wall.max())},
             "missing_periods": int(np.sum(np.maximum(gaps - 1, 0))),
             "expected_period_ms": period_ns / 1e6}
+
+
+def free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class ViewerClient:
+    """A Foxglove-protocol WebSocket client in a thread: connects to ``port`` (retrying while
+    the node starts), subscribes to every channel and counts the frames it receives."""
+
+    def __init__(self, port: int):
+        import threading
+
+        self.port, self.frames, self._stop = port, 0, threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        import asyncio
+
+        asyncio.run(self._main())
+
+    async def _main(self) -> None:
+        import asyncio
+
+        import websockets
+
+        while not self._stop.is_set():
+            try:
+                async with websockets.connect(f"ws://127.0.0.1:{self.port}",
+                                              subprotocols=["foxglove.sdk.v1"]) as ws:
+                    while not self._stop.is_set():
+                        try:
+                            m = await asyncio.wait_for(ws.recv(), 0.2)
+                        except asyncio.TimeoutError:
+                            continue
+                        if isinstance(m, str):
+                            msg = json.loads(m)
+                            if msg["op"] == "advertise":
+                                await ws.send(json.dumps({"op": "subscribe", "subscriptions": [
+                                    {"id": c["id"], "channelId": c["id"]}
+                                    for c in msg["channels"]]}))
+                        else:
+                            self.frames += 1
+                    return
+            except OSError:
+                await asyncio.sleep(0.2)
+
+    def stop(self) -> int:
+        self._stop.set()
+        self._thread.join(5)
+        return self.frames
 
 
 def lockstep_force(k: int, n: int) -> np.ndarray:
@@ -244,11 +303,11 @@ def measure(args) -> dict:
         params = {"scene_file": str(scene), "model": args.model, "rate_hz": float(args.rate),
                   "real_time_factor": 1.0, "sync_mode": False, "publish_clock": True,
                   "record_path": str(tmp / "bench.mcap") if args.record else ""}
-        cmd = [sys.executable, "-m", "rod_sim.ros.node", "--ros-args"]
-        for key, value in params.items():
-            cmd += ["-p", f"{key}:={ros_arg(value)}"]
-        node_proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.DEVNULL,
-                                     stderr=subprocess.PIPE, text=True)
+        viewer = None
+        if args.live_view:
+            params["live_view_port"] = free_port()
+            viewer = ViewerClient(params["live_view_port"])
+        node_proc = _node_process(args, params)
         rclpy.init()
         wall, stamps = [], []
         try:
@@ -275,6 +334,8 @@ def measure(args) -> dict:
                 if first_kept is None and time.monotonic() >= start + args.warmup:
                     first_kept, cpu0 = len(wall), process_cpu_s(node_proc.pid)
             cpu1 = process_cpu_s(node_proc.pid)
+            if viewer is not None:
+                viewer_frames = viewer.stop()
             executor.shutdown()
             node.destroy_node()
         finally:
@@ -289,6 +350,8 @@ def measure(args) -> dict:
     from rod_sim.io.scene_yaml import load_scene
     if cpu0 is not None and cpu1 is not None:
         result["node_cpu_fraction"] = (cpu1 - cpu0) / args.duration
+    if args.live_view:
+        result["viewer_frames"] = viewer_frames
     result.update({"scene": Path(args.scene).name,
                    "n": args.rods if args.rods else load_scene(args.scene).n,
                    "model": args.model, "rate_hz_set": args.rate, "record": args.record,
@@ -316,7 +379,9 @@ def main(argv: list[str] | None = None) -> int:
               f"RTF {result['rtf']:.3f}, inter-arrival median {ia['median']:.3f} ms, "
               f"p99 {ia['p99']:.3f} ms, max {ia['max']:.2f} ms, "
               f"{result['missing_periods']} missing periods of {result['messages']}, "
-              f"node CPU {100 * result.get('node_cpu_fraction', float('nan')):.0f}% of a core")
+              f"node CPU {100 * result.get('node_cpu_fraction', float('nan')):.0f}% of a core"
+              + (f", live view: {result['viewer_frames']} frames received"
+                 if args.live_view else ""))
     return 0
 
 
