@@ -93,6 +93,18 @@ class Inputs:
         self._queued_held = held
         return held
 
+    def drain(self, step, running, deadline_ns: int, batch: int) -> bool:
+        """Lockstep: ``step(held)`` the periods of up to ``batch`` queued commands while
+        ``running()`` and before monotonic ``deadline_ns``; returns whether commands are left
+        to step later (so that other callbacks are served in between)."""
+        import time
+
+        for _ in range(batch):
+            if not self.queue or not running() or time.monotonic_ns() > deadline_ns:
+                break
+            step(self.next_queued())
+        return bool(self.queue) and running()
+
     def counts(self) -> dict[str, str]:
         """Diagnostics values: received, rejected and active per topic."""
         out = {f"{kind}_{what}": str(getattr(intake, what))

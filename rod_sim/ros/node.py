@@ -42,7 +42,7 @@ from rod_sim.ros.outputs import (OUTPUTS, Outputs, SimClock, create_publishers, 
 from rod_sim.ros.pacing import Pacing
 from rod_sim.ros.parameters import (NODE_NAME, PARAMETERS, build_parser, declare_settings,
                                     unknown_overrides, unknown_warning, validate_change)
-from rod_sim.ros.process import params_files, parse_cli, run_node, same_name_count
+from rod_sim.ros.process import params_files, parse_cli, run_node, same_name_warning
 from rod_sim.ros.qos import COMMAND_QOS, SERVICE_QOS, SERVICE_QUEUE_DEPTH, clock_qos
 from rod_sim.ros.recording import NodeRecording, create_log, node_log_metadata, offered_qos
 
@@ -145,13 +145,10 @@ class RodSimNode(Node):
     def _check_name_unique(self) -> None:
         """Once, after discovery: warn when another node has this node's full name."""
         self._name_timer.cancel()
-        full, same = self.get_fully_qualified_name(), same_name_count(self)
-        if same > 1:
+        warning = same_name_warning(self)
+        if warning:
             self.name_conflict = True
-            self.get_logger().warning(
-                f"{same} nodes named {full} are on the graph (ROS_DOMAIN_ID "
-                f"{self.context.get_domain_id()}): services and parameters reach only one of "
-                "them; give this one another name (-r __node:=NAME) or namespace (-r __ns:=/NS)")
+            self.get_logger().warning(warning)
 
     def _log_waiting(self) -> None:
         """Every few seconds while the simulation waits at its start: say what it waits for."""
@@ -183,7 +180,6 @@ class RodSimNode(Node):
             elif p.name == "step_count":
                 self.settings = dataclasses.replace(self.settings, step_count=int(p.value))
 
-    # ----- state queries -----
     sim_time = property(lambda self: self.sim.t, doc="Simulated time [s].")
     paused = property(lambda self: self.control.paused)
     error = property(lambda self: self.control.error, doc="The cause of the last failure.")
@@ -201,8 +197,6 @@ class RodSimNode(Node):
     _latest = property(lambda self: self.inputs.forces.latest)
     _last_rejection = property(lambda self: self.inputs.forces.last_rejection)
     _command_active = property(lambda self: self.inputs.forces.active)
-
-    # ----- inputs -----
 
     def _on_command_bytes(self, data: bytes, intake: CommandIntake | None = None) -> None:
         """A serialized command: checked, recorded, validated, held (lockstep: queued)."""
@@ -226,8 +220,6 @@ class RodSimNode(Node):
             self._log_throttled(f"timeout {kind}", "info", note)
         return held
 
-    # ----- stepping -----
-
     def _on_tick(self) -> None:
         """Pacing timer: advance the periods that are due (never in lockstep)."""
         if not self.control.running():
@@ -239,13 +231,8 @@ class RodSimNode(Node):
 
     def _on_sync_trigger(self) -> None:
         """Lockstep: one period per queued command, a bounded batch per callback."""
-        deadline = time.monotonic_ns() + self._budget.seconds * NS_PER_S
-        for _ in range(SYNC_BATCH):
-            if not self.inputs.queue or not self.control.running() \
-                    or time.monotonic_ns() > deadline:
-                break
-            self._step_period(self.inputs.next_queued())
-        if self.inputs.queue and self.control.running():
+        if self.inputs.drain(self._step_period, self.control.running, time.monotonic_ns()
+                             + self._budget.seconds * NS_PER_S, SYNC_BATCH):
             self._sync_trigger.trigger()
 
     def _step_period(self, held) -> bool:
@@ -263,8 +250,6 @@ class RodSimNode(Node):
         self._outputs.events(self.sim.events[self.period.events_seen:])
         self.period.events_seen = len(self.sim.events)
         return True
-
-    # ----- outputs -----
 
     def _publish_applied(self, t_ns: int) -> None:
         self._outputs.applied(t_ns, self.model.forces(t_ns / NS_PER_S, self.sim.held),
@@ -341,8 +326,6 @@ class RodSimNode(Node):
         self._pacing.unanchor()
         self.get_logger().info(message)
         return message
-
-    # ----- recording -----
 
     def _open_log(self, path: Path) -> LogWriter:
         """A new log at ``path`` with this run's metadata (raises NodeConfigError)."""
