@@ -236,3 +236,34 @@ def test_simulate_live_view_shows_the_run_and_logs_the_same_bytes(tmp_path):
     finally:
         assert shown.wait(60) == 0
     assert (tmp_path / "shown.mcap").read_bytes() == (tmp_path / "plain.mcap").read_bytes()
+
+
+def test_frame_transforms_are_the_sdks_encoding():
+    """/tf from numpy: the SDK's own protobuf bytes for nonzero values; with zeros (node 0 at
+    the origin, which the SDK omits) the same message for a protobuf decoder."""
+    from foxglove import messages as m
+    from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
+
+    from rod_sim.io.live_view import frame_transforms
+
+    def sdk(t_ns, nodes, phi):
+        half = 0.5 * np.concatenate([phi[:1], phi])
+        return m.FrameTransforms(transforms=[m.FrameTransform(
+            timestamp=m.Timestamp(sec=t_ns // 10**9, nsec=t_ns % 10**9),
+            parent_frame_id="base", child_frame_id=f"node_{k}",
+            translation=m.Vector3(x=float(x), y=float(y), z=0.0),
+            rotation=m.Quaternion(x=0.0, y=0.0, z=float(np.sin(h)), w=float(np.cos(h))))
+            for k, ((x, y), h) in enumerate(zip(nodes, half))]).encode()
+
+    rng = np.random.default_rng(7)
+    for n, t_ns in ((1, 0), (5, 7), (300, 3_000_000_007)):
+        nodes, phi = rng.normal(size=(n + 1, 2)), rng.normal(size=n)
+        assert frame_transforms(t_ns, "base", nodes, phi) == sdk(t_ns, nodes, phi)
+    nodes[0] = 0.0
+    files = descriptor_pb2.FileDescriptorSet.FromString(m.FrameTransforms.get_schema().data)
+    pool = descriptor_pool.DescriptorPool()
+    for f in files.file:
+        pool.Add(f)
+    cls = message_factory.GetMessageClass(pool.FindMessageTypeByName("foxglove.FrameTransforms"))
+    ours = cls.FromString(frame_transforms(5, "base", nodes, phi))
+    assert ours == cls.FromString(sdk(5, nodes, phi)) and len(ours.transforms) == 301
