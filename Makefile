@@ -24,7 +24,7 @@ $(VPY):
 
 $(STAMP): setup.py | $(VPY)
 	$(VPY) -m pip install -q --upgrade pip
-	$(VPY) -m pip install -q -e '.[ros,test,plot,peer,sweep]'
+	$(VPY) -m pip install -q -e '.[ros,test,plot,peer,sweep,view]'
 	touch $(STAMP)
 
 # Compile every registered model x integrator (and the hinge drivers) into numba's cache, so

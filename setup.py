@@ -30,7 +30,9 @@ setup(
     ],
     extras_require={
         "ros": ["ros-jazzy-rclpy[fastrtps]", "ros-jazzy-common-interfaces"],
-        "test": ["pytest", "pytest-timeout", "rosbags", "sympy", "yourdfpy"],
+        "view": ["foxglove-sdk"],               # the live view (live_view_port, --live-view)
+        "test": ["pytest", "pytest-timeout", "rosbags", "sympy", "yourdfpy", "websockets",
+                 "foxglove-sdk"],
         "plot": ["matplotlib"],
         "peer": ["mujoco", "pin"],              # bench: MuJoCo and Pinocchio side by side
         "sweep": ["dask[distributed]", "pyarrow", "tqdm"],      # rod-sim sweep on a cluster
