@@ -231,6 +231,18 @@ class Scene:
         chain_starts = np.array(starts, dtype=np.int64)
         chain_starts.setflags(write=False)
         object.__setattr__(self, "_chain_starts", chain_starts)
+        for i, load in enumerate(self.loads):       # Load.row must land in the load table
+            if load.node == "base" and (base.mode != "free" or load.axis not in BASE_LOAD_AXES):
+                raise SceneError(f"loads[{i}]", "a base load needs a free base and axis x, y "
+                                                "or moment")
+            if load.node == "wheel" and (base.wheel is None or load.axis != "moment"):
+                raise SceneError(f"loads[{i}]", "a wheel load needs base.wheel and axis moment")
+            if load.node not in ("base", "wheel") and not (
+                    0 <= load.chain < len(self.chains) and isinstance(load.node, (int, np.integer))
+                    and 1 <= load.node <= self.chains[load.chain].count and load.axis in LOAD_AXES):
+                raise SceneError(f"loads[{i}]", f"chain {load.chain}, node {quote(load.node)}, "
+                                                f"axis {quote(load.axis)} is not a chain node's "
+                                                f"force")
 
     @property
     def has_hinge_features(self) -> bool:
