@@ -704,3 +704,12 @@ def test_shipped_tether_pair():
     text = scene_to_yaml(sc)
     assert len(text) < 2000                     # uniform chains stay scalars
     assert_round_trip(sc)
+
+
+def test_compiled_profile_is_the_same_law():
+    numba = pytest.importorskip("numba")
+    from rod_sim.core.motion import profile_at
+    compiled = numba.njit(profile_at)
+    for p in PROFILES:
+        for t in (-1.0, 0.0, 0.3, 1.0, 2.2, 7.5, 14.999, 15.0, 40.0):
+            assert compiled(p.code, *p.parameters, t) == p.evaluate(t), (p, t)

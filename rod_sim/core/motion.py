@@ -102,36 +102,24 @@ class MotionProfile:
                 value = check_number(name, value)
             object.__setattr__(self, name, float(value))
 
+    @property
+    def code(self) -> int:
+        """The shape as an integer for compiled code: its index in MOTION_SHAPES."""
+        return MOTION_SHAPES.index(self.shape)
+
+    @property
+    def parameters(self) -> tuple[float, float, float]:
+        """(a, b, start) of :func:`profile_at`: (rate, duration) for spin_up, (amplitude,
+        duration) for cycloidal, (amplitude, frequency) for harmonic, (0, 0) for hold."""
+        a, b = {"hold": (0.0, 0.0), "spin_up": (self.rate, self.duration),
+                "cycloidal": (self.amplitude, self.duration),
+                "harmonic": (self.amplitude, self.frequency)}[self.shape]
+        return a, b, self.start
+
     def evaluate(self, t: float) -> tuple[float, float, float]:
         """(p, p', p'') at time ``t`` [s]: the profile's value [rad or m], rate [/s] and
         acceleration [/s^2] (zero before ``start``)."""
-        tau = t - self.start
-        if self.shape == "hold" or tau <= 0.0:
-            return 0.0, 0.0, 0.0
-        if self.shape == "harmonic":
-            w = 2.0 * math.pi * self.frequency
-            s, c = math.sin(w * tau), math.sin(0.5 * w * tau)
-            return (2.0 * self.amplitude * c * c, self.amplitude * w * s,
-                    self.amplitude * w * w * math.cos(w * tau))
-        big_t = self.duration
-        if self.shape == "spin_up":
-            r = self.rate
-            if tau >= big_t:
-                return r * big_t / 2.0 + r * (tau - big_t), r, 0.0
-            w = 2.0 * math.pi / big_t
-            half = math.sin(0.5 * w * tau)
-            return ((r / big_t) * (0.5 * tau * tau - 2.0 * half * half / (w * w)),
-                    (r / big_t) * (tau - math.sin(w * tau) / w),
-                    (r / big_t) * 2.0 * half * half)
-        # cycloidal
-        d = self.amplitude
-        if tau >= big_t:
-            return d, 0.0, 0.0
-        w = 2.0 * math.pi / big_t
-        half = math.sin(0.5 * w * tau)
-        return (d * (tau / big_t - math.sin(w * tau) / (2.0 * math.pi)),
-                (d / big_t) * 2.0 * half * half,
-                (d / big_t) * w * math.sin(w * tau))
+        return profile_at(self.code, *self.parameters, t)
 
     def breakpoints(self) -> tuple[float, ...]:
         """Times [s] where the profile's formula changes (a derivative jumps: the fourth for
@@ -177,3 +165,32 @@ class MotionProfile:
             return cls(**{k: v for k, v in data.items()})
         except SceneError as err:
             raise err.under(path + ".") from None
+
+
+def profile_at(code: int, a: float, b: float, start: float, t: float) -> tuple[float, float, float]:
+    """(p, p', p'') of the profile with shape ``MOTION_SHAPES[code]`` and parameters (a, b)
+    (:attr:`MotionProfile.parameters`) at time ``t`` [s]. Plain floats and ``math`` only, so
+    that compiled code can use this very function (``numba.njit(profile_at)``): one law for
+    Python and kernels."""
+    tau = t - start
+    if code == 0 or tau <= 0.0:
+        return 0.0, 0.0, 0.0
+    if code == 3:                                   # harmonic: a = A, b = f
+        w = 2.0 * math.pi * b
+        half = math.sin(0.5 * w * tau)
+        return 2.0 * a * half * half, a * w * math.sin(w * tau), a * w * w * math.cos(w * tau)
+    big_t = b
+    w = 2.0 * math.pi / big_t
+    if code == 1:                                   # spin_up: a = r, b = T
+        if tau >= big_t:
+            return a * big_t / 2.0 + a * (tau - big_t), a, 0.0
+        half = math.sin(0.5 * w * tau)
+        return ((a / big_t) * (0.5 * tau * tau - 2.0 * half * half / (w * w)),
+                (a / big_t) * (tau - math.sin(w * tau) / w),
+                (a / big_t) * 2.0 * half * half)
+    if tau >= big_t:                                # cycloidal: a = D, b = T
+        return a, 0.0, 0.0
+    half = math.sin(0.5 * w * tau)
+    return (a * (tau / big_t - math.sin(w * tau) / (2.0 * math.pi)),
+            (a / big_t) * 2.0 * half * half,
+            (a / big_t) * w * math.sin(w * tau))

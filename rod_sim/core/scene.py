@@ -229,8 +229,14 @@ class Scene:
         if self.gravity is not None:
             object.__setattr__(self, "gravity", check_pair("gravity", self.gravity))
         chain_starts = np.array(starts, dtype=np.int64)
-        chain_starts.setflags(write=False)
+        chain_of_rod = np.repeat(np.arange(len(chains), dtype=np.int64), np.diff(chain_starts))
+        chain_root = np.zeros(n, dtype=bool)
+        chain_root[chain_starts[:-1]] = True
+        for arr in (chain_starts, chain_of_rod, chain_root):
+            arr.setflags(write=False)
         object.__setattr__(self, "_chain_starts", chain_starts)
+        object.__setattr__(self, "_chain_of_rod", chain_of_rod)
+        object.__setattr__(self, "_chain_root", chain_root)
         for i, load in enumerate(self.loads):       # Load.row must land in the load table
             if load.node == "base" and (base.mode != "free" or load.axis not in BASE_LOAD_AXES):
                 raise SceneError(f"loads[{i}]", "a base load needs a free base and axis x, y "
@@ -282,18 +288,13 @@ class Scene:
     @property
     def chain_of_rod(self) -> np.ndarray:
         """int64 (n,): the index in ``chains`` of each rod's chain (read-only)."""
-        out = np.repeat(np.arange(len(self.chains), dtype=np.int64), np.diff(self._chain_starts))
-        out.setflags(write=False)
-        return out
+        return self._chain_of_rod
 
     @property
     def chain_root(self) -> np.ndarray:
         """bool (n,): True for the first rod of each chain (its hinge 0 joins it to the base;
         the hinge angle is phi_k - psi there, phi_k - phi_{k-1} elsewhere) (read-only)."""
-        out = np.zeros(self.n, dtype=bool)
-        out[self._chain_starts[:-1]] = True
-        out.setflags(write=False)
-        return out
+        return self._chain_root
 
     def initial_hinge_angles(self) -> np.ndarray:
         """The initial rigid hinge angles theta_h (n,) [rad]: phi_1 - psi_0 at each chain's
