@@ -713,3 +713,13 @@ def test_compiled_profile_is_the_same_law():
     for p in PROFILES:
         for t in (-1.0, 0.0, 0.3, 1.0, 2.2, 7.5, 14.999, 15.0, 40.0):
             assert compiled(p.code, *p.parameters, t) == p.evaluate(t), (p, t)
+
+
+def test_scenes_pickle_and_copy():
+    import pickle
+    for name in ("spin_up_beam", "two_wing_deployment"):
+        sc = load_scene(CONFIG / f"{name}.yaml")
+        for back in (pickle.loads(pickle.dumps(sc)), copy.deepcopy(sc)):
+            assert back.to_dict() == sc.to_dict() and back.base == sc.base
+    with pytest.raises(TypeError):
+        load_scene(CONFIG / "spin_up_beam.yaml").base.motion["x"] = MotionProfile("hold")

@@ -19,7 +19,6 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from types import MappingProxyType
 from typing import Any
 
 from .motion import MotionProfile
@@ -32,6 +31,29 @@ POSE_KEYS = ("x", "y", "psi")
 RATE_KEYS = ("x_rate", "y_rate", "psi_rate")
 _BASE_KEYS = {"mode", "mass", "inertia", "centre_of_mass", "initial", "motion", "wheel"}
 _WHEEL_KEYS = {"inertia", "rate"}
+
+
+class FrozenMapping(Mapping):
+    """A read-only mapping (a dict's copy) that pickles and deep-copies (a MappingProxyType
+    does neither, and scenes go to sweep workers and into copies)."""
+
+    def __init__(self, data: Mapping = ()):
+        self._data = dict(data)
+
+    def __getitem__(self, key):
+        return self._data[key]
+
+    def __iter__(self):
+        return iter(self._data)
+
+    def __len__(self) -> int:
+        return len(self._data)
+
+    def __hash__(self) -> int:
+        return hash(tuple(self._data.items()))
+
+    def __repr__(self) -> str:
+        return f"FrozenMapping({self._data!r})"
 
 
 @dataclass(frozen=True)
@@ -51,7 +73,7 @@ class WheelSpec:
         return {"inertia": self.inertia, "rate": self.rate}
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class BaseSpec:
     """The base (module docstring). Units: ``mass`` [kg], ``inertia`` [kg m^2] about the centre
     of mass (NaN = not given; required > 0 for ``free``), ``centre_of_mass`` [m] in the base
@@ -111,13 +133,27 @@ class BaseSpec:
             raise SceneError("base.motion", "missing (a prescribed base needs a motion for "
                                             "psi, x or y)")
         ordered = {c: self.motion[c] for c in MOTION_COORDINATES if c in self.motion}
-        object.__setattr__(self, "motion", MappingProxyType(ordered))
+        object.__setattr__(self, "motion", FrozenMapping(ordered))
         if self.wheel is not None:
             if not isinstance(self.wheel, WheelSpec):
                 raise SceneError("base.wheel", f"must be a wheel (got {quote(self.wheel)})")
             if self.mode != "free":
                 raise SceneError("base.wheel", f"only a free base has a wheel "
                                                f"(the mode is {self.mode})")
+
+    def _key(self) -> tuple:
+        """The fields, with NaN (mass or inertia not given) as None so that equal specs
+        compare equal after a copy or pickle."""
+        return tuple(None if isinstance(v, float) and math.isnan(v) else v
+                     for v in (getattr(self, f) for f in self.__dataclass_fields__))
+
+    def __eq__(self, other) -> bool:
+        if not isinstance(other, BaseSpec):
+            return NotImplemented
+        return self._key() == other._key()
+
+    def __hash__(self) -> int:
+        return hash(self._key())
 
     @property
     def is_default(self) -> bool:
