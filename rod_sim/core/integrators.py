@@ -518,8 +518,9 @@ def drive(model, integrator: Integrator, y0, t0: float, t_out, held=None, mode=N
         Y[done], modes[done] = y, mode
         done += 1
     mode, y = _latch(model, mode, t, y, None, events)
-    breaks = np.array(sorted(b for b in model.scene.load_breakpoints() if t < b < t_out[-1]),
-                      dtype=float)
+    scene = model.scene
+    marks = set(scene.load_breakpoints()) | set(getattr(scene, "motion_breakpoints", tuple)())
+    breaks = np.array(sorted(b for b in marks if t < b < t_out[-1]), dtype=float)
     carry = integrator.init(model) if carry is None else carry
     carry.steps0 = carry.stats.steps
     while done < t_out.size:

@@ -36,6 +36,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .jit import njit
+from .motion import profile_at
 
 SHAPE_PULSE, SHAPE_CONSTANT, SHAPE_STEP = 0, 1, 2
 
@@ -138,8 +139,7 @@ MODE_FIXED, MODE_FREE, MODE_PRESCRIBED = 0, 1, 2
 N_BASE = 13
 # prescribed motion profiles: rows of Chain.motion, column 0 the shape code, then parameters
 MO_X, MO_Y, MO_PSI = 0, 1, 2
-N_MOTION = 6
-MOTION_NONE, MOTION_SPIN_UP, MOTION_HOLD, MOTION_SMOOTH_STEP, MOTION_COSINE = 0, 1, 2, 3, 4
+N_MOTION = 4
 # Extra.bk (base kinematics and the base solve), by index
 (BK_X, BK_Y, BK_PSI, BK_VX, BK_VY, BK_W, BK_AX, BK_AY, BK_APSI, BK_FX, BK_FY, BK_FPSI,
  BK_FTH, BK_ATH, BK_COS, BK_SIN) = range(16)
@@ -303,53 +303,15 @@ def scripted_value(t, shape, amp, start, dur, t_side):
     return amp * (0.5 - 0.5 * math.cos(2.0 * math.pi * tau / dur))
 
 
+_profile_at = njit(inline="always")(profile_at)
+
+
 @njit(inline="always")
 def motion_eval(motion, r, t):
-    """Value, rate and acceleration of the prescribed profile ``motion[r]`` at time t [s]
-    (units of the coordinate: m or rad). Shapes: MOTION_SPIN_UP (rate w, duration T, start
-    t0): rate(tau) = (w/T)(tau - (T/2pi) sin(2pi tau/T)) on [0, T], then w; MOTION_HOLD:
-    none (the base's initial pose); MOTION_SMOOTH_STEP (amplitude A, duration T, start t0):
-    A s(tau/T) with the septic s of zero rate, acceleration and jerk at both ends;
-    MOTION_COSINE (amplitude A, frequency f [Hz], start t0): A (1 - cos(2 pi f tau)) (value
-    and rate continuous at the start, the acceleration jumps there: a breakpoint)."""
-    shape = motion[r, 0]
-    if shape == MOTION_SPIN_UP:
-        w = motion[r, 1]
-        T = motion[r, 2]
-        tau = t - motion[r, 3]
-        if tau <= 0.0:
-            return 0.0, 0.0, 0.0
-        k = 2.0 * math.pi / T
-        if tau < T:
-            v = (w / T) * (0.5 * tau * tau + (math.cos(k * tau) - 1.0) / (k * k))
-            vd = (w / T) * (tau - math.sin(k * tau) / k)
-            vdd = (w / T) * (1.0 - math.cos(k * tau))
-            return v, vd, vdd
-        return w * (tau - 0.5 * T), w, 0.0
-    if shape == MOTION_SMOOTH_STEP:
-        A = motion[r, 1]
-        T = motion[r, 2]
-        tau = t - motion[r, 3]
-        if tau <= 0.0:
-            return 0.0, 0.0, 0.0
-        if tau >= T:
-            return A, 0.0, 0.0
-        x = tau / T
-        x2 = x * x
-        x3 = x2 * x
-        v = x3 * x * (35.0 - 84.0 * x + 70.0 * x2 - 20.0 * x3)
-        vd = 140.0 * x3 * (1.0 - x) ** 3 / T
-        vdd = 420.0 * x2 * (1.0 - x) ** 2 * (1.0 - 2.0 * x) / (T * T)
-        return A * v, A * vd, A * vdd
-    if shape == MOTION_COSINE:
-        A = motion[r, 1]
-        k = 2.0 * math.pi * motion[r, 2]
-        tau = t - motion[r, 3]
-        if tau <= 0.0:
-            return 0.0, 0.0, 0.0
-        return A * (1.0 - math.cos(k * tau)), A * k * math.sin(k * tau), \
-            A * k * k * math.cos(k * tau)
-    return 0.0, 0.0, 0.0
+    """Value, rate and acceleration of the prescribed profile ``motion[r]`` = (code, a, b,
+    start) at time t [s]: :func:`rod_sim.core.motion.profile_at`, the one law of Python and
+    kernels (units of the coordinate: m or rad)."""
+    return _profile_at(int(motion[r, 0]), motion[r, 1], motion[r, 2], motion[r, 3], t)
 
 
 @njit(inline="always")

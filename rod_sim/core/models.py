@@ -81,8 +81,6 @@ class BaseState:
 
 _MODES = {"fixed": kernels.MODE_FIXED, "free": kernels.MODE_FREE,
           "prescribed": kernels.MODE_PRESCRIBED}
-_MOTION_SHAPES = {"spin_up": kernels.MOTION_SPIN_UP, "hold": kernels.MOTION_HOLD,
-                  "smooth_step": kernels.MOTION_SMOOTH_STEP, "cosine": kernels.MOTION_COSINE}
 
 
 def chain_layout(scene) -> tuple[np.ndarray, np.ndarray]:
@@ -121,22 +119,9 @@ def base_table(scene) -> tuple[np.ndarray, np.ndarray]:
         prof = (base.motion or {}).get(axis) if mode == k.MODE_PRESCRIBED else None
         if prof is None:
             continue
-        motion[row, 0] = _MOTION_SHAPES[prof.shape]
-        params = _motion_params(prof)
-        motion[row, 1:1 + len(params)] = params
+        motion[row, 0] = prof.code
+        motion[row, 1:4] = prof.parameters
     return out, motion
-
-
-def _motion_params(prof) -> tuple[float, ...]:
-    """The kernels' parameters of a prescribed profile (see kernels.motion_eval)."""
-    get = lambda name, default=0.0: float(getattr(prof, name, default))  # noqa: E731
-    if prof.shape == "spin_up":
-        return get("rate"), get("duration"), get("start")
-    if prof.shape == "smooth_step":
-        return get("amplitude"), get("duration"), get("start")
-    if prof.shape == "cosine":
-        return get("amplitude"), get("frequency"), get("start")
-    return ()
 
 
 @dataclass(frozen=True, eq=False)
