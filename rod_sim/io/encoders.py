@@ -62,28 +62,56 @@ def _joint_state(snapshot: Snapshot, frame_id: str, names: tuple[str, ...], *arr
         ("position", "velocity", "effort"), arrays) if a.size})
 
 
+@functools.lru_cache(maxsize=_CACHE)
+def chain_names(scene: Scene | None, n: int, prefix: str, first: int) -> tuple[str, ...]:
+    """Names of the n rods' (or hinges') entries in the flat order: ``prefix{first}`` ..
+    for a scene without ``chains:``, ``{chain}/{prefix}{k}`` per chain with them (SPEC section
+    8: ``left/hinge_0``, ``left/rod_1``)."""
+    if scene is None or not getattr(scene, "has_chains", False):
+        return topics._names(prefix, first, n)
+    return tuple(f"{c.name}/{prefix}{k}" for c in scene.chains
+                 for k in range(first, first + c.count))
+
+
 def joint_states(snapshot: Snapshot, scene: Scene | None = None, frame_id: str = "world"
                  ) -> bytes:
     """``joint_states`` (see :func:`rod_sim.io.topics.joint_states`)."""
-    return _joint_state(snapshot, frame_id, topics._names("hinge_", 0, snapshot.n),
+    return _joint_state(snapshot, frame_id, chain_names(scene, snapshot.n, "hinge_", 0),
                         snapshot.hinge_angle, snapshot.hinge_rate, snapshot.hinge_moment)
 
 
 def rod_states(snapshot: Snapshot, scene: Scene | None = None, frame_id: str = "world") -> bytes:
     """``rod_states`` (see :func:`rod_sim.io.topics.rod_states`)."""
-    return _joint_state(snapshot, frame_id, topics._names("rod_", 1, snapshot.n),
+    return _joint_state(snapshot, frame_id, chain_names(scene, snapshot.n, "rod_", 1),
                         snapshot.phi, snapshot.phi_rate)
 
 
 @functools.lru_cache(maxsize=_CACHE)
-def _bending_names(n: int) -> tuple[str, ...]:
-    return (*topics._names("alpha_", 1, n), *topics._names("beta_", 1, n))
+def _bending_names(scene: Scene | None, n: int) -> tuple[str, ...]:
+    return (*chain_names(scene, n, "alpha_", 1), *chain_names(scene, n, "beta_", 1))
 
 
 def bending(snapshot: Snapshot, scene: Scene | None = None, frame_id: str = "world") -> bytes:
     """``bending`` (see :func:`rod_sim.io.topics.bending`)."""
-    return _joint_state(snapshot, frame_id, _bending_names(snapshot.n),
+    return _joint_state(snapshot, frame_id, _bending_names(scene, snapshot.n),
                         np.concatenate([snapshot.alpha, snapshot.beta]))
+
+
+def _node_rods(scene: Scene | None, n: int, k: int) -> np.ndarray:
+    """For each of the k node rows of a snapshot (every chain's nodes 0..n_c), the rod whose
+    direction the node takes: the rod ending there, a chain's node 0 its rod 1."""
+    if scene is None or k == n + 1 or len(getattr(scene, "chains", ())) <= 1:
+        return np.concatenate([[0], np.arange(n)])[:k]
+    out = []
+    for c in scene.chains:
+        out.extend([c.start] + list(range(c.start, c.start + c.count)))
+    return np.asarray(out[:k])
+
+
+def _rod_starts(scene: Scene, nodes: np.ndarray) -> np.ndarray:
+    """Rows of the snapshot's nodes (n + nc, 2) where each rod starts (n,) (one chain: 0..n-1)."""
+    chain_of_rod = np.asarray(scene.chain_of_rod)
+    return np.arange(scene.n) + chain_of_rod
 
 
 # ----- geometry_msgs/PoseArray -----
@@ -102,7 +130,10 @@ def node_poses(snapshot: Snapshot, scene: Scene | None = None, frame_id: str = "
     """``node_poses`` (see :func:`rod_sim.io.topics.node_poses`)."""
     nodes = np.asarray(snapshot.nodes, dtype=float)
     phi = np.asarray(snapshot.phi, dtype=float)
-    half = 0.5 * np.concatenate([phi[:1], phi])[:len(nodes)]
+    if len(nodes) == len(phi) + 1:
+        half = 0.5 * np.concatenate([phi[:1], phi])[:len(nodes)]
+    else:                                   # several chains: each one's nodes 0..n_c
+        half = 0.5 * phi[_node_rods(scene, len(phi), len(nodes))]
     poses = np.zeros((len(nodes), 7))
     poses[:, 0:2] = nodes[:, 0:2]
     poses[:, 5] = np.sin(half)
@@ -186,17 +217,19 @@ def markers(snapshot: Snapshot, scene: Scene, frame_id: str = "world",
     nodes = np.asarray(snapshot.nodes, dtype=float)
     stamps = np.tile(_stamp(snapshot), scene.n + 1 if scene.n <= topics.MARKER_MAX_STRIPS else 2)
     values = {"stamp": stamps, "zero": np.zeros(stamps.size, dtype="<u4")}
+    several = len(nodes) != scene.n + 1          # several chains: each one's nodes 0..n_c
     if scene.n > topics.MARKER_MAX_STRIPS:
-        values["chain"] = _xyz(nodes)
+        values["chain"] = _xyz(nodes[:scene.n + 1])
     elif scene.n:
         table = topics._marker_geometry(scene, points_per_rod)[2]
+        starts = nodes[_rod_starts(scene, nodes)] if several else None
         values["rods"] = _xyz(rod_points(np.asarray(scene.length, dtype=float),
                                          np.asarray(snapshot.phi, dtype=float),
                                          np.asarray(snapshot.alpha, dtype=float),
                                          np.asarray(snapshot.beta, dtype=float),
-                                         points_per_rod, table))
+                                         points_per_rod, table, starts))
     if scene.n:
-        values["nodes"] = _xyz(nodes[1:])
+        values["nodes"] = _xyz(nodes[_rod_starts(scene, nodes) + 1] if several else nodes[1:])
     return layout.fill(**{k: v for k, v in values.items() if k in layout.slots})
 
 
