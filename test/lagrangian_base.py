@@ -408,6 +408,60 @@ class BaseLagrangian:
         Hc = H - (com[0] * P[1] - com[1] * P[0])
         return P, H, Hc, com, mass
 
+    def momentum_rate(self, q, qd, qdd, scale=False):
+        """Exact (dP/dt (2,), dH_O/dt) along (q', q''): sum dm a, sum dm r x a + the rotors'
+        J_B psi'' + J_w (psi'' + theta_w'') (v x v = 0), a = J q'' + d2r[q', q'].
+        ``scale``: also the sizes sum |dm a| and sum |dm r x a| + |rotor terms| (for relative
+        tolerances when the sums cancel)."""
+        q, qd, qdd = self._check(q), self._check(qd), self._check(qdd)
+        dP, dH, sP, sH = np.zeros(2), 0.0, 0.0, 0.0
+        for dm, kind, i, s in self._points(q):
+            if dm == 0.0:
+                continue
+            r = self._pos(kind, i, s, q)
+            a = self._jac(kind, i, s, q) @ qdd + self._acc(kind, i, s, q, qd)
+            dP += dm * a
+            dH += dm * (r[0] * a[1] - r[1] * a[0])
+            sP += dm * float(np.hypot(*a))
+            sH += dm * float(np.hypot(*r) * np.hypot(*a))
+        p, w = qdd[self.i_psi], qdd[self.i_wheel]
+        rot = (self.base.inertia * p, self.base.wheel * (p + w))
+        dH += sum(rot)
+        if scale:
+            return dP, dH, max(sP, 1e-300), max(sH + sum(abs(x) for x in rot), 1e-300)
+        return dP, dH
+
+    def external_wrench(self, q, held):
+        """Total external force (2,) and moment about O of ``held`` (nodal forces, base force at
+        its centre of mass, base moment; hinge and wheel motor moments are internal) plus gravity
+        on every mass point."""
+        q = self._check(q)
+        h = np.zeros((self.N + 2, 3)) if held is None else np.asarray(held, float).reshape(-1, 3)
+        F, M = np.zeros(2), 0.0
+        for i in range(self.N):
+            r = self.c.node_pos[i](list(q), self.P)
+            F += h[i, :2]
+            M += r[0] * h[i, 1] - r[1] * h[i, 0]
+        rc = self.c.com_pos(list(q), self.P)
+        F += h[self.N, :2]
+        M += rc[0] * h[self.N, 1] - rc[1] * h[self.N, 0] + h[self.N, 2]
+        for dm, kind, i, s in self._points(q):
+            if dm:
+                r = self._pos(kind, i, s, q)
+                F += dm * self.g
+                M += dm * (r[0] * self.g[1] - r[1] * self.g[0])
+        return F, M
+
+    def rigid_inertia(self, q) -> tuple[float, np.ndarray, float]:
+        """(mass, centre of mass (2,), inertia about it) of everything rigidly frozen at q,
+        the wheel's axial inertia excluded (the base's J_B included)."""
+        q = self._check(q)
+        pts = [(dm, self._pos(kind, i, s, q)) for dm, kind, i, s in self._points(q) if dm]
+        M = sum(dm for dm, _ in pts)
+        com = sum(dm * r for dm, r in pts) / M
+        I = sum(dm * float((r - com) @ (r - com)) for dm, r in pts) + self.base.inertia
+        return M, com, I
+
     def node_positions(self, q) -> np.ndarray:
         """Far nodes of all rods (N, 2) [m]."""
         return np.array([f(list(self._check(q)), self.P) for f in self.c.node_pos])

@@ -82,7 +82,8 @@ def oracle_from_dict(d) -> BaseLagrangian:
             l=_arr(c["rods"]["length"], n), m=_arr(c["rods"]["mass_per_length"], n),
             mu=_arr(c["nodes"]["mass"], n), EI=_arr(c["rods"]["bending_stiffness"], n),
             kappa=_arr(c["hinges"]["stiffness"], n), nu=_arr(c["hinges"].get("damping", 0.0), n),
-            attach=c.get("attach", [0.0, 0.0])))
+            attach=c.get("attach", [0.0, 0.0]),
+            rest=_arr(c["hinges"].get("rest_angle", 0.0), n)))
     b = d.get("base") or {"mode": "fixed"}
     base = BaseData(mass=b.get("mass", 0.0), inertia=b.get("inertia", 0.0),
                     com=b.get("centre_of_mass", [0.0, 0.0]),
