@@ -30,7 +30,7 @@ from sc_common import (Layout, chain_dict, free_base, needs_spacecraft, oracle_f
                        scene_dict)
 
 MODELS = ["rigid", "reduced", "full"]
-pytestmark = needs_spacecraft()
+SC = needs_spacecraft()     # every test that asks rod_sim; the closed forms' own checks run alone
 
 
 def make(name, d):
@@ -82,6 +82,7 @@ def two_chains(seed, rigid=False, locked=False):
 
 # ----------------------------------------------------------------------------- heavy base, zero motion
 
+@SC
 @pytest.mark.slow
 @pytest.mark.parametrize("name", MODELS)
 def test_heavy_free_base_is_the_fixed_base(name):
@@ -107,6 +108,7 @@ def test_heavy_free_base_is_the_fixed_base(name):
     assert base_move < 1e-9
 
 
+@SC
 @pytest.mark.slow
 @pytest.mark.parametrize("name", MODELS)
 def test_prescribed_zero_motion_is_the_fixed_base_bit_for_bit(name):
@@ -139,6 +141,7 @@ def frozen_offsets(lag, lay, y):
     return q[:lag.N] - q[lag.i_psi]
 
 
+@SC
 @pytest.mark.slow
 @pytest.mark.parametrize("name", MODELS)
 def test_all_locked_is_one_free_rigid_body(name):
@@ -168,6 +171,7 @@ def test_all_locked_is_one_free_rigid_body(name):
     assert worst["com"] < 1e-9 and worst["psi"] < 1e-9 and worst["shape"] < 1e-9
 
 
+@SC
 @pytest.mark.slow
 def test_locking_projection_conserves_momentum():
     """Rigid model, locked hinges, chain initial rates NOT those of the base: the initial
@@ -199,6 +203,7 @@ def test_locking_projection_conserves_momentum():
     assert rel(lag.momentum(q0, qd0)[0], P) < 1e-10
 
 
+@SC
 @pytest.mark.slow
 @pytest.mark.parametrize("name", MODELS)
 def test_wheel_spin_up_of_a_locked_chain(name):
@@ -249,6 +254,7 @@ def random_model_state(lag, lay, rng, bending=0.0):
     return lay.to_oracle(lay.from_oracle(q, qd))
 
 
+@SC
 @pytest.mark.parametrize("name", ["rigid", "full"])
 def test_momentum_rate_is_the_applied_wrench(name):
     """Instantaneous and exact: with random held nodal forces, hinge motor moments, base force
@@ -284,6 +290,7 @@ def test_momentum_rate_is_the_applied_wrench(name):
             assert rel(m.com, com) < 1e-12 and abs(m.mass - mass) < 1e-12 * mass
 
 
+@SC
 @pytest.mark.slow
 def test_rigid_model_conserves_momentum_along_a_run():
     """Three chains with springs, dampers and a wheel motor torque (all internal), gravity off,
@@ -308,6 +315,7 @@ def _step_integral(t, start, duration):
     return np.clip(t - start, 0.0, duration)
 
 
+@SC
 @pytest.mark.slow
 def test_momentum_follows_timed_loads():
     """Rigid model, gravity off, timed step loads: nodal forces and a base force change P by
@@ -396,6 +404,7 @@ def measured_period(t, x):
     return float(np.mean(np.diff(up)))
 
 
+@SC
 @pytest.mark.slow
 @pytest.mark.parametrize("name", MODELS)
 def test_hanging_rod_equilibrium_and_period(name):
@@ -427,6 +436,7 @@ def test_hanging_rod_equilibrium_and_period(name):
     assert abs(Tm - T) < 1e-6 * T
 
 
+@SC
 @pytest.mark.slow
 @pytest.mark.parametrize("name", MODELS)
 def test_hanging_double_pendulum_modes(name):
@@ -503,6 +513,7 @@ def cantilever_sag(n, L=2.0, EI=1.0e4, m=1.0, g=0.01):
     return l * np.arange(1, n + 1), w_nodes, w_mid
 
 
+@SC
 @pytest.mark.slow
 def test_heavy_cantilever_sag():
     """Against Euler-Bernoulli w(x) = q x^2 (6 L^2 - 4 L x + x^2) / (24 EI), q = m g (downward).
@@ -527,3 +538,65 @@ def test_heavy_cantilever_sag():
         assert node_err < 1e-6
     assert mids[0] > 1e-4                      # the cubic is not the quartic between nodes
     assert mids[1] < mids[0] / 8 and mids[2] < mids[1] / 8
+
+
+# ----------------------------------------------------------------------------- the closed forms themselves
+
+def test_pendulum_closed_forms_are_the_oracles_linearisation():
+    """pendulum_1's equilibrium and frequency and pendulum_2's A and K are the independent
+    oracle's phi-phi mass matrix and potential Hessian (central differences) at the
+    equilibrium: the derivations above are checked without rod_sim."""
+    g = 9.81
+    for n, rest, kappa, seed in ((1, [0.0], 20.0, 41), (2, [-np.pi / 2, 0.0], 15.0, 42)):
+        c = hanging_chain(n, np.random.default_rng(seed), rest, kappa)
+        lag = oracle_from_dict(scene_dict([c], None, (0.0, -g)))
+        q = np.zeros(lag.nq)
+        if n == 1:
+            phi, w = pendulum_1(c, g)
+            q[0] = phi
+        else:
+            w, V = pendulum_2(c, g)
+            q[:2] = -np.pi / 2
+        idx = np.arange(n)
+        assert np.max(np.abs(lag.potential_gradient(q)[idx])) < 1e-9
+        h = 1e-5
+        K = np.array([(lag.potential_gradient(q + h * e)[idx] - lag.potential_gradient(q - h * e)[idx])
+                      / (2 * h) for e in np.eye(lag.nq)[idx]])
+        A = lag.mass_matrix(q)[np.ix_(idx, idx)]
+        w_oracle = np.sqrt(np.sort(np.linalg.eigvals(np.linalg.solve(A, K)).real))
+        assert np.allclose(w_oracle, np.atleast_1d(w), rtol=1e-8), (w_oracle, w)
+
+
+def test_cantilever_closed_form_is_the_oracles_statics():
+    """The oracle's static equilibrium (exact potential with gravity through the bent shape,
+    locked-hinge constraints, linear limit) has Euler-Bernoulli's deflection at the nodes for
+    n = 1, 2, 3 -- the Hermite nodal exactness that test_heavy_cantilever_sag relies on."""
+    L, EI, m, g = 2.0, 1.0e4, 1.0, 0.01
+    for n in (1, 2, 3):
+        l = L / n
+        c = {"name": "beam", "attach": [0.0, 0.0],
+             "rods": {"count": n, "length": l, "mass_per_length": m, "bending_stiffness": EI},
+             "nodes": {"mass": 0.0}, "hinges": {"stiffness": 1.0, "damping": 0.0}}
+        lag = oracle_from_dict(scene_dict([c], None, (0.0, -g)))
+        C = np.zeros((n, 3 * n))
+        for h in range(n):
+            C[h, h] = C[h, n + h] = 1.0
+            if h:
+                C[h, h - 1] = C[h, 2 * n + h - 1] = -1.0
+        T = null_space(C)
+
+        def grad(z):
+            q = np.zeros(lag.nq)
+            q[:3 * n] = T @ z
+            return T.T @ lag.potential_gradient(q)[:3 * n]
+
+        z = np.zeros(T.shape[1])
+        for _ in range(3):
+            r0 = grad(z)
+            J = np.column_stack([(grad(z + 1e-8 * e) - r0) / 1e-8 for e in np.eye(len(z))])
+            z = z - np.linalg.solve(J, r0)
+        q = T @ z
+        x = l * np.arange(1, n + 1)
+        w = np.cumsum(l * np.sin(q[:n]))
+        wEB = -m * g * x ** 2 * (6 * L * L - 4 * L * x + x * x) / (24 * EI)
+        assert np.max(np.abs(w - wEB)) < 1e-7 * abs(wEB[-1]), (n, w, wEB)
