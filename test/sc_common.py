@@ -144,6 +144,21 @@ def spin_up(t, rate, T):
     return psiT + rate * (t - T), rate, 0.0
 
 
+def cycloidal(t, D, T):
+    """p, p', p'' of a cycloidal rest-to-rest move by D in T (start 0)."""
+    w = 2 * np.pi / T
+    if t < T:
+        return D * (t / T - np.sin(w * t) / (2 * np.pi)), (D / T) * (1 - np.cos(w * t)), \
+            (D / T) * w * np.sin(w * t)
+    return D, 0.0, 0.0
+
+
+def harmonic(t, A, f):
+    """p, p', p'' of A (1 - cos(2 pi f t)) (start 0)."""
+    w = 2 * np.pi * f
+    return A * (1 - np.cos(w * t)), A * w * np.sin(w * t), A * w * w * np.cos(w * t)
+
+
 def rel(a, b) -> float:
     a, b = np.asarray(a, float), np.asarray(b, float)
     return float(np.max(np.abs(a - b)) / max(np.max(np.abs(b)), 1e-300))

@@ -30,8 +30,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from sc_common import (Layout, chain_dict, free_base, needs_spacecraft, oracle_from_dict, rel,
-                       scene_dict, spin_up)
+from sc_common import (Layout, chain_dict, cycloidal, free_base, harmonic, needs_spacecraft,
+                       oracle_from_dict, rel, scene_dict, spin_up)
 from lagrangian import Lagrangian
 from lagrangian_base import BaseData, BaseLagrangian, ChainData
 
@@ -342,31 +342,51 @@ def test_reduced_model_is_the_full_equations_without_bending_rates(ns, seed):
 
 # ----------------------------------------------------------------------------- prescribed base
 
-def prescribed_scene(ns, seed, model_gravity=GRAVITY):
-    rate, T = 2.5, 3.0
-    base = {"mode": "prescribed", "motion": {"psi": {"shape": "spin_up", "rate": rate,
-                                                     "duration": T}}}
+RATE, T_SPIN, D_X, T_X, A_Y, F_Y = 2.5, 3.0, 0.5, 2.0, 0.3, 0.7
+BASE0 = (0.2, -0.1, 0.3)      # x_0, y_0, psi_0 of the prescribed motions q = q_0 + p(t)
+
+
+def prescribed_scene(ns, seed, translate, model_gravity=GRAVITY):
+    motion = {"psi": {"shape": "spin_up", "rate": RATE, "duration": T_SPIN}}
+    base = {"mode": "prescribed", "motion": motion}
+    if translate:
+        motion["x"] = {"shape": "cycloidal", "amplitude": D_X, "duration": T_X}
+        motion["y"] = {"shape": "harmonic", "amplitude": A_Y, "frequency": F_Y}
+        base["initial"] = dict(zip(("x", "y", "psi"), BASE0))
     d, rng, scripted = random_scene(ns, seed, gravity=model_gravity, base=base)
-    return d, rng, scripted, (rate, T)
+    return d, rng, scripted
+
+
+def prescribed_base(t, translate):
+    """(q, q', q'') (3,) of the base (x_B, y_B, psi) at t, in closed form (sc_common)."""
+    parts = [(0.0, 0.0, 0.0), (0.0, 0.0, 0.0), spin_up(t, RATE, T_SPIN)]
+    q0 = np.zeros(3)
+    if translate:
+        parts[0], parts[1] = cycloidal(t, D_X, T_X), harmonic(t, A_Y, F_Y)
+        q0 = np.array(BASE0)
+    p = np.array(parts).T
+    return q0 + p[0], p[1], p[2]
 
 
 @needs_spacecraft()
 @pytest.mark.parametrize("name", ["full", "rigid", "reduced"])
-@pytest.mark.parametrize("ns,seed", [((2,), 301), ((1, 3), 302)])
-def test_prescribed_base_chain_rows(name, ns, seed):
-    """A spin_up psi(t) base: the chain rows with psi, psi', psi'' known (x_B = y_B = 0)."""
-    d, rng, scripted, (rate, T) = prescribed_scene(ns, seed)
+@pytest.mark.parametrize("ns,seed,translate", [((2,), 301, False), ((1, 3), 302, False),
+                                               ((2, 1), 303, True)])
+def test_prescribed_base_chain_rows(name, ns, seed, translate):
+    """A spin_up psi(t) base (and, translating, a cycloidal x(t) and a harmonic y(t) from an
+    initial pose): the chain rows with the base's q, q', q'' known in closed form."""
+    d, rng, scripted = prescribed_scene(ns, seed, translate)
     model = make(name, d)
     lag = oracle_from_dict(d)
     lay = Layout(name, lag.N, False, False)
     N = lag.N
     for t in (0.7, 1.9, 4.0):
-        psi, dpsi, ddpsi = spin_up(t, rate, T)
+        bq, bqd, bqdd = prescribed_base(t, translate)
         q, qd = random_state(lay, rng)
-        q, qd = lay.to_oracle(lay.from_oracle(q, qd), [0, 0, psi], [0, 0, dpsi])
+        q, qd = lay.to_oracle(lay.from_oracle(q, qd), bq, bqd)
         held = random_held(N, rng, free=False)
         y = lay.from_oracle(q, qd)
-        qdd = lay.qdd_to_oracle(model.rhs(t, y, held), [0, 0, ddpsi])
+        qdd = lay.qdd_to_oracle(model.rhs(t, y, held), bqdd)
         rows = lay.idx
         zbi = False
         if name == "reduced":
@@ -374,9 +394,9 @@ def test_prescribed_base_chain_rows(name, ns, seed):
             q[N:2 * N], q[2 * N:3 * N] = al, be
             rows, zbi = np.r_[lay.idx, np.arange(N, 3 * N)], True
         check_rows(lag, q, qd, qdd, held + scripted, rows, zbi=zbi)
-        if ddpsi:   # the base's acceleration matters: dropping it breaks the rows
+        if np.any(bqdd):   # the base's acceleration matters: dropping it breaks the rows
             qdd0 = qdd.copy()
-            qdd0[lag.i_psi] = 0
+            qdd0[lag.i_base] = 0
             r = lag.residual(q, qd, qdd0, held + scripted, zbi)[lay.idx]
             assert np.max(np.abs(r)) > 1e-6 * residual_scale(lag, q, qd, qdd, held + scripted)
 
