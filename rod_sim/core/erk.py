@@ -90,28 +90,30 @@ def _dense(F, y, x, i):
 
 
 @njit(inline="always")
-def _theta(y, h):
-    """Rigid hinge angle theta_h of state y (phi first in every model's layout) [rad]."""
-    return y[h] - y[h - 1] if h > 0 else y[0]
+def _theta(y, h, o):
+    """Rigid hinge angle theta_h of state y (phi first in every model's layout) [rad]: y[h]
+    less the angle y[o] on the hinge's other side (o = -1: the ground)."""
+    return y[h] - y[o] if o >= 0 else y[h]
 
 
 @njit(inline="always")
-def _theta_dense(F, y, x, h):
-    if h == 0:
-        return _dense(F, y, x, 0)
-    return _dense(F, y, x, h) - _dense(F, y, x, h - 1)
+def _theta_dense(F, y, x, h, o):
+    if o < 0:
+        return _dense(F, y, x, h)
+    return _dense(F, y, x, h) - _dense(F, y, x, o)
 
 
 @njit
 def _event_values(y, events, g):
     ev_h = events.hinge
+    ev_o = events.other
     ev_a = events.angle
     for e in range(ev_h.shape[0]):
-        g[e] = _theta(y, ev_h[e]) - ev_a[e]
+        g[e] = _theta(y, ev_h[e], ev_o[e]) - ev_a[e]
 
 
 @njit
-def _illinois(F, y, h, a, x_lo, g_lo, g_hi, tol_x):
+def _illinois(F, y, h, o, a, x_lo, g_lo, g_hi, tol_x):
     """Root x in (x_lo, 1] of theta_h(x) - a on the interpolant, g_lo = g(x_lo) and g_hi =
     g(1) of opposite signs (or g_hi = 0): the Illinois variant of regula falsi. Returns the
     end of the final bracket on the side of g_hi (the state there has crossed)."""
@@ -124,7 +126,7 @@ def _illinois(F, y, h, a, x_lo, g_lo, g_hi, tol_x):
         x = (x_lo * g_hi - x_hi * g_lo) / (g_hi - g_lo)
         if not (x_lo < x < x_hi):
             x = 0.5 * (x_lo + x_hi)
-        gx = _theta_dense(F, y, x, h) - a
+        gx = _theta_dense(F, y, x, h, o) - a
         if gx == 0.0:
             return x
         if (gx > 0.0) == (g_hi > 0.0):
@@ -160,7 +162,7 @@ def _bracket(F, y, e, g0, g1, events):
         return -1.0, 0.0
     x_lo, g_lo = -1.0, 0.0
     for k in range(1, 8):
-        gk = _theta_dense(F, y, k / 8.0, ev_h[e]) - ev_a[e]
+        gk = _theta_dense(F, y, k / 8.0, ev_h[e], events.other[e]) - ev_a[e]
         if gk * g1[e] < 0.0:
             x_lo, g_lo = k / 8.0, gk
     return x_lo, g_lo
@@ -192,7 +194,7 @@ def _locate(F, y, t, hs, g0, g1, events):
     """Locate the earliest crossing of the event functions in the step (t, t + hs] with
     interpolant F (a latch first among equal roots; see :func:`_bracket`) and record it;
     returns its x in (0, 1], or -1 when nothing crossed."""
-    ev_h, ev_a, ev_k, ev_t, ev_i, ev_y, ev_n = events
+    ev_h, ev_a, ev_k, ev_o, ev_t, ev_i, ev_y, ev_n = events
     tol_x = 4.0 * 2.220446049250313e-16 * max(1.0, abs(t) + abs(hs)) / hs
     x_stop = 2.0
     first = -1
@@ -204,7 +206,7 @@ def _locate(F, y, t, hs, g0, g1, events):
             x_lo, g_lo = _bracket(F, y, e, g0, g1, events)
             if x_lo < 0.0:
                 continue
-            x = _illinois(F, y, ev_h[e], ev_a[e], x_lo, g_lo, g1[e], tol_x)
+            x = _illinois(F, y, ev_h[e], ev_o[e], ev_a[e], x_lo, g_lo, g1[e], tol_x)
             if x < x_stop:
                 x_stop = x
                 first = e

@@ -84,21 +84,29 @@ def locked_hinges(scene: Scene, mode: np.ndarray | None) -> np.ndarray:
     return locked if mode is None else locked | np.asarray(mode, dtype=bool)
 
 
-def event_table(scene: Scene, locked: np.ndarray) -> EventTable:
-    """The compiled drivers' event functions g = theta_h - angle for the unlocked hinges
-    (kind EV_LATCH terminal, EV_UPPER and EV_LOWER stop crossings, recorded)."""
-    hinge, angle, kind = [], [], []
-    for h in range(scene.n):
-        if locked[h]:
-            continue
+def event_table(scene: Scene, locked: np.ndarray, other: np.ndarray | None = None,
+                offset: np.ndarray | None = None) -> EventTable:
+    """The compiled drivers' event functions g = y[h] - y[other_h] - (angle + offset_h) for
+    the unlocked hinges (kind EV_LATCH terminal, EV_UPPER and EV_LOWER stop crossings,
+    recorded). ``other`` (n,) int: the state index on each hinge's other side (-1: the
+    ground; default: the rod before, one chain on the ground); ``offset`` (n,) [rad]: a fixed
+    angle on that side (a fixed base's psi), default 0."""
+    n = scene.n
+    other = np.arange(-1, n - 1) if other is None else np.asarray(other)
+    hinge, angle, kind, oth = [], [], [], []
+    features = np.isfinite(scene.latch_angle) | np.isfinite(scene.stop_upper) \
+        | np.isfinite(scene.stop_lower)
+    for h in np.flatnonzero(features & ~np.asarray(locked, dtype=bool)):
+        h = int(h)
         for value, code in ((scene.latch_angle[h], EV_LATCH), (scene.stop_upper[h], EV_UPPER),
                             (scene.stop_lower[h], EV_LOWER)):
             if math.isfinite(value):
                 hinge.append(h)
-                angle.append(float(value))
+                angle.append(float(value) + (0.0 if offset is None else float(offset[h])))
                 kind.append(code)
+                oth.append(int(other[h]))
     return EventTable(np.array(hinge, dtype=np.int64), np.array(angle, dtype=float),
-                      np.array(kind, dtype=np.int64))
+                      np.array(kind, dtype=np.int64), np.array(oth, dtype=np.int64))
 
 
 def crossing_kind(kind: int, rising: bool) -> tuple[str, str | None]:

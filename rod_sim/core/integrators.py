@@ -365,12 +365,12 @@ def _scipy_events(plan):
     """solve_ivp event functions (terminal) for the plan's table: latches only (stops are
     refused, see ScipyIntegrator)."""
     fns = []
-    for h, angle in zip(plan.events.hinge, plan.events.angle):
-        h = int(h)
-        if h == 0:
-            f = (lambda t, y, a=angle: y[0] - a)
+    for h, angle, o in zip(plan.events.hinge, plan.events.angle, plan.events.other):
+        h, o = int(h), int(o)
+        if o < 0:
+            f = (lambda t, y, h=h, a=angle: y[h] - a)
         else:
-            f = (lambda t, y, h=h, a=angle: y[h] - y[h - 1] - a)
+            f = (lambda t, y, h=h, o=o, a=angle: y[h] - y[o] - a)
         f.terminal = True
         fns.append(f)
     return fns
@@ -461,7 +461,7 @@ class ScipyIntegrator(Integrator):
                             first is None or plan.events.kind[e] == hinges.EV_LATCH):
                         first = e
                 h = int(plan.events.hinge[first])
-                rising = hinges.hinge_angles(model.phi_rate(y))[h] > 0.0
+                rising = model.hinge_rates(y)[h] > 0.0
                 crossing = (np.array([t_end]), np.array([2 * first + int(rising)]), y[None, :])
                 return Stretch(Y, done, y, t_end, first, crossing)
         return Stretch(Y, done, y, float(t_out[-1]), None, self._found())
@@ -518,8 +518,9 @@ def drive(model, integrator: Integrator, y0, t0: float, t_out, held=None, mode=N
         Y[done], modes[done] = y, mode
         done += 1
     mode, y = _latch(model, mode, t, y, None, events)
-    breaks = np.array(sorted(b for b in model.scene.load_breakpoints() if t < b < t_out[-1]),
-                      dtype=float)
+    scene = model.scene
+    marks = set(scene.load_breakpoints()) | set(getattr(scene, "motion_breakpoints", tuple)())
+    breaks = np.array(sorted(b for b in marks if t < b < t_out[-1]), dtype=float)
     carry = integrator.init(model) if carry is None else carry
     carry.steps0 = carry.stats.steps
     while done < t_out.size:
@@ -549,8 +550,8 @@ def drive(model, integrator: Integrator, y0, t0: float, t_out, held=None, mode=N
         name, stop = hinges.crossing_kind(kind, rising)
         contact[h] = (1 if stop == "upper" else -1) if name == "stop_contact_begin" else 0
         events.append(hinges.HingeEvent(t, name, h, {
-            "stop": stop, "angle": float(hinges.hinge_angles(model.phi(y))[h]),
-            "rate": float(hinges.hinge_angles(model.phi_rate(y))[h])}))
+            "stop": stop, "angle": float(model.hinge_angles(y)[h]),
+            "rate": float(model.hinge_rates(y)[h])}))
     return DriveResult(Y, modes, mode, y, contact)
 
 
@@ -561,7 +562,7 @@ def _latch(model, mode, t: float, y, located: int | None, events: list):
     if not model.has_latches:
         return mode, y
     s = model.scene
-    theta = hinges.hinge_angles(model.phi(y))
+    theta = model.hinge_angles(y)
     gap = np.abs(theta - s.latch_angle)
     free = ~hinges.locked_hinges(s, mode) & np.isfinite(s.latch_angle)
     if located is None:
@@ -571,7 +572,7 @@ def _latch(model, mode, t: float, y, located: int | None, events: list):
         hit[located] = free[located]
     if not hit.any():
         return mode, y
-    rate = hinges.hinge_angles(model.phi_rate(y))
+    rate = model.hinge_rates(y)
     new_mode = mode | hit
     y1 = model.project_velocity(y, new_mode)
     loss = model.kinetic_energy(t, y) - model.kinetic_energy(t, y1)

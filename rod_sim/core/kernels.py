@@ -36,6 +36,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .jit import njit
+from .motion import profile_at
 
 SHAPE_PULSE, SHAPE_CONSTANT, SHAPE_STEP = 0, 1, 2
 
@@ -55,7 +56,17 @@ class Chain(NamedTuple):
     [N m/rad] and damping nu [N m s/rad] of hinges 0..n-1, tail mass Mt_k [kg] (the paper's
     M_k), C = m l^2 / 12 [kg m], A_kk the diagonal of m^{phi phi} [kg m^2], c30 = m l^3 / 30,
     c20 = m l^3 / 20, c105 = m l^3 / 105, c140 = m l^3 / 140 [kg m^2] (bending inertia
-    coefficients), kappa_tip = kappa of the hinge at the rod's tip (0 for the last rod)."""
+    coefficients), kappa_tip = kappa of the hinge at the rod's tip (0 for a chain's last rod).
+
+    Several chains on one base: the per-rod arrays are the chains' concatenated in scene order;
+    ``prev`` int64 (n,) is the rod before rod k in its chain (-1 for a chain's first rod, whose
+    hinge joins it to the base), ``seg`` int64 (nc + 1,) the first rod of each chain and then
+    n, ``attach`` (nc, 2) [m] each chain's hinge 0 in the base frame, ``Mc`` (nc,) [kg] each
+    chain's mass, ``base`` (N_BASE,) the base's constants (indices ``B_*``: mode, mass [kg],
+    inertia about its centre of mass [kg m^2], centre of mass in the base frame [m], wheel
+    inertia [kg m^2] (0: none), gravity [m/s^2], pose of a fixed base or offsets of a
+    prescribed one [m, rad], the number of base coordinates in the state) and ``motion``
+    (3, N_MOTION) the prescribed x, y, psi profiles (:func:`motion_eval`)."""
 
     l: np.ndarray
     m: np.ndarray
@@ -71,6 +82,12 @@ class Chain(NamedTuple):
     c105: np.ndarray
     c140: np.ndarray
     kappa_tip: np.ndarray
+    prev: np.ndarray
+    seg: np.ndarray
+    attach: np.ndarray
+    Mc: np.ndarray
+    base: np.ndarray
+    motion: np.ndarray
 
 
 class Extra(NamedTuple):
@@ -86,8 +103,12 @@ class Extra(NamedTuple):
     reduced model (1: the hinge spring's own rows, alpha_h and beta_{h-1}; 0: the phi rows
     only, as a lock or a stop); pinned int64 (1: the rod's end slopes are zero: rigid rods, every rod of
     the rigid model); flags int64 (2,) = [any hinge in contact, any hinge locked]; work
-    (n, N_WORK) and small (N_SMALL,) scratch; forces (n, 2) and tau (n + 1,) scratch; kind:
-    KIND_REDUCED (rigid and reduced models) or KIND_FULL."""
+    (n, N_WORK) and small (N_SMALL,) scratch; forces (n + 2, 3) the applied loads (rows 0..n-1:
+    X, Y [N] at the rods' tip nodes and the motor moment T [N m] of their hinges; row n: the
+    base's Fx, Fy [N] at its centre of mass and moment [N m]; row n + 1: the wheel's motor
+    torque in column 2) and tau (n + 1,) scratch; kind: KIND_REDUCED (rigid and reduced
+    models) or KIND_FULL; bk (N_BK,): the base's pose, rates and accelerations and the base
+    rows of the solve (indices ``BK_*``); roots (nc, N_ROOT): each chain's root map."""
 
     rest_phi: np.ndarray
     rest_alpha: np.ndarray
@@ -107,26 +128,66 @@ class Extra(NamedTuple):
     forces: np.ndarray
     tau: np.ndarray
     kind: int
+    bk: np.ndarray
+    roots: np.ndarray
 
 
-def make_chain(l, m, mu, EI, kappa, nu) -> Chain:
-    """:class:`Chain` from the per-rod constants (n,) each [SI]."""
+# base modes and the indices of Chain.base
+MODE_FIXED, MODE_FREE, MODE_PRESCRIBED = 0, 1, 2
+(B_MODE, B_MASS, B_INERTIA, B_CX, B_CY, B_WHEEL, B_GX, B_GY, B_X, B_Y, B_PSI, B_NB,
+ B_GRAVITY) = range(13)
+N_BASE = 13
+# prescribed motion profiles: rows of Chain.motion, column 0 the shape code, then parameters
+MO_X, MO_Y, MO_PSI = 0, 1, 2
+N_MOTION = 4
+# Extra.bk (base kinematics and the base solve), by index
+(BK_X, BK_Y, BK_PSI, BK_VX, BK_VY, BK_W, BK_AX, BK_AY, BK_APSI, BK_FX, BK_FY, BK_FPSI,
+ BK_FTH, BK_ATH, BK_COS, BK_SIN) = range(16)
+BK_V = 16       # 4 slots: a base velocity-like column for inertia_columns
+BK_M = 20       # 4 slots: the base rows it returns
+N_BK = 24
+# Extra.roots (nc, N_ROOT): each chain's root map w = P + K u after the tip-to-root sweep
+R_P, R_K = 0, 4
+N_ROOT = 20
+
+
+def make_chain(l, m, mu, EI, kappa, nu, seg=None, attach=None, base=None,
+               motion=None) -> Chain:
+    """:class:`Chain` from the per-rod constants (n,) each [SI]; ``seg`` (nc + 1,) the first
+    rod of each chain and n (default: one chain), ``attach`` (nc, 2) [m] (default origin),
+    ``base`` (N_BASE,) and ``motion`` (3, N_MOTION) (default: a fixed base at the origin)."""
     l, m, mu, EI, kappa, nu = (np.ascontiguousarray(a, dtype=float)
                                for a in (l, m, mu, EI, kappa, nu))
+    n = l.shape[0]
+    seg = np.array([0, n] if seg is None else seg, dtype=np.int64)
+    nc = seg.shape[0] - 1
+    attach = np.zeros((nc, 2)) if attach is None else np.array(attach, dtype=float).reshape(nc, 2)
     ml = m * l
-    Mt = np.cumsum((mu + ml)[::-1])[::-1] - ml / 2.0
+    Mt = np.empty(n)
+    kappa_tip = np.empty(n)
+    prev = np.arange(-1, n - 1, dtype=np.int64)
+    Mc = np.empty(nc)
+    for c in range(nc):
+        a, b = seg[c], seg[c + 1]
+        Mt[a:b] = np.cumsum((mu[a:b] + ml[a:b])[::-1])[::-1] - ml[a:b] / 2.0
+        kappa_tip[a:b] = np.append(kappa[a + 1:b], 0.0)
+        prev[a] = -1
+        Mc[c] = float(np.sum(mu[a:b] + ml[a:b]))
     ml3 = m * l**3
+    base = np.zeros(N_BASE) if base is None else np.array(base, dtype=float)
+    motion = np.zeros((3, N_MOTION)) if motion is None else np.array(motion, dtype=float)
     return Chain(l, m, mu, 4.0 * EI / l, kappa, nu, Mt, m * l**2 / 12.0,
                  l**2 * (Mt - ml / 2.0) + ml3 / 3.0, ml3 / 30.0, ml3 / 20.0, ml3 / 105.0,
-                 ml3 / 140.0, np.append(kappa[1:], 0.0))
+                 ml3 / 140.0, kappa_tip, prev, seg, attach, Mc, base, motion)
 
 
 def make_extra(rest, stops, contact, locked, pinned, comp=None, kind=KIND_REDUCED,
-               dtype=float) -> Extra:
+               dtype=float, nchains=1) -> Extra:
     """:class:`Extra` for n rods: ``rest`` (3, n) [N m], ``stops`` (4, n) = lower, upper [rad],
     stiffness, damping; ``contact`` (n,) int; ``locked``, ``pinned`` (n,) bool; ``comp``
     (n,) compliance of the locked hinges (default 0: rigid); ``dtype`` of the solve's
-    scratch and compliances (complex for Radau's complex Newton system)."""
+    scratch and compliances (complex for Radau's complex Newton system); ``nchains`` the
+    number of chains (Chain.seg)."""
     n = len(locked)
     f = lambda a: np.ascontiguousarray(a, dtype=float)  # noqa: E731
     i = lambda a: np.ascontiguousarray(a, dtype=np.int64)  # noqa: E731
@@ -136,7 +197,8 @@ def make_extra(rest, stops, contact, locked, pinned, comp=None, kind=KIND_REDUCE
                  f(stops[3]), contact, i(locked),
                  np.array(np.zeros(n) if comp is None else comp, dtype=dtype),
                  np.zeros(n, dtype=dtype), i(pinned), flags, np.zeros((n, N_WORK), dtype=dtype),
-                 np.zeros(N_SMALL, dtype=dtype), np.zeros((n, 2)), np.zeros(n + 1), int(kind))
+                 np.zeros(N_SMALL, dtype=dtype), np.zeros((n + 2, 3)), np.zeros(n + 1), int(kind),
+                 np.zeros(N_BK, dtype=dtype), np.zeros((nchains, N_ROOT), dtype=dtype))
 
 
 class Problem(NamedTuple):
@@ -179,11 +241,14 @@ class Control(NamedTuple):
 class EventTable(NamedTuple):
     """The event functions g_e = theta_{hinge_e} - angle_e of one mode (m of them):
     ``hinge`` (m,) int64, ``angle`` (m,) [rad], ``kind`` (m,) int64 (``hinges.EV_LATCH``:
-    terminal; ``EV_UPPER``, ``EV_LOWER``: stop crossings)."""
+    terminal; ``EV_UPPER``, ``EV_LOWER``: stop crossings), ``other`` (m,) int64: the state
+    index of the angle on the hinge's other side (the rod before, a free base's psi; -1: a
+    fixed base, whose angle is folded into ``angle``), theta = y[hinge] - y[other]."""
 
     hinge: np.ndarray
     angle: np.ndarray
     kind: np.ndarray
+    other: np.ndarray
 
 
 class Events(NamedTuple):
@@ -194,6 +259,7 @@ class Events(NamedTuple):
     hinge: np.ndarray
     angle: np.ndarray
     kind: np.ndarray
+    other: np.ndarray
     t: np.ndarray
     code: np.ndarray
     y: np.ndarray
@@ -213,69 +279,97 @@ class Output(NamedTuple):
 
 @njit(inline="always")
 def load_forces(t, loads, held, t_side, out):
-    """Nodal forces (n, 2) [N] at time t: held forces plus scripted loads."""
-    node, axis, shape, amp, start, dur = loads
-    out[:, :] = held[:, :2]
-    for i in range(node.shape[0]):
-        if t_side < start[i]:
-            continue
-        tau = t - start[i]
-        sh = shape[i]
-        if sh == SHAPE_CONSTANT:
-            v = amp[i]
-        elif sh == SHAPE_STEP:
-            v = amp[i] if t_side < start[i] + dur[i] else 0.0
-        else:
-            if t_side > start[i] + dur[i]:
-                v = 0.0
-            else:
-                v = amp[i] * (0.5 - 0.5 * math.cos(2.0 * math.pi * tau / dur[i]))
-        out[node[i], axis[i]] += v
+    """Applied loads (n + 2, 3) at time t: the held inputs (n + 2, 3) plus the scripted loads
+    (rows and columns as Extra.forces). The one scripted-load law: the Python side
+    (:func:`scripted_value`) calls the same code."""
+    row, col, shape, amp, start, dur = loads
+    out[:, :] = held
+    for i in range(row.shape[0]):
+        out[row[i], col[i]] += scripted_value(t, shape[i], amp[i], start[i], dur[i], t_side)
 
 
 @njit(inline="always")
-def _generalized_forces(l, W, forces):
-    """Q_k = l_k (c_k sum_{j>=k} Y_j - s_k sum_{j>=k} X_j) [N m] into W[:, W_FP]."""
-    n = l.shape[0]
-    sx = 0.0
-    sy = 0.0
-    for k in range(n - 1, -1, -1):
-        sx += forces[k, 0]
-        sy += forces[k, 1]
-        W[k, W_FP] = l[k] * (W[k, W_C] * sy - W[k, W_S] * sx)
+def scripted_value(t, shape, amp, start, dur, t_side):
+    """One scripted load's value at time t (which side of a jump: the side of ``t_side``)."""
+    if t_side < start:
+        return 0.0
+    tau = t - start
+    if shape == SHAPE_CONSTANT:
+        return amp
+    if shape == SHAPE_STEP:
+        return amp if t_side < start + dur else 0.0
+    if t_side > start + dur:
+        return 0.0
+    return amp * (0.5 - 0.5 * math.cos(2.0 * math.pi * tau / dur))
+
+
+_profile_at = njit(inline="always")(profile_at)
+
+
+@njit(inline="always")
+def motion_eval(motion, r, t):
+    """Value, rate and acceleration of the prescribed profile ``motion[r]`` = (code, a, b,
+    start) at time t [s]: :func:`rod_sim.core.motion.profile_at`, the one law of Python and
+    kernels (units of the coordinate: m or rad)."""
+    return _profile_at(int(motion[r, 0]), motion[r, 1], motion[r, 2], motion[r, 3], t)
+
+
+@njit(inline="always")
+def _generalized_forces(ch, W, forces):
+    """Q_k = l_k (c_k sum_{j>=k} Y_j - s_k sum_{j>=k} X_j) [N m] over the nodes j of rod k's
+    chain, plus gravity on everything beyond node k-1 (l_k M_k (c_k g_y - s_k g_x)), into
+    W[:, W_FP]."""
+    l = ch.l
+    seg = ch.seg
+    grav = ch.base[B_GRAVITY] != 0.0
+    gx = ch.base[B_GX]
+    gy = ch.base[B_GY]
+    for ci in range(seg.shape[0] - 1):
+        sx = 0.0
+        sy = 0.0
+        for k in range(seg[ci + 1] - 1, seg[ci] - 1, -1):
+            sx += forces[k, 0]
+            sy += forces[k, 1]
+            W[k, W_FP] = l[k] * (W[k, W_C] * sy - W[k, W_S] * sx)
+            if grav:
+                W[k, W_FP] += l[k] * ch.Mt[k] * (W[k, W_C] * gy - W[k, W_S] * gx)
 
 
 @njit(inline="always")
 def _velocity_terms(ch, dphi, W):
     """g^{phi phi} Lambda phi' into W[:, W_GP] and g^{alpha phi} Lambda phi' into W[:, W_GA]
     (n,) [N m] (g^{beta phi} Lambda phi' = -g_alpha) from cos/sin in W[:, W_C], W[:, W_S]:
-    sin(phi_k - phi_j) = s_k c_j - c_k s_j turns the pair sums into prefix/suffix sums."""
-    n = dphi.shape[0]
-    sc = 0.0
-    ss = 0.0
-    for k in range(n):
-        c = W[k, W_C]
-        s = W[k, W_S]
-        low = s * sc - c * ss                   # sum_{j<k} l_j sin(phi_k - phi_j) phi_j'^2
-        W[k, W_GP] = ch.l[k] * ch.Mt[k] * low
-        W[k, W_GA] = ch.C[k] * low
-        w = ch.l[k] * dphi[k] * dphi[k]
-        sc += w * c
-        ss += w * s
-    sc = 0.0
-    ss = 0.0
-    for k in range(n - 1, -1, -1):
-        c = W[k, W_C]
-        s = W[k, W_S]
-        W[k, W_GP] += ch.l[k] * (s * sc - c * ss)
-        w = ch.l[k] * ch.Mt[k] * dphi[k] * dphi[k]
-        sc += w * c
-        ss += w * s
+    sin(phi_k - phi_j) = s_k c_j - c_k s_j turns the pair sums into prefix/suffix sums (over
+    the rods of one chain)."""
+    seg = ch.seg
+    for ci in range(seg.shape[0] - 1):
+        k0 = seg[ci]
+        k1 = seg[ci + 1]
+        sc = 0.0
+        ss = 0.0
+        for k in range(k0, k1):
+            c = W[k, W_C]
+            s = W[k, W_S]
+            low = s * sc - c * ss               # sum_{j<k} l_j sin(phi_k - phi_j) phi_j'^2
+            W[k, W_GP] = ch.l[k] * ch.Mt[k] * low
+            W[k, W_GA] = ch.C[k] * low
+            w = ch.l[k] * dphi[k] * dphi[k]
+            sc += w * c
+            ss += w * s
+        sc = 0.0
+        ss = 0.0
+        for k in range(k1 - 1, k0 - 1, -1):
+            c = W[k, W_C]
+            s = W[k, W_S]
+            W[k, W_GP] += ch.l[k] * (s * sc - c * ss)
+            w = ch.l[k] * ch.Mt[k] * dphi[k] * dphi[k]
+            sc += w * c
+            ss += w * s
 
 
 @njit(inline="always")
 def _start(t, phi, dphi, ch, ex, loads, held, t_side):
-    """What every kernel computes first: cos/sin, velocity terms, nodal forces, Q (into
+    """What every kernel computes first: cos/sin, velocity terms, applied loads, Q (into
     W[:, W_FP]); returns the work array W (n, N_WORK)."""
     W = ex.work
     n = phi.shape[0]
@@ -284,26 +378,56 @@ def _start(t, phi, dphi, ch, ex, loads, held, t_side):
         W[k, W_S] = math.sin(phi[k])
     _velocity_terms(ch, dphi, W)
     load_forces(t, loads, held, t_side, ex.forces)
-    _generalized_forces(ch.l, W, ex.forces)
+    _generalized_forces(ch, W, ex.forces)
     return W
 
 
 @njit(inline="always")
-def hinge_angle(phi, dphi, h):
-    """Rigid hinge angle theta_h [rad] and its rate [rad/s] (phi_1; phi_{h+1} - phi_h)."""
-    if h == 0:
-        return phi[0], dphi[0]
-    return phi[h] - phi[h - 1], dphi[h] - dphi[h - 1]
+def _base_state(t, y, ch, ex, i0, dof):
+    """The base frame's pose, rates and known accelerations into ex.bk (the rest of bk
+    zeroed): a free base's from y (x_B at index i0, q of size dof), a prescribed one's from
+    its profiles, a fixed one's pose from the scene."""
+    b = ch.base
+    bk = ex.bk
+    for i in range(bk.shape[0]):
+        bk[i] = 0.0
+    mode = b[B_MODE]
+    if mode == MODE_FREE:
+        for i in range(3):
+            bk[BK_X + i] = y[i0 + i]
+            bk[BK_VX + i] = y[dof + i0 + i]
+    elif mode == MODE_PRESCRIBED:
+        for i in range(3):
+            v, vd, vdd = motion_eval(ch.motion, i, t)
+            bk[BK_X + i] = b[B_X + i] + v
+            bk[BK_VX + i] = vd
+            bk[BK_AX + i] = vdd
+    else:
+        for i in range(3):
+            bk[BK_X + i] = b[B_X + i]
+    bk[BK_COS] = math.cos(bk[BK_PSI])
+    bk[BK_SIN] = math.sin(bk[BK_PSI])
 
 
 @njit(inline="always")
-def _stop_moments(phi, dphi, ex, W):
-    """Add the stop-contact moments (on the rigid hinge angles) to the phi rows W[:, W_FP]."""
+def hinge_angle(phi, dphi, h, ch, bk):
+    """Rigid hinge angle theta_h [rad] and its rate [rad/s]: phi_{h+1} - phi_h inside a
+    chain, phi_1 - psi (the base's angle) at a chain's hinge 0."""
+    p = ch.prev[h]
+    if p < 0:
+        return phi[h] - bk[BK_PSI], dphi[h] - bk[BK_W]
+    return phi[h] - phi[p], dphi[h] - dphi[p]
+
+
+@njit(inline="always")
+def _stop_moments(phi, dphi, ch, ex, W):
+    """Add the stop-contact moments (on the rigid hinge angles) to the phi rows W[:, W_FP]
+    (at a chain's hinge 0 the opposite moment goes to the base's psi row, bk[BK_FPSI])."""
     if ex.flags[0] == 0:
         return
     n = phi.shape[0]
     for h in range(n):
-        th, dth = hinge_angle(phi, dphi, h)
+        th, dth = hinge_angle(phi, dphi, h, ch, ex.bk)
         m = 0.0
         side = ex.contact[h]
         if side > 0.0:
@@ -311,8 +435,56 @@ def _stop_moments(phi, dphi, ex, W):
         elif side < 0.0:
             m = max(0.0, ex.stop_k[h] * (ex.stop_lower[h] - th) - ex.stop_c[h] * dth)
         W[h, W_FP] += m
-        if h > 0:
-            W[h - 1, W_FP] -= m
+        p = ch.prev[h]
+        if p >= 0:
+            W[p, W_FP] -= m
+        else:
+            ex.bk[BK_FPSI] -= m
+
+
+@njit(inline="always")
+def _base_forces(full, ch, ex, W, dphi, dal, dbe, tau):
+    """The free base's right-hand sides into bk: BK_FX, BK_FY (translation), BK_FPSI
+    (rotation about the base frame's origin) and BK_FTH (the wheel): the base's loads and
+    weight, its centre of mass's centripetal term and, per chain, the applied force and
+    weight less the chain's velocity terms, moved to the node-0 point, plus the hinge-0
+    moment (tau, rest angle); the chains' inertia coupling is added by :func:`chain_solve`."""
+    b = ch.base
+    bk = ex.bk
+    n = dphi.shape[0]
+    cps = bk[BK_COS]
+    sps = bk[BK_SIN]
+    w2 = bk[BK_W] * bk[BK_W]
+    gx = b[B_GX]
+    gy = b[B_GY]
+    mB = b[B_MASS]
+    rcx = cps * b[B_CX] - sps * b[B_CY]
+    rcy = sps * b[B_CX] + cps * b[B_CY]
+    fbx = ex.forces[n, 0] + mB * gx
+    fby = ex.forces[n, 1] + mB * gy
+    fx = fbx + mB * w2 * rcx
+    fy = fby + mB * w2 * rcy
+    fpsi = ex.forces[n, 2] + (-rcy * fbx + rcx * fby)
+    seg = ch.seg
+    for ci in range(seg.shape[0] - 1):
+        k0 = seg[ci]
+        ex_x = ch.Mc[ci] * gx
+        ex_y = ch.Mc[ci] * gy
+        for k in range(k0, seg[ci + 1]):
+            v = ch.l[k] * ch.Mt[k] * dphi[k] * dphi[k]
+            if full:
+                v += 2.0 * ch.C[k] * dphi[k] * (dal[k] - dbe[k])
+            ex_x += ex.forces[k, 0] + v * W[k, W_C]
+            ex_y += ex.forces[k, 1] + v * W[k, W_S]
+        rax = cps * ch.attach[ci, 0] - sps * ch.attach[ci, 1]
+        ray = sps * ch.attach[ci, 0] + cps * ch.attach[ci, 1]
+        fx += ex_x
+        fy += ex_y
+        fpsi += -ray * ex_x + rax * ex_y + tau[k0] - ex.rest_alpha[k0]
+    bk[BK_FX] = fx
+    bk[BK_FY] = fy
+    bk[BK_FPSI] = fpsi
+    bk[BK_FTH] = ex.forces[n + 1, 2]
 
 
 @njit(inline="always")
@@ -356,21 +528,12 @@ def _solve3(E, G, ncol):
 
 
 @njit(inline="always")
-def chain_solve(kind, ch, ex, W):
-    """Solve the model's linear system for the accelerations in O(n).
-
-    Inputs in W (n, N_WORK): cos/sin (W_C, W_S) and the right-hand sides of the phi, alpha and
-    beta rows (W_FP, W_FA, W_FB). ``kind`` KIND_REDUCED: unknowns phi'' and the quasi-static
-    end slopes alpha, beta of eq. (14) (the rows are [m^{pp} phi'' + kappa^{p gamma} gamma =
-    F_p; m^{gamma p} phi'' + [b^{gamma gamma}] gamma = F_gamma], i.e. eq. (15) before the
-    elimination of gamma); KIND_FULL: unknowns phi'', alpha'', beta'' of eqs. (9)-(10). Pinned
-    rods have alpha = beta = 0 (their gamma rows dropped); locked hinges add C x'' = 0 with a
-    multiplier (the projected equations T^T M T q = T^T f of a constraint basis T); with a
-    compliance comp_h the hinge's row becomes d_h^T x'' = -comp_h lambda_h, which solves
-    (M + s sum_h kappa'_h d_h d_h^T) x = f for comp_h = -1 / (s kappa'_h) (d_h: the hinge's
-    relative rotation, dDelta_h/dq; used by the eigenvalue and Newton solves). Outputs
-    phi'' (W_X), alpha or alpha'' (W_A), beta or beta'' (W_B). Returns False if singular."""
-    n = W.shape[0]
+def _sweep_back(kind, ch, ex, W, r0, r1):
+    """Eliminate rods r1-1 .. r0 (one chain) from the tip to the root: leaves the chain's root
+    map w = P + K u (P = ex.small[0:4], K = ex.small[4:20] as 4 x 4) of the interface u =
+    (z (2), rho or beta, x) of the rod before rod r0 and each rod's affine record in W.
+    False if singular."""
+    full = kind == KIND_FULL
     sm = ex.small
     P = sm[0:4]
     K = sm[4:20].reshape((4, 4))
@@ -381,10 +544,9 @@ def chain_solve(kind, ch, ex, W):
     col = sm[52:55]
     xu = sm[55:60]      # [x0, X (4)] : phi'' of the rod as affine map of u
     nP = sm[60:64]
-    full = kind == KIND_FULL
     P[:] = 0.0
     K[:, :] = 0.0
-    for r in range(n - 1, -1, -1):
+    for r in range(r1 - 1, r0 - 1, -1):
         L = ch.l[r]
         c = W[r, W_C]
         s = W[r, W_S]
@@ -438,7 +600,7 @@ def chain_solve(kind, ch, ex, W):
             G[1, 2] = -Cr * s
             G[1, 3] = ka
             # beta row: -kappa_{r+1} alpha_{r+1} - gw_{r+1} lambda_{r+1}
-            gt = ex.gw[r + 1] if r + 1 < n else 0.0
+            gt = ex.gw[r + 1] if r + 1 < r1 else 0.0
             E[2, 0] = -ch.c20[r] - kt * kx[2] - gt * kx[3]
             E[2, 1] = 0.5 * Ktr
             E[2, 2] = kt + Ktr - kt * kb[2] - gt * kb[3]
@@ -521,12 +683,15 @@ def chain_solve(kind, ch, ex, W):
                     K[3, j] = G[0, 1 + j]
         for i in range(4):
             P[i] = nP[i]
-    # forward: u = (z, beta_{r-1} or rho_{r-1}, x_{r-1})
-    u0 = 0.0
-    u1 = 0.0
-    u2 = 0.0
-    u3 = 0.0
-    for r in range(n):
+    return True
+
+
+@njit(inline="always")
+def _sweep_fwd(kind, ch, ex, W, r0, r1, u0, u1, u2, u3):
+    """Substitute forward through rods r0 .. r1-1 from the root interface u = (u0, u1, u2, u3):
+    phi'' (W_X), alpha or alpha'' (W_A), beta or beta'' (W_B)."""
+    full = kind == KIND_FULL
+    for r in range(r0, r1):
         rec = W[r, W_REC:W_REC + 15]
         v0 = rec[0] + rec[1] * u0 + rec[2] * u1 + rec[3] * u2 + rec[4] * u3
         va = rec[5] + rec[6] * u0 + rec[7] * u1 + rec[8] * u2 + rec[9] * u3
@@ -548,28 +713,214 @@ def chain_solve(kind, ch, ex, W):
         else:
             u2 = vb
             u3 = x
+
+
+
+
+@njit(inline="always")
+def chain_solve(kind, ch, ex, W):
+    """Solve the model's linear system for the accelerations in O(n).
+
+    Inputs in W (n, N_WORK): cos/sin (W_C, W_S) and the right-hand sides of the phi, alpha and
+    beta rows (W_FP, W_FA, W_FB). ``kind`` KIND_REDUCED: unknowns phi'' and the quasi-static
+    end slopes alpha, beta of eq. (14) (the rows are [m^{pp} phi'' + kappa^{p gamma} gamma =
+    F_p; m^{gamma p} phi'' + [b^{gamma gamma}] gamma = F_gamma], i.e. eq. (15) before the
+    elimination of gamma); KIND_FULL: unknowns phi'', alpha'', beta'' of eqs. (9)-(10). Pinned
+    rods have alpha = beta = 0 (their gamma rows dropped); locked hinges add C x'' = 0 with a
+    multiplier (the projected equations T^T M T q = T^T f of a constraint basis T); with a
+    compliance comp_h the hinge's row becomes d_h^T x'' = -comp_h lambda_h, which solves
+    (M + s sum_h kappa'_h d_h d_h^T) x = f for comp_h = -1 / (s kappa'_h) (d_h: the hinge's
+    relative rotation, dDelta_h/dq; used by the eigenvalue and Newton solves). Outputs
+    phi'' (W_X), alpha or alpha'' (W_A), beta or beta'' (W_B). Returns False if singular."""
+    seg = ch.seg
+    nc = seg.shape[0] - 1
+    mode = ch.base[B_MODE]
+    if mode == MODE_FIXED:
+        for ci in range(nc):
+            if not _sweep_back(kind, ch, ex, W, seg[ci], seg[ci + 1]):
+                return False
+            _sweep_fwd(kind, ch, ex, W, seg[ci], seg[ci + 1], 0.0, 0.0, 0.0, 0.0)
+        return True
+    full = kind == KIND_FULL
+    bk = ex.bk
+    cps = bk[BK_COS]
+    sps = bk[BK_SIN]
+    w2 = bk[BK_W] * bk[BK_W]
+    if mode == MODE_PRESCRIBED:
+        ax = bk[BK_AX]
+        ay = bk[BK_AY]
+        ap = bk[BK_APSI]
+        for ci in range(nc):
+            if not _sweep_back(kind, ch, ex, W, seg[ci], seg[ci + 1]):
+                return False
+            rax = cps * ch.attach[ci, 0] - sps * ch.attach[ci, 1]
+            ray = sps * ch.attach[ci, 0] + cps * ch.attach[ci, 1]
+            a0x = ax - ap * ray - w2 * rax
+            a0y = ay + ap * rax - w2 * ray
+            if full:
+                _sweep_fwd(kind, ch, ex, W, seg[ci], seg[ci + 1], a0y, -a0x, ap, 0.0)
+            else:
+                _sweep_fwd(kind, ch, ex, W, seg[ci], seg[ci + 1], a0y, -a0x, 0.0, ap)
+        return True
+    return _free_base_solve(kind, ch, ex, W, cps, sps, w2)
+
+
+@njit(inline="always")
+def _free_base_solve(kind, ch, ex, W, cps, sps, w2):
+    """A free base: every chain's root map, then the base's 3 x 3 system for (x_B'', y_B'',
+    psi'') (the base's rows with each chain's inertia, hinge-0 moment and lock multiplier as
+    affine maps of the base's accelerations: the Schur complement of the chains), then every
+    chain forward from its node-0 acceleration. Right-hand sides of the base rows in
+    bk[BK_FX..BK_FTH]; accelerations out in bk[BK_AX], bk[BK_AY], bk[BK_APSI], bk[BK_ATH]."""
+    full = kind == KIND_FULL
+    b = ch.base
+    bk = ex.bk
+    seg = ch.seg
+    nc = seg.shape[0] - 1
+    sm = ex.small
+    A = sm[20:29].reshape((3, 3))
+    G = sm[29:44].reshape((3, 5))
+    for ci in range(nc):
+        if not _sweep_back(kind, ch, ex, W, seg[ci], seg[ci + 1]):
+            return False
+        for i in range(20):
+            ex.roots[ci, i] = sm[i]
+    mB = b[B_MASS]
+    rcx = cps * b[B_CX] - sps * b[B_CY]
+    rcy = sps * b[B_CX] + cps * b[B_CY]
+    for i in range(3):
+        for j in range(3):
+            A[i, j] = 0.0
+        for j in range(5):
+            G[i, j] = 0.0
+    A[0, 0] = mB
+    A[1, 1] = mB
+    A[0, 2] = -mB * rcy
+    A[1, 2] = mB * rcx
+    A[2, 0] = -mB * rcy
+    A[2, 1] = mB * rcx
+    A[2, 2] = b[B_INERTIA] + mB * (rcx * rcx + rcy * rcy)
+    G[0, 0] = bk[BK_FX]
+    G[1, 0] = bk[BK_FY]
+    G[2, 0] = bk[BK_FPSI] - bk[BK_FTH]
+    sl = 2 if full else 3                   # the root slot that takes psi''
+    for ci in range(nc):
+        P = ex.roots[ci, R_P:R_P + 4]
+        K = ex.roots[ci, R_K:R_K + 16].reshape((4, 4))
+        Mc = ch.Mc[ci]
+        rax = cps * ch.attach[ci, 0] - sps * ch.attach[ci, 1]
+        ray = sps * ch.attach[ci, 0] + cps * ch.attach[ci, 1]
+        ex_ = -ray                          # e = J R a: node 0's velocity per unit psi'
+        ey_ = rax
+        kx = -w2 * rax                      # known (centripetal) part of node 0's acceleration
+        ky = -w2 * ray
+        kap = 0.0 if full else ch.kappa[seg[ci]]
+        # columns: 0 constant (u = u_k = J^T a0k), 1 x_B'', 2 y_B'', 3 psi''
+        for col in range(4):
+            if col == 0:
+                acx, acy = kx, ky
+            elif col == 1:
+                acx, acy = 1.0, 0.0
+            elif col == 2:
+                acx, acy = 0.0, 1.0
+            else:
+                acx, acy = ex_, ey_
+            # the root map w = P + K u at this column's u (u = (a0_y, -a0_x, psi'' slot))
+            w0 = K[0, 0] * acy - K[0, 1] * acx
+            w1 = K[1, 0] * acy - K[1, 1] * acx
+            w2_ = K[2, 0] * acy - K[2, 1] * acx
+            w3 = K[3, 0] * acy - K[3, 1] * acx
+            if col == 3:
+                w0 += K[0, sl]
+                w1 += K[1, sl]
+                w2_ += K[2, sl]
+                w3 += K[3, sl]
+            if col == 0:
+                w0 += P[0]
+                w1 += P[1]
+                w2_ += P[2]
+                w3 += P[3]
+            fx = Mc * acx - w1              # chain inertia force: Mc a0 + J R
+            fy = Mc * acy + w0
+            fp = ex_ * fx + ey_ * fy - (w2_ if full else kap * w2_ + w3)
+            if col == 0:
+                G[0, 0] -= fx
+                G[1, 0] -= fy
+                G[2, 0] -= fp
+            else:
+                A[0, col - 1] += fx
+                A[1, col - 1] += fy
+                A[2, col - 1] += fp
+    if not _solve3(A, G, 1):
+        return False
+    ax = G[0, 0]
+    ay = G[1, 0]
+    ap = G[2, 0]
+    bk[BK_AX] = ax
+    bk[BK_AY] = ay
+    bk[BK_APSI] = ap
+    bk[BK_ATH] = bk[BK_FTH] / b[B_WHEEL] - ap if b[B_WHEEL] > 0.0 else 0.0 * ap
+    for ci in range(nc):
+        rax = cps * ch.attach[ci, 0] - sps * ch.attach[ci, 1]
+        ray = sps * ch.attach[ci, 0] + cps * ch.attach[ci, 1]
+        a0x = ax - ap * ray - w2 * rax
+        a0y = ay + ap * rax - w2 * ray
+        if full:
+            _sweep_fwd(kind, ch, ex, W, seg[ci], seg[ci + 1], a0y, -a0x, ap, 0.0)
+        else:
+            _sweep_fwd(kind, ch, ex, W, seg[ci], seg[ci + 1], a0y, -a0x, 0.0, ap)
     return True
 
 
 @njit(inline="always")
-def _hinge_moments(phi, dphi, ch, ex, held, W, tau):
+def _hinge_moments(phi, dphi, ch, ex, W, tau):
     """tau_h = kappa_h Delta_h + nu_h Delta_h' - T_h (n + 1,) [N m] with the rigid hinge
     angles (gamma = 0; tau_n = 0), and the rest-angle forces added to W's right-hand sides."""
     n = phi.shape[0]
     for h in range(n):
-        d, dd = hinge_angle(phi, dphi, h)
-        tau[h] = ch.kappa[h] * d + ch.nu[h] * dd - held[h, 2]
+        d, dd = hinge_angle(phi, dphi, h, ch, ex.bk)
+        tau[h] = ch.kappa[h] * d + ch.nu[h] * dd - ex.forces[h, 2]
         W[h, W_FA] = ex.rest_alpha[h]
         W[h, W_FB] = ex.rest_beta[h]
     tau[n] = 0.0
 
 
 @njit(inline="always")
-def _finish(n, W, dphi, out):
-    """[phi', phi''] (2n,) into out from the solve's W_X column."""
+def _tn(ch, tau, k):
+    """The moment tau of the hinge at rod k's tip (0 at a chain's last rod)."""
+    return tau[k + 1] if k + 1 < tau.shape[0] - 1 and ch.prev[k + 1] == k else 0.0
+
+
+@njit(inline="always")
+def _layout(kind, ch):
+    """(n, i0, dof): rods, the index of the base's first coordinate in q (= the chains'
+    coordinates), the size of q."""
+    n = ch.l.shape[0]
+    i0 = 3 * n if kind == KIND_FULL else n
+    return n, i0, i0 + int(ch.base[B_NB])
+
+
+@njit(inline="always")
+def _finish(n, i0, dof, W, y, ex, out):
+    """dq/dt = the velocities and the accelerations (phi'' from the solve's W_X column; a free
+    base's from ex.bk) into out for the rigid and reduced models."""
     for k in range(n):
-        out[k] = dphi[k]
-        out[n + k] = W[k, W_X]
+        out[k] = y[dof + k]
+        out[dof + k] = W[k, W_X]
+    _finish_base(i0, dof, y, ex, out)
+
+
+@njit(inline="always")
+def _finish_base(i0, dof, y, ex, out):
+    nb = dof - i0
+    for i in range(nb):
+        out[i0 + i] = y[dof + i0 + i]
+    if nb > 0:
+        out[dof + i0] = ex.bk[BK_AX]
+        out[dof + i0 + 1] = ex.bk[BK_AY]
+        out[dof + i0 + 2] = ex.bk[BK_APSI]
+    if nb > 3:
+        out[dof + i0 + 3] = ex.bk[BK_ATH]
 
 
 @njit(inline="always")
@@ -580,136 +931,203 @@ def _fill_nan(out):
 
 @njit
 def rigid_rhs(t, y, chain, extra, loads, held, t_side, out):
-    """Rigid chain (EI -> infinity): y = [phi, phi_dot] (2n,); every rod pinned."""
-    n = chain.l.shape[0]
+    """Rigid chains (EI -> infinity): y = [phi, base, phi', base'] (base: x_B, y_B, psi
+    [, theta_w] of a free base); every rod pinned."""
+    n, i0, dof = _layout(KIND_REDUCED, chain)
     phi = y[:n]
-    dphi = y[n:]
+    dphi = y[dof:dof + n]
+    _base_state(t, y, chain, extra, i0, dof)
     W = _start(t, phi, dphi, chain, extra, loads, held, t_side)
     tau = extra.tau
-    _hinge_moments(phi, dphi, chain, extra, held, W, tau)
+    _hinge_moments(phi, dphi, chain, extra, W, tau)
     for k in range(n):
-        W[k, W_FP] += extra.rest_phi[k] - W[k, W_GP] - tau[k] + tau[k + 1]
-    _stop_moments(phi, dphi, extra, W)
+        W[k, W_FP] += extra.rest_phi[k] - W[k, W_GP] - tau[k] + _tn(chain, tau, k)
+    if chain.base[B_MODE] == MODE_FREE:
+        _base_forces(False, chain, extra, W, dphi, dphi, dphi, tau)
+    _stop_moments(phi, dphi, chain, extra, W)
     if not chain_solve(KIND_REDUCED, chain, extra, W):
         _fill_nan(out)
         return
-    _finish(n, W, dphi, out)
+    _finish(n, i0, dof, W, y, extra, out)
 
 
 @njit
 def reduced_rhs(t, y, chain, extra, loads, held, t_side, out):
-    """Reduced model, eq. (15) through (14): y = [phi, phi_dot] (2n,); the quasi-static end
-    slopes alpha, beta are left in extra.work[:, W_A], extra.work[:, W_B]."""
-    n = chain.l.shape[0]
+    """Reduced model, eq. (15) through (14): y = [phi, base, phi', base']; the quasi-static
+    end slopes alpha, beta are left in extra.work[:, W_A], extra.work[:, W_B]."""
+    n, i0, dof = _layout(KIND_REDUCED, chain)
     phi = y[:n]
-    dphi = y[n:]
+    dphi = y[dof:dof + n]
+    _base_state(t, y, chain, extra, i0, dof)
     W = _start(t, phi, dphi, chain, extra, loads, held, t_side)
     tau = extra.tau
-    _hinge_moments(phi, dphi, chain, extra, held, W, tau)
+    _hinge_moments(phi, dphi, chain, extra, W, tau)
+    grav = chain.base[B_GRAVITY] != 0.0
+    gx = chain.base[B_GX]
+    gy = chain.base[B_GY]
     for k in range(n):
         ga = W[k, W_GA]
-        W[k, W_FP] += extra.rest_phi[k] - W[k, W_GP] - tau[k] + tau[k + 1]
+        W[k, W_FP] += extra.rest_phi[k] - W[k, W_GP] - tau[k] + _tn(chain, tau, k)
         W[k, W_FA] += -ga - tau[k]
-        W[k, W_FB] += ga + tau[k + 1]
-    _stop_moments(phi, dphi, extra, W)
+        W[k, W_FB] += ga + _tn(chain, tau, k)
+        if grav:
+            gp = chain.C[k] * (W[k, W_C] * gy - W[k, W_S] * gx)
+            W[k, W_FA] += gp
+            W[k, W_FB] -= gp
+    if chain.base[B_MODE] == MODE_FREE:
+        _base_forces(False, chain, extra, W, dphi, dphi, dphi, tau)
+    _stop_moments(phi, dphi, chain, extra, W)
     if not chain_solve(KIND_REDUCED, chain, extra, W):
         _fill_nan(out)
         return
-    _finish(n, W, dphi, out)
+    _finish(n, i0, dof, W, y, extra, out)
 
 
 @njit
 def full_rhs(t, y, chain, extra, loads, held, t_side, out):
-    """Full model (9)-(10): y = [phi, alpha, beta, phi_dot, alpha_dot, beta_dot] (6n,)."""
-    n = chain.l.shape[0]
+    """Full model (9)-(10): y = [phi, alpha, beta, base, phi', alpha', beta', base']."""
+    n, i0, dof = _layout(KIND_FULL, chain)
     phi = y[:n]
     al = y[n:2 * n]
     be = y[2 * n:3 * n]
-    dphi = y[3 * n:4 * n]
-    dal = y[4 * n:5 * n]
-    dbe = y[5 * n:6 * n]
+    dphi = y[dof:dof + n]
+    dal = y[dof + n:dof + 2 * n]
+    dbe = y[dof + 2 * n:dof + 3 * n]
+    _base_state(t, y, chain, extra, i0, dof)
     W = _start(t, phi, dphi, chain, extra, loads, held, t_side)
     tau = extra.tau
+    bk = extra.bk
     for h in range(n):
-        if h == 0:
-            d = phi[0] + al[0]
-            dd = dphi[0] + dal[0]
+        p = chain.prev[h]
+        if p < 0:
+            d = phi[h] + al[h] - bk[BK_PSI]
+            dd = dphi[h] + dal[h] - bk[BK_W]
         else:
-            d = phi[h] + al[h] - phi[h - 1] - be[h - 1]
-            dd = dphi[h] + dal[h] - dphi[h - 1] - dbe[h - 1]
-        tau[h] = chain.kappa[h] * d + chain.nu[h] * dd - held[h, 2]
+            d = phi[h] + al[h] - phi[p] - be[p]
+            dd = dphi[h] + dal[h] - dphi[p] - dbe[p]
+        tau[h] = chain.kappa[h] * d + chain.nu[h] * dd - extra.forces[h, 2]
     tau[n] = 0.0
+    grav = chain.base[B_GRAVITY] != 0.0
+    gx = chain.base[B_GX]
+    gy = chain.base[B_GY]
     # 2 [g^{phi alpha}] Lambda alpha' + 2 [g^{phi beta}] Lambda beta': suffix sums over j > k
-    sc = 0.0
-    ss = 0.0
-    for k in range(n - 1, -1, -1):
-        c = W[k, W_C]
-        s = W[k, W_S]
-        cor = chain.l[k] * (s * sc - c * ss)
-        w = chain.C[k] * dphi[k] * (dal[k] - dbe[k])
-        sc += w * c
-        ss += w * s
-        ga = W[k, W_GA]
-        Kt = chain.Kt[k]
-        W[k, W_FP] += extra.rest_phi[k] - W[k, W_GP] - 2.0 * cor - tau[k] + tau[k + 1]
-        W[k, W_FA] = -ga - tau[k] - Kt * (al[k] + 0.5 * be[k]) + extra.rest_alpha[k]
-        W[k, W_FB] = ga + tau[k + 1] - Kt * (0.5 * al[k] + be[k]) + extra.rest_beta[k]
-    _stop_moments(phi, dphi, extra, W)
+    seg = chain.seg
+    for ci in range(seg.shape[0] - 1):
+        sc = 0.0
+        ss = 0.0
+        for k in range(seg[ci + 1] - 1, seg[ci] - 1, -1):
+            c = W[k, W_C]
+            s = W[k, W_S]
+            cor = chain.l[k] * (s * sc - c * ss)
+            w = chain.C[k] * dphi[k] * (dal[k] - dbe[k])
+            sc += w * c
+            ss += w * s
+            ga = W[k, W_GA]
+            Kt = chain.Kt[k]
+            W[k, W_FP] += extra.rest_phi[k] - W[k, W_GP] - 2.0 * cor - tau[k] + _tn(chain, tau, k)
+            W[k, W_FA] = -ga - tau[k] - Kt * (al[k] + 0.5 * be[k]) + extra.rest_alpha[k]
+            W[k, W_FB] = ga + _tn(chain, tau, k) - Kt * (0.5 * al[k] + be[k]) + extra.rest_beta[k]
+            if grav:
+                gp = chain.C[k] * (c * gy - s * gx)
+                W[k, W_FA] += gp
+                W[k, W_FB] -= gp
+                W[k, W_FP] -= chain.C[k] * (c * gx + s * gy) * (al[k] - be[k])
+    if chain.base[B_MODE] == MODE_FREE:
+        _base_forces(True, chain, extra, W, dphi, dal, dbe, tau)
+    _stop_moments(phi, dphi, chain, extra, W)
     if not chain_solve(KIND_FULL, chain, extra, W):
         _fill_nan(out)
         return
     for k in range(3 * n):
-        out[k] = y[3 * n + k]
+        out[k] = y[dof + k]
     for k in range(n):
-        out[3 * n + k] = W[k, W_X]
-        out[4 * n + k] = W[k, W_A]
-        out[5 * n + k] = W[k, W_B]
+        out[dof + k] = W[k, W_X]
+        out[dof + n + k] = W[k, W_A]
+        out[dof + 2 * n + k] = W[k, W_B]
+    _finish_base(i0, dof, y, extra, out)
 
 
 @njit(inline="always")
-def inertia_columns(full, chain, W, V, VA, VB, FP, FA, FB):
-    """Columns FP, FA, FB of W (n, ncol) = the paper's inertia blocks times the velocity
-    columns V, VA, VB, in O(n): FP = m^{pp} V + m^{pa} VA + m^{pb} VB, FA = m^{ap} V + m^{aa}
-    VA + m^{ab} VB, FB likewise, with cos, sin of the rod angles in columns W_C, W_S.
-    ``full`` False: only FP = m^{pp} V (VA, VB, FA, FB unused). The output columns must
-    differ from the input ones."""
-    n = W.shape[0]
-    zx = 0.0
-    zy = 0.0
-    for k in range(n):
-        c = W[k, W_C]
-        s = W[k, W_S]
-        v = W[k, V]
-        ez = c * zx + s * zy                    # e_k . sum_{j<k} l_j e_j v_j
-        W[k, FP] = chain.Akk[k] * v + chain.l[k] * chain.Mt[k] * ez
-        if full:
-            va = W[k, VA]
-            vb = W[k, VB]
-            W[k, FP] += chain.c30[k] * va - chain.c20[k] * vb
-            W[k, FA] = chain.C[k] * ez + chain.c30[k] * v + chain.c105[k] * va \
-                - chain.c140[k] * vb
-            W[k, FB] = -chain.C[k] * ez - chain.c20[k] * v - chain.c140[k] * va \
-                + chain.c105[k] * vb
-        zx += chain.l[k] * c * v
-        zy += chain.l[k] * s * v
-    rx = 0.0
-    ry = 0.0
-    for k in range(n - 1, -1, -1):
-        c = W[k, W_C]
-        s = W[k, W_S]
-        W[k, FP] += chain.l[k] * (c * rx + s * ry)
-        w = chain.l[k] * chain.Mt[k] * W[k, V]
-        if full:
-            w += chain.C[k] * (W[k, VA] - W[k, VB])
-        rx += w * c
-        ry += w * s
+def inertia_columns(full, chain, W, V, VA, VB, FP, FA, FB, vb, fb, cps, sps):
+    """Columns FP, FA, FB of W (n, ncol) = the inertia blocks times the velocity columns V, VA,
+    VB, in O(n): FP = m^{pp} V + m^{pa} VA + m^{pb} VB, FA = m^{ap} V + m^{aa} VA + m^{ab} VB,
+    FB likewise, with cos, sin of the rod angles in columns W_C, W_S. ``full`` False: only FP
+    = m^{pp} V (VA, VB, FA, FB unused). The output columns must differ from the input ones.
+    A free base (Chain.base[B_NB] > 0): ``vb`` (4,) its velocity-like column (x_B, y_B, psi,
+    theta_w), entering every chain through its node 0 (z_0 = J^T (v_B + psi' J R a)); the
+    base rows of M v go to ``fb`` (4,) (cps, sps: cos, sin of the base's angle)."""
+    seg = chain.seg
+    b = chain.base
+    nb = int(b[B_NB])
+    if nb > 0:
+        mB = b[B_MASS]
+        rcx = cps * b[B_CX] - sps * b[B_CY]
+        rcy = sps * b[B_CX] + cps * b[B_CY]
+        ecx = -rcy
+        ecy = rcx
+        vcx = vb[0] + vb[2] * ecx
+        vcy = vb[1] + vb[2] * ecy
+        fb[0] = mB * vcx
+        fb[1] = mB * vcy
+        fb[2] = b[B_INERTIA] * vb[2] + mB * (ecx * vcx + ecy * vcy)
+        fb[3] = 0.0 * vb[0]
+        if nb > 3:
+            fb[3] = b[B_WHEEL] * (vb[2] + vb[3])
+            fb[2] += fb[3]
+    for ci in range(seg.shape[0] - 1):
+        k0 = seg[ci]
+        k1 = seg[ci + 1]
+        zx = 0.0
+        zy = 0.0
+        if nb > 0:
+            rax = cps * chain.attach[ci, 0] - sps * chain.attach[ci, 1]
+            ray = sps * chain.attach[ci, 0] + cps * chain.attach[ci, 1]
+            v0x = vb[0] - vb[2] * ray
+            v0y = vb[1] + vb[2] * rax
+            zx = zx + v0y
+            zy = zy - v0x
+        for k in range(k0, k1):
+            c = W[k, W_C]
+            s = W[k, W_S]
+            v = W[k, V]
+            ez = c * zx + s * zy                # e_k . (z_0 + sum_{j<k} l_j e_j v_j)
+            W[k, FP] = chain.Akk[k] * v + chain.l[k] * chain.Mt[k] * ez
+            if full:
+                va = W[k, VA]
+                vb_ = W[k, VB]
+                W[k, FP] += chain.c30[k] * va - chain.c20[k] * vb_
+                W[k, FA] = chain.C[k] * ez + chain.c30[k] * v + chain.c105[k] * va \
+                    - chain.c140[k] * vb_
+                W[k, FB] = -chain.C[k] * ez - chain.c20[k] * v - chain.c140[k] * va \
+                    + chain.c105[k] * vb_
+            zx += chain.l[k] * c * v
+            zy += chain.l[k] * s * v
+        rx = 0.0
+        ry = 0.0
+        for k in range(k1 - 1, k0 - 1, -1):
+            c = W[k, W_C]
+            s = W[k, W_S]
+            W[k, FP] += chain.l[k] * (c * rx + s * ry)
+            w = chain.l[k] * chain.Mt[k] * W[k, V]
+            if full:
+                w += chain.C[k] * (W[k, VA] - W[k, VB])
+            rx += w * c
+            ry += w * s
+        if nb > 0:
+            Mc = chain.Mc[ci]
+            fx = Mc * v0x - ry                  # the chain's momentum: Mc v_0 + J R
+            fy = Mc * v0y + rx
+            fb[0] += fx
+            fb[1] += fy
+            fb[2] += -ray * fx + rax * fy
 
 
 @njit
-def mass_times(kind, phi, v, va, vb, chain, out, out_a, out_b):
+def mass_times(kind, phi, v, va, vb, chain, out, out_a, out_b, vbase, out_base, psi):
     """out = m^{pp} v + m^{pa} va + m^{pb} vb, out_a = m^{ap} v + m^{aa} va + m^{ab} vb,
-    out_b likewise (each (n,)) in O(n): the paper's inertia blocks times velocities
-    (kind KIND_REDUCED: only out = m^{pp} v; va, vb ignored)."""
+    out_b likewise (each (n,)) in O(n): the inertia blocks times velocities (kind
+    KIND_REDUCED: only out = m^{pp} v; va, vb ignored); a free base: its velocities
+    ``vbase`` (4,) and its rows ``out_base`` (4,) at the base angle psi [rad]."""
     n = phi.shape[0]
     full = kind == KIND_FULL
     W = np.zeros((n, 8))            # cos, sin, v, va, vb, out, out_a, out_b
@@ -720,7 +1138,8 @@ def mass_times(kind, phi, v, va, vb, chain, out, out_a, out_b):
         if full:
             W[k, 3] = va[k]
             W[k, 4] = vb[k]
-    inertia_columns(full, chain, W, 2, 3, 4, 5, 6, 7)
+    inertia_columns(full, chain, W, 2, 3, 4, 5, 6, 7, vbase, out_base, math.cos(psi),
+                    math.sin(psi))
     for k in range(n):
         out[k] = W[k, 5]
         if full:
@@ -728,27 +1147,45 @@ def mass_times(kind, phi, v, va, vb, chain, out, out_a, out_b):
             out_b[k] = W[k, 7]
 
 
-def inertia_times(kind, chain, phi, v) -> np.ndarray:
-    """M v (3n,) [for the full kind; the reduced kind fills only the first n] at rod angles
-    phi (n,) [rad] for velocities v: (n,) rod rates, or (3n,) [phi', alpha', beta'] (the
-    slope parts are ignored by the reduced kind), O(n)."""
+def inertia_times(kind, chain, phi, v, psi=0.0) -> np.ndarray:
+    """M v (3n + nb,) [for the full kind; the reduced kind fills only the first n and the base
+    rows] at rod angles phi (n,) [rad] and base angle psi [rad] for velocities v: (n + nb,)
+    [phi', base'] or (3n + nb,) [phi', alpha', beta', base'] (nb = the free base's
+    coordinates), O(n). The slope parts are ignored by the reduced kind."""
     phi = np.ascontiguousarray(phi, dtype=float)
     n = phi.shape[0]
+    nb = int(chain.base[B_NB])
     v = np.asarray(v, dtype=float)
     vv = np.zeros(3 * n)
-    vv[:v.shape[0]] = v
-    out = np.zeros(3 * n)
+    vb = np.zeros(4)
+    vv[:v.shape[0] - nb] = v[:v.shape[0] - nb]
+    vb[:nb] = v[v.shape[0] - nb:]
+    out = np.zeros(3 * n + nb)
+    ob = np.zeros(4)
     mass_times(kind, phi, vv[:n], vv[n:2 * n], vv[2 * n:], chain, out[:n], out[n:2 * n],
-               out[2 * n:])
+               out[2 * n:3 * n], vb, ob, float(psi))
+    out[3 * n:] = ob[:nb]
     return out
 
 
 @njit
-def solve_with(kind, phi, chain, extra, fp, fa, fb, out, out_a, out_b):
+def solve_with(kind, phi, chain, extra, fp, fa, fb, out, out_a, out_b, fbase, out_base, psi):
     """The kernels' solve with given right-hand sides (n,) each: the model's accelerations
-    (reduced: phi'' and the slopes) for the generalized forces fp, fa, fb. False if singular."""
+    (reduced: phi'' and the slopes) for the generalized forces fp, fa, fb, and a free base's
+    rows ``fbase`` (4,) -> its accelerations ``out_base`` (4,), at base angle psi (a fixed or
+    prescribed base does not move in this solve). False if singular."""
     n = phi.shape[0]
     W = extra.work
+    bk = extra.bk
+    for i in range(bk.shape[0]):
+        bk[i] = 0.0
+    bk[BK_PSI] = psi
+    bk[BK_COS] = math.cos(psi)
+    bk[BK_SIN] = math.sin(psi)
+    bk[BK_FX] = fbase[0]
+    bk[BK_FY] = fbase[1]
+    bk[BK_FPSI] = fbase[2]
+    bk[BK_FTH] = fbase[3]
     for k in range(n):
         W[k, W_C] = math.cos(phi[k])
         W[k, W_S] = math.sin(phi[k])
@@ -761,4 +1198,8 @@ def solve_with(kind, phi, chain, extra, fp, fa, fb, out, out_a, out_b):
         out[k] = W[k, W_X]
         out_a[k] = W[k, W_A]
         out_b[k] = W[k, W_B]
+    out_base[0] = bk[BK_AX]
+    out_base[1] = bk[BK_AY]
+    out_base[2] = bk[BK_APSI]
+    out_base[3] = bk[BK_ATH]
     return True

@@ -36,16 +36,92 @@ class ModelError(ValueError):
 
 @dataclass(frozen=True)
 class Energies:
-    """Mechanical energy [J]: kinetic, hinge springs (+ stop contacts), bending; ``total``
-    their sum."""
+    """Mechanical energy [J]: kinetic (rods, node masses, a free base and its wheel), hinge
+    springs (+ stop contacts), bending, and the potential of gravity (-sum m g.r, zero without
+    gravity); ``total`` their sum."""
 
     kinetic: float
     hinge: float
     bending: float
+    gravity: float = 0.0
 
     @property
     def total(self) -> float:
-        return self.kinetic + self.hinge + self.bending
+        total = self.kinetic + self.hinge + self.bending
+        return total + self.gravity if self.gravity != 0.0 else total
+
+
+@dataclass(frozen=True)
+class Momentum:
+    """Linear momentum ``linear`` (2,) [kg m/s], angular momentum about the origin of Oxy
+    ``angular_origin`` and about the system's centre of mass ``angular_com`` [kg m^2/s], the
+    centre of mass ``com`` (2,) [m] and the total mass ``mass`` [kg] (with a fixed or
+    prescribed base: of the chains only)."""
+
+    linear: np.ndarray
+    angular_origin: float
+    angular_com: float
+    com: np.ndarray
+    mass: float
+
+
+@dataclass(frozen=True)
+class BaseState:
+    """The base frame's pose in Oxy (x, y [m], psi [rad]) and rates (x_rate, y_rate [m/s],
+    psi_rate [rad/s], all in Oxy), and the wheel's rate relative to the base [rad/s]."""
+
+    x: float
+    y: float
+    psi: float
+    x_rate: float
+    y_rate: float
+    psi_rate: float
+    wheel_rate: float = 0.0
+
+
+_MODES = {"fixed": kernels.MODE_FIXED, "free": kernels.MODE_FREE,
+          "prescribed": kernels.MODE_PRESCRIBED}
+
+
+def chain_layout(scene) -> tuple[np.ndarray, np.ndarray]:
+    """(seg (nc + 1,) int64: each chain's first rod and then n; attach (nc, 2) [m])."""
+    chains = getattr(scene, "chains", None)
+    if not chains:
+        return np.array([0, scene.n], dtype=np.int64), np.zeros((1, 2))
+    seg = np.array([c.start for c in chains] + [scene.n], dtype=np.int64)
+    return seg, np.array([c.attach for c in chains], dtype=float).reshape(-1, 2)
+
+
+def base_table(scene) -> tuple[np.ndarray, np.ndarray]:
+    """The kernels' base constants (N_BASE,) and prescribed profiles (3, N_MOTION) of a scene
+    (a scene without a base: a fixed base at the origin, no gravity)."""
+    k = kernels
+    out = np.zeros(k.N_BASE)
+    motion = np.zeros((3, k.N_MOTION))
+    base = getattr(scene, "base", None)
+    gravity = getattr(scene, "gravity", None)
+    if gravity is not None and (gravity[0] != 0.0 or gravity[1] != 0.0):
+        out[k.B_GX], out[k.B_GY] = float(gravity[0]), float(gravity[1])
+        out[k.B_GRAVITY] = 1.0
+    if base is None:
+        return out, motion
+    mode = _MODES[base.mode]
+    out[k.B_MODE] = mode
+    out[k.B_X], out[k.B_Y], out[k.B_PSI] = base.x, base.y, base.psi
+    if mode == k.MODE_FREE:
+        out[k.B_MASS], out[k.B_INERTIA] = base.mass, base.inertia
+        out[k.B_CX], out[k.B_CY] = base.centre_of_mass
+        out[k.B_NB] = 3
+        if base.wheel is not None:
+            out[k.B_WHEEL] = base.wheel.inertia
+            out[k.B_NB] = 4
+    for row, axis in enumerate(("x", "y", "psi")):
+        prof = (base.motion or {}).get(axis) if mode == k.MODE_PRESCRIBED else None
+        if prof is None:
+            continue
+        motion[row, 0] = prof.code
+        motion[row, 1:4] = prof.parameters
+    return out, motion
 
 
 @dataclass(frozen=True, eq=False)
@@ -114,10 +190,18 @@ class Model(Protocol):
 
 
 def load_table(scene: Scene):
-    """Scripted loads as the kernels' array tuple (node, axis, shape, amp, start, dur)."""
+    """Scripted loads as the kernels' array tuple (row, column, shape, amp, start, dur): rows
+    and columns of Extra.forces."""
     loads = scene.loads
-    return (np.array([ld.node - 1 for ld in loads], dtype=np.int64),
-            np.array([LOAD_AXES.index(ld.axis) for ld in loads], dtype=np.int64),
+
+    def row(ld):
+        return ld.row(scene) if hasattr(ld, "row") else ld.node - 1
+
+    def col(ld):
+        return ld.column if hasattr(ld, "column") else LOAD_AXES.index(ld.axis)
+
+    return (np.array([row(ld) for ld in loads], dtype=np.int64),
+            np.array([col(ld) for ld in loads], dtype=np.int64),
             np.array([_SHAPE_CODES[ld.shape] for ld in loads], dtype=np.int64),
             np.array([ld.amplitude for ld in loads], dtype=float),
             np.array([ld.start for ld in loads], dtype=float),
@@ -126,7 +210,12 @@ def load_table(scene: Scene):
 
 class ChainModel:
     """Shared machinery (implements :class:`Model`); a subclass sets ``name``, ``kernel``,
-    ``compiled`` and the state layout, and is registered in :data:`MODELS`."""
+    ``compiled`` and the state layout, and is registered in :data:`MODELS`.
+
+    Several chains and a base: the rods of every chain are concatenated in scene order (n
+    rods in all, ``seg`` marks each chain's first rod), and a free base adds its coordinates
+    after the chains' in q: x_B, y_B, psi (the base frame's pose in Oxy) and, with a wheel,
+    theta_w (the wheel's angle relative to the base). q has size ``dof``; y = [q, q']."""
 
     name = "chain"
     kernel = None
@@ -138,17 +227,40 @@ class ChainModel:
         self.params = ChainParams.from_scene(scene)
         p = self.params
         self.n = p.n
-        self.chain = kernels.make_chain(p.l, p.m, p.mu, p.EI, p.kappa, p.nu)
+        self.seg, attach = chain_layout(scene)
+        base, motion = base_table(scene)
+        self.base_mode = int(base[kernels.B_MODE])
+        self.nb = int(base[kernels.B_NB])
+        self.chain = kernels.make_chain(p.l, p.m, p.mu, p.EI, p.kappa, p.nu, self.seg, attach,
+                                        base, motion)
+        self.prev = np.asarray(self.chain.prev)
+        self.first = self.prev < 0                  # each chain's first rod (hinge 0)
         self.loads = load_table(scene)
         kr = p.kappa * np.asarray(scene.hinge_rest_angle, dtype=float)
         kr_next = np.append(kr[1:], 0.0)
+        kr_next[np.append(self.first[1:], True)] = 0.0
         # rest-angle generalized forces kappa theta_rest dDelta/dq on phi, alpha, beta
         self._rest = np.array([kr - kr_next, kr, -kr_next])
         self._stops = np.array([scene.stop_lower, scene.stop_upper, scene.stop_stiffness,
                                 scene.stop_damping], dtype=float)
         self._plans: dict = {}
         self.has_latches = bool(np.isfinite(scene.latch_angle).any())
+        self._check_base_features()
         self.extra = self.plan().extra
+
+    def _check_base_features(self) -> None:
+        """A stop or latch at a chain's hinge 0 needs the base's angle as a state or a
+        constant (the compiled drivers locate events on the state): refused on a base whose
+        angle follows a prescribed motion."""
+        if self.base_mode != kernels.MODE_PRESCRIBED or self.chain.motion[kernels.MO_PSI, 0] == 0:
+            return
+        s = self.scene
+        on = self.first & (np.isfinite(s.latch_angle) | np.isfinite(s.stop_lower)
+                           | np.isfinite(s.stop_upper))
+        if on.any():
+            raise ModelError(f"hinges: hinge {int(np.flatnonzero(on)[0])} joins a chain to a "
+                             f"base with a prescribed psi(t); stops and latches there are not "
+                             f"supported (use a free base, or put the stop on another hinge)")
 
     def _pinned(self) -> np.ndarray:
         """Rods whose end slopes are zero (n,) bool: the scene's rigid rods."""
@@ -157,18 +269,30 @@ class ChainModel:
     # ----- layout -----
     @property
     def state_size(self) -> int:
-        return 2 * self.dof_per_rod * self.n
+        return 2 * self.dof
 
     @property
     def dof(self) -> int:
+        return self.dof_per_rod * self.n + self.nb
+
+    @property
+    def base_index(self) -> int:
+        """Index of x_B in q (a free base; the chains' coordinates come first)."""
         return self.dof_per_rod * self.n
 
     def initial_state(self) -> np.ndarray:
-        """State at t = 0 from the scene's initial phi, phi_rate (bending at rest), velocities
-        projected onto the locked hinges' constraint."""
+        """State at t = 0 from the scene's initial phi, phi_rate (bending at rest) and a free
+        base's initial pose and twist (wheel at angle 0 with its rate), velocities projected
+        onto the locked hinges' constraint."""
         y = np.zeros(self.state_size)
         y[:self.n] = self.scene.phi0
         y[self.dof:self.dof + self.n] = self.scene.phi_rate0
+        if self.nb:
+            b, i, d = self.scene.base, self.base_index, self.dof
+            y[i:i + 3] = b.x, b.y, b.psi
+            y[d + i:d + i + 3] = b.x_rate, b.y_rate, b.psi_rate
+            if self.nb > 3:
+                y[d + i + 3] = b.wheel.rate
         return self.project_velocity(y)
 
     def phi(self, y: np.ndarray) -> np.ndarray:
@@ -178,6 +302,54 @@ class ChainModel:
     def phi_rate(self, y: np.ndarray) -> np.ndarray:
         """Rod angular rates (n,) [rad/s]."""
         return y[..., self.dof:self.dof + self.n]
+
+    def base_state(self, t: float, y: np.ndarray) -> BaseState:
+        """The base frame's pose and twist at (t, y) (a fixed base: its constant pose)."""
+        k, b = kernels, self.chain.base
+        if self.base_mode == k.MODE_FREE:
+            i, d = self.base_index, self.dof
+            w = float(y[d + i + 3]) if self.nb > 3 else 0.0
+            return BaseState(*(float(v) for v in y[i:i + 3]),
+                             *(float(v) for v in y[d + i:d + i + 3]), w)
+        if self.base_mode == k.MODE_PRESCRIBED:
+            vals = [k.motion_eval(self.chain.motion, r, float(t)) for r in range(3)]
+            return BaseState(b[k.B_X] + vals[0][0], b[k.B_Y] + vals[1][0],
+                             b[k.B_PSI] + vals[2][0], vals[0][1], vals[1][1], vals[2][1])
+        return BaseState(float(b[k.B_X]), float(b[k.B_Y]), float(b[k.B_PSI]), 0.0, 0.0, 0.0)
+
+    def _base_angle(self, y: np.ndarray, t: float = 0.0) -> tuple:
+        """(psi, psi_rate) of the base for hinge angles (y may be (..., state_size))."""
+        if self.base_mode == kernels.MODE_FREE:
+            i, d = self.base_index, self.dof
+            return y[..., i + 2], y[..., d + i + 2]
+        if self.base_mode == kernels.MODE_PRESCRIBED:
+            st = self.base_state(t, y)
+            return st.psi, st.psi_rate
+        return float(self.chain.base[kernels.B_PSI]), 0.0
+
+    def _relative(self, a: np.ndarray, psi) -> np.ndarray:
+        """a_k - a_{prev(k)} along the last axis, a_k - psi at each chain's first rod."""
+        out = np.array(a, dtype=float)
+        out[..., 1:] -= a[..., :-1]
+        out[..., 1:][..., self.first[1:]] += a[..., :-1][..., self.first[1:]]
+        first = np.flatnonzero(self.first)
+        out[..., first] = a[..., first] - np.asarray(psi)[..., None] if np.ndim(psi) else \
+            a[..., first] - psi
+        return out
+
+    def hinge_angles(self, y: np.ndarray, t: float = 0.0) -> np.ndarray:
+        """Rigid hinge angles theta (..., n) [rad]: phi_{k+1} - phi_k inside a chain, phi_1 -
+        psi at its hinge 0 (psi the base's angle; 0 for a scene without a base)."""
+        if self.base_mode == kernels.MODE_FIXED and self.chain.base[kernels.B_PSI] == 0.0 \
+                and len(self.seg) == 2:
+            return hinges.hinge_angles(self.phi(y))
+        return self._relative(self.phi(y), self._base_angle(y, t)[0])
+
+    def hinge_rates(self, y: np.ndarray, t: float = 0.0) -> np.ndarray:
+        """Rates of :meth:`hinge_angles` [rad/s]."""
+        if self.base_mode == kernels.MODE_FIXED and len(self.seg) == 2:
+            return hinges.hinge_angles(self.phi_rate(y))
+        return self._relative(self.phi_rate(y), self._base_angle(y, t)[1])
 
     # ----- mode -----
     def plan(self, mode: np.ndarray | None = None, contact: np.ndarray | None = None) -> Plan:
@@ -200,42 +372,57 @@ class ChainModel:
 
     def _make_plan(self, locked: np.ndarray, side: np.ndarray) -> Plan:
         extra = kernels.make_extra(self._rest, self._stops, side, locked, self._pinned(),
-                                   kind=self._kind)
-        return Plan(extra, hinges.event_table(self.scene, locked), locked)
+                                   kind=self._kind, nchains=len(self.seg) - 1)
+        other = self.prev.copy()
+        offset = None
+        if self.base_mode == kernels.MODE_FREE:
+            other[self.first] = self.base_index + 2
+        elif self.chain.base[kernels.B_PSI] != 0.0:
+            offset = np.where(self.first, float(self.chain.base[kernels.B_PSI]), 0.0)
+        return Plan(extra, hinges.event_table(self.scene, locked, other, offset), locked)
 
     # ----- evaluation -----
     def forces(self, t: float, held: np.ndarray | None = None) -> np.ndarray:
         """Applied nodal forces (n, 2) [N] at t: held command plus scripted loads."""
-        out = np.zeros((self.n, 2))
+        return self.loads_at(t, held)[:self.n, :2].copy()
+
+    def loads_at(self, t: float, held: np.ndarray | None = None) -> np.ndarray:
+        """Every applied load (n + 2, 3) at t (rows as :meth:`_held`): held inputs plus
+        scripted loads, by the kernels' one scripted-load law."""
+        out = np.zeros((self.n + 2, 3))
         kernels.load_forces(t, self.loads, self._held(held), t, out)
         return out
 
     def _held(self, held):
-        """The kernels' held inputs (n, 3): nodal forces X, Y [N] and hinge motor moments T
-        [N m], from None (zeros), forces (n, 2) or flat (2n,), or (n, 3)."""
-        out = np.zeros((self.n, 3))
+        """The kernels' held inputs (n + 2, 3): rows 0..n-1 nodal forces X, Y [N] and hinge
+        motor moments T [N m]; row n the base's Fx, Fy [N] (inertial, at its centre of mass)
+        and moment [N m]; row n + 1 the wheel's motor torque in column 2 [N m]. From None
+        (zeros), forces (n, 2) or flat (2n,), (n, 3) or (n + 2, 3)."""
+        out = np.zeros((self.n + 2, 3))
         if held is None:
             return out
         h = np.asarray(held, dtype=float)
-        if h.size == 3 * self.n:
-            out[:, :] = h.reshape(self.n, 3)
+        if h.size == 3 * (self.n + 2):
+            out[:, :] = h.reshape(self.n + 2, 3)
+        elif h.size == 3 * self.n:
+            out[:self.n, :] = h.reshape(self.n, 3)
         else:
-            out[:, :2] = h.reshape(self.n, 2)
+            out[:self.n, :2] = h.reshape(self.n, 2)
         return out
 
     def contact_state(self, y: np.ndarray) -> np.ndarray:
         """Stop contacts (n,) int8 implied by the state: +1 above the upper stop (or on it and
         moving in), -1 below the lower one (or on it and moving in), 0 otherwise."""
         s = self.scene
-        theta = hinges.hinge_angles(self.phi(y))
-        rate = hinges.hinge_angles(self.phi_rate(y))
+        theta = self.hinge_angles(y)
+        rate = self.hinge_rates(y)
         up = (theta > s.stop_upper) | ((theta == s.stop_upper) & (rate > 0.0))
         down = (theta < s.stop_lower) | ((theta == s.stop_lower) & (rate < 0.0))
         return (up.astype(np.int8) - down.astype(np.int8)).astype(np.int8)
 
     def rhs(self, t: float, y: np.ndarray, held: np.ndarray | None = None,
             mode: np.ndarray | None = None, contact: np.ndarray | None = None) -> np.ndarray:
-        """dy/dt (state_size,) at time t [s] with held nodal forces (n, 2) [N] in ``mode``
+        """dy/dt (state_size,) at time t [s] with held inputs (see :meth:`_held`) in ``mode``
         with the stop contacts ``contact`` (None: as implied by y)."""
         out = np.empty(self.state_size)
         y = np.ascontiguousarray(y, dtype=float)
@@ -246,32 +433,66 @@ class ChainModel:
 
     _kind = kernels.KIND_REDUCED
 
+    def _velocities_full(self, y, v=None) -> np.ndarray:
+        """The velocities in the full model's layout (3n + nb,): [phi', alpha', beta', base']
+        from the model's own (dof,) (zero slope rates for the rigid and reduced models)."""
+        v = y[self.dof:] if v is None else np.asarray(v, dtype=float)
+        if self.dof_per_rod == 3:
+            return v
+        out = np.zeros(3 * self.n + self.nb)
+        out[:self.n] = v[:self.n]
+        out[3 * self.n:] = v[self.n:]
+        return out
+
+    def _model_rows(self, f3: np.ndarray) -> np.ndarray:
+        """The model's (dof,) rows of a full-layout (3n + nb,) vector."""
+        if self.dof_per_rod == 3:
+            return f3
+        return np.concatenate([f3[:self.n], f3[3 * self.n:]])
+
     def mass_times(self, y: np.ndarray, v: np.ndarray | None = None) -> np.ndarray:
         """M v (dof,) for velocities v (dof,) (default y's own) with M the paper's inertia
-        matrix of the model's coordinates at y (rigid and reduced: m^{phi phi}), in O(n)."""
+        matrix of the model's coordinates at y (rigid and reduced: m^{phi phi}; with a free
+        base its rows and columns), in O(n)."""
         v = y[self.dof:] if v is None else v
-        return kernels.inertia_times(self._kind, self.chain, self.phi(y), v)[:self.dof]
+        psi = self._base_angle(y)[0] if self.nb else 0.0
+        if not self.nb:
+            return kernels.inertia_times(self._kind, self.chain, self.phi(y), v)[:self.dof]
+        out = kernels.inertia_times(self._kind, self.chain, self.phi(y),
+                                    self._velocities_full(y, v), psi)
+        return self._model_rows(out)
 
     def project_velocity(self, y: np.ndarray, mode: np.ndarray | None = None) -> np.ndarray:
         """y with its velocities replaced by the impulsive-constraint projection
         x'+ = T (T^T M T)^{-1} T^T M x'- (M-orthogonal for a symmetric M) in ``mode``, with T
         a basis of the locked hinges' constraints (the reduced model: M = M_r of eq. (15)),
-        solved in O(n) by the kernels' chain solve with f = M x'-."""
+        solved in O(n) by the kernels' chain solve with f = M x'- (a free base moves with
+        the chains: momentum is kept)."""
         plan = self.plan(mode)
         out = np.array(y, dtype=float)
         if not plan.locked.any() and not (self.dof_per_rod == 3 and self._pinned().any()):
             return out
         n, d = self.n, self.dof
         phi = np.ascontiguousarray(self.phi(y), dtype=float)
+        psi = float(self._base_angle(y)[0]) if self.nb else 0.0
         # reduced: (A v, m^{gamma phi} v) as right-hand sides give M_r x = M_r v
-        f = kernels.inertia_times(kernels.KIND_FULL, self.chain, phi, out[d:])
+        f = kernels.inertia_times(kernels.KIND_FULL, self.chain, phi,
+                                  self._velocities_full(out), psi)
         if self.name == "rigid":
-            f[n:] = 0.0
+            f[n:3 * n] = 0.0
         x = np.empty(3 * n)
+        fb = np.zeros(4)
+        fb[:self.nb] = f[3 * n:]
+        xb = np.zeros(4)
         if not kernels.solve_with(self._kind, phi, self.chain, plan.extra, f[:n], f[n:2 * n],
-                                  f[2 * n:], x[:n], x[n:2 * n], x[2 * n:]):
+                                  f[2 * n:3 * n], x[:n], x[n:2 * n], x[2 * n:], fb, xb, psi):
             raise np.linalg.LinAlgError("singular mass matrix in the velocity projection")
-        out[d:] = x[:d]
+        if self.nb:
+            xb[3] = xb[3] + 0.0
+            x_all = np.concatenate([x[:self.dof_per_rod * n], xb[:self.nb]])
+            out[d:] = x_all
+        else:
+            out[d:] = x[:d]
         return out
 
     def bending(self, t, y, held=None, mode=None) -> tuple[np.ndarray, np.ndarray]:
@@ -288,6 +509,9 @@ class ChainModel:
         alpha, beta = self.bending(t, y, held, mode) if bending is None else bending
         phi = self.phi(y)
         left = np.concatenate([[0.0], phi[:-1] + beta[:-1]])
+        if self.nb or self.base_mode != kernels.MODE_FIXED or len(self.seg) > 2 \
+                or self.chain.base[kernels.B_PSI] != 0.0:
+            left[self.first] = self._base_angle(y, t)[0]
         return phi + alpha - left, self.hinge_deflection_rate(t, y, held)
 
     def hinge_deflection_rate(self, t, y, held=None) -> np.ndarray:
@@ -295,55 +519,204 @@ class ChainModel:
         dphi = self.phi_rate(y)
         dalpha, dbeta = self.bending_rates(t, y, held)
         dleft = np.concatenate([[0.0], dphi[:-1] + dbeta[:-1]])
+        if self.nb or self.base_mode != kernels.MODE_FIXED or len(self.seg) > 2:
+            dleft[self.first] = self._base_angle(y, t)[1]
         return dphi + dalpha - dleft
 
     def contact_moments(self, y: np.ndarray, mode=None) -> np.ndarray:
         """Stop contact moments (n,) [N m] on theta (zero on locked hinges)."""
         s = self.scene
-        m = hinges.contact_moments(hinges.hinge_angles(self.phi(y)),
-                                   hinges.hinge_angles(self.phi_rate(y)),
+        m = hinges.contact_moments(self.hinge_angles(y), self.hinge_rates(y),
                                    s.stop_lower, s.stop_upper, s.stop_stiffness, s.stop_damping)
         m[self.plan(mode).locked] = 0.0
         return m
 
     def kinetic_energy(self, t, y, held=None) -> float:
-        """(1/2) x'^T M x' [J] (rigid and reduced: rod motion only), O(n)."""
+        """(1/2) x'^T M x' [J] (rigid and reduced: rod motion only; a free base and its wheel
+        included), O(n)."""
         return 0.5 * float(np.dot(y[self.dof:], self.mass_times(y)))
 
+    def gravity_energy(self, t, y, bending=None) -> float:
+        """-sum m g.r over every mass point [J] (rods with their bending, node masses, a free
+        base), 0 without gravity."""
+        b = self.chain.base
+        if b[kernels.B_GRAVITY] == 0.0:
+            return 0.0
+        g = np.array([b[kernels.B_GX], b[kernels.B_GY]])
+        p = self.params
+        alpha, beta = (np.zeros(self.n), np.zeros(self.n)) if bending is None else bending
+        nodes = self.node_positions(t, y)
+        starts = nodes[self._node_index_of_rod_start()]
+        phi = self.phi(y)
+        e = np.stack([np.cos(phi), np.sin(phi)], axis=-1)
+        ep = np.stack([-np.sin(phi), np.cos(phi)], axis=-1)
+        ml = p.m * p.l
+        # a rod: mass m l at its chord's midpoint plus int m eta ds = C (alpha - beta) along e_perp
+        first_moment = (ml[:, None] * (starts + 0.5 * p.l[:, None] * e)
+                        + (p.m * p.l**2 / 12.0 * (alpha - beta))[:, None] * ep)
+        tips = nodes[self._node_index_of_rod_start() + 1]
+        total = first_moment.sum(axis=0) + (p.mu[:, None] * tips).sum(axis=0)
+        energy = -float(np.dot(g, total))
+        if self.nb:
+            st = self.base_state(t, y)
+            energy -= float(b[kernels.B_MASS] * np.dot(g, self._base_com(st)))
+        return energy
+
+    def _base_com(self, st: BaseState) -> np.ndarray:
+        b = self.chain.base
+        c, s = np.cos(st.psi), np.sin(st.psi)
+        return np.array([st.x + c * b[kernels.B_CX] - s * b[kernels.B_CY],
+                         st.y + s * b[kernels.B_CX] + c * b[kernels.B_CY]])
+
+    def _node_index_of_rod_start(self) -> np.ndarray:
+        """Row of :meth:`node_positions` where each rod starts (n,) int."""
+        chain_of_rod = np.cumsum(self.first) - 1
+        return np.arange(self.n) + chain_of_rod
+
+    def node_positions(self, t: float, y: np.ndarray) -> np.ndarray:
+        """Every chain's nodes 0..n_c in scene order, (n + nc, 2) [m] (one chain: (n + 1, 2),
+        node 0 at its attach point on the base)."""
+        phi = self.phi(y)
+        p = self.params
+        if self.base_mode == kernels.MODE_FIXED and len(self.seg) == 2 and \
+                not self.chain.base[kernels.B_X:kernels.B_PSI + 1].any() and \
+                not self.chain.attach.any():
+            return node_positions(p.l, phi)
+        st = self.base_state(t, y)
+        c, s = np.cos(st.psi), np.sin(st.psi)
+        out = np.empty((self.n + len(self.seg) - 1, 2))
+        for ci in range(len(self.seg) - 1):
+            a, b = self.seg[ci], self.seg[ci + 1]
+            ax, ay = self.chain.attach[ci]
+            nodes = node_positions(p.l[a:b], phi[a:b])
+            nodes[:, 0] += st.x + c * ax - s * ay
+            nodes[:, 1] += st.y + s * ax + c * ay
+            out[a + ci:b + ci + 1] = nodes
+        return out
+
     def energies(self, t: float, y: np.ndarray, held=None, bending=None, mode=None) -> Energies:
-        """Kinetic, hinge (springs about their rest angles + stop contacts) and bending energy
-        [J] at (t, y); ``bending`` = (alpha, beta) if already known at (t, y, held)."""
+        """Kinetic, hinge (springs about their rest angles + stop contacts), bending and
+        gravity energy [J] at (t, y); ``bending`` = (alpha, beta) if already known at (t, y,
+        held)."""
         alpha, beta = self.bending(t, y, held, mode) if bending is None else bending
         delta, _ = self.hinge_deflection(t, y, held, bending=(alpha, beta))
         p, s = self.params, self.scene
         hinge = 0.5 * float(np.sum(p.kappa * (delta - s.hinge_rest_angle) ** 2))
-        pen = hinges.contact_penetration(hinges.hinge_angles(self.phi(y)), s.stop_lower,
-                                         s.stop_upper)
+        pen = hinges.contact_penetration(self.hinge_angles(y, t), s.stop_lower, s.stop_upper)
         pen[self.plan(mode).locked] = 0.0
         hinge += 0.5 * float(np.sum(s.stop_stiffness * pen**2))
         bend = float(np.sum(2.0 * p.EI / p.l * (alpha**2 + beta**2 + alpha * beta)))
-        return Energies(self.kinetic_energy(t, y, held), hinge, bend)
+        return Energies(self.kinetic_energy(t, y, held), hinge, bend,
+                        self.gravity_energy(t, y, (alpha, beta)))
+
+    def node_velocities(self, t: float, y: np.ndarray) -> np.ndarray:
+        """Velocities of the nodes of :meth:`node_positions` (n + nc, 2) [m/s]."""
+        phi, dphi = self.phi(y), self.phi_rate(y)
+        l = self.params.l
+        st = self.base_state(t, y)
+        out = np.zeros((self.n + len(self.seg) - 1, 2))
+        c, s = np.cos(st.psi), np.sin(st.psi)
+        for ci in range(len(self.seg) - 1):
+            a, b = self.seg[ci], self.seg[ci + 1]
+            ax, ay = self.chain.attach[ci]
+            v0 = np.array([st.x_rate - st.psi_rate * (s * ax + c * ay),
+                           st.y_rate + st.psi_rate * (c * ax - s * ay)])
+            out[a + ci] = v0
+            out[a + ci + 1:b + ci + 1, 0] = v0[0] + np.cumsum(-l[a:b] * np.sin(phi[a:b]) * dphi[a:b])
+            out[a + ci + 1:b + ci + 1, 1] = v0[1] + np.cumsum(l[a:b] * np.cos(phi[a:b]) * dphi[a:b])
+        return out
 
     def powers(self, t: float, y: np.ndarray, held=None, mode=None) -> tuple[float, float]:
-        """(power of the nodal loads and hinge motors, power dissipated in the hinge dampers and the stop
-        contacts) [W]."""
+        """(power of the applied loads and motors — nodal forces, hinge motors, gravity is in
+        the energy — and of a free base's loads and wheel motor; power dissipated in the
+        hinge dampers and the stop contacts) [W]."""
         phi, dphi = self.phi(y), self.phi_rate(y)
-        f = self.forces(t, held)
-        l = self.params.l
-        vx = np.cumsum(-l * np.sin(phi) * dphi)
-        vy = np.cumsum(l * np.cos(phi) * dphi)
+        loads = self.loads_at(t, held)
+        f = loads[:self.n, :2]
+        if self.base_mode == kernels.MODE_FIXED and len(self.seg) == 2:
+            l = self.params.l
+            vx = np.cumsum(-l * np.sin(phi) * dphi)
+            vy = np.cumsum(l * np.cos(phi) * dphi)
+        else:
+            v = self.node_velocities(t, y)[self._node_index_of_rod_start() + 1]
+            vx, vy = v[:, 0], v[:, 1]
         load_power = float(np.sum(f[:, 0] * vx + f[:, 1] * vy))
         ddelta = self.hinge_deflection_rate(t, y, held)
-        load_power += float(np.dot(self._held(held)[:, 2], ddelta))    # hinge motors
+        load_power += float(np.dot(loads[:self.n, 2], ddelta))    # hinge motors
+        if self.nb:
+            st = self.base_state(t, y)
+            b = self.chain.base
+            c, s = np.cos(st.psi), np.sin(st.psi)
+            rc = (c * b[kernels.B_CX] - s * b[kernels.B_CY], s * b[kernels.B_CX] + c * b[kernels.B_CY])
+            vc = (st.x_rate - st.psi_rate * rc[1], st.y_rate + st.psi_rate * rc[0])
+            load_power += float(loads[self.n, 0] * vc[0] + loads[self.n, 1] * vc[1]
+                                + loads[self.n, 2] * st.psi_rate
+                                + loads[self.n + 1, 2] * st.wheel_rate)
         damper = float(np.sum(self.params.nu * ddelta**2))
         s = self.scene
         if np.any(np.isfinite(s.stop_lower) | np.isfinite(s.stop_upper)):
-            theta, dtheta = hinges.hinge_angles(phi), hinges.hinge_angles(dphi)
+            theta, dtheta = self.hinge_angles(y, t), self.hinge_rates(y, t)
             elastic = -s.stop_stiffness * (np.maximum(0.0, theta - s.stop_upper)
                                            - np.maximum(0.0, s.stop_lower - theta))
             elastic[self.plan(mode).locked] = 0.0
             damper -= float(np.sum((self.contact_moments(y, mode) - elastic) * dtheta))
         return load_power, damper
+
+    def momentum(self, t: float, y: np.ndarray, held=None) -> Momentum:
+        """Linear and angular momentum of the whole system and its centre of mass, O(n): node
+        masses, a free base and its wheel, and the rods as the model moves them — the rigid
+        and reduced models their chords (the quantities they conserve: their inertia is the
+        chords'), the full model the bent rods of eq. (4) with their bending rates."""
+        p = self.params
+        phi, dphi = self.phi(y), self.phi_rate(y)
+        nodes = self.node_positions(t, y)
+        vel = self.node_velocities(t, y)
+        i0 = self._node_index_of_rod_start()
+        r0, v0 = nodes[i0], vel[i0]
+        r1, v1 = nodes[i0 + 1], vel[i0 + 1]
+        e = np.stack([np.cos(phi), np.sin(phi)], axis=-1)
+        ep = np.stack([-np.sin(phi), np.cos(phi)], axis=-1)
+        ml = p.m * p.l
+        if self.dof_per_rod == 3:
+            alpha, beta = self.bending(t, y, held)
+            dalpha, dbeta = self.bending_rates(t, y, held)
+        else:
+            alpha = beta = dalpha = dbeta = np.zeros(self.n)
+        # rod k: r(s) = r0 + s e + eta e_perp, v(s) = v0 + (s phi' + eta') e_perp - eta phi' e;
+        # the integrals of m over s in closed form (sigma, tau of eq. (1))
+        C = p.m * p.l**2 / 12.0
+        eta1 = C * (alpha - beta)                                   # int m eta
+        deta1 = C * (dalpha - dbeta)                                # int m eta'
+        l3 = p.m * p.l**3
+        Isd = l3 / 30.0 * dalpha - l3 / 20.0 * dbeta                # int m s eta'
+        Iee = l3 / 105.0 * (alpha**2 + beta**2) - 2.0 * l3 / 140.0 * alpha * beta  # int m eta^2
+        lin_rods = (ml[:, None] * v0 + (0.5 * ml * p.l * dphi + deta1)[:, None] * ep
+                    - (eta1 * dphi)[:, None] * e)
+
+        def cross(a, b):
+            return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+        H = float(np.sum(cross(r0, lin_rods) + 0.5 * ml[:, None].squeeze(-1) * p.l * cross(e, v0)
+                         + eta1 * cross(ep, v0) + l3 / 3.0 * dphi + Isd + Iee * dphi)
+                  + np.sum(p.mu * cross(r1, v1)))
+        P = lin_rods.sum(axis=0) + (p.mu[:, None] * v1).sum(axis=0)
+        mass = float(np.sum(ml + p.mu))
+        com_sum = ((ml[:, None] * (r0 + 0.5 * p.l[:, None] * e) + eta1[:, None] * ep).sum(axis=0)
+                   + (p.mu[:, None] * r1).sum(axis=0))
+        if self.nb:
+            b = self.chain.base
+            st = self.base_state(t, y)
+            mB = float(b[kernels.B_MASS])
+            rc = self._base_com(st)
+            off = rc - np.array([st.x, st.y])
+            vc = np.array([st.x_rate - st.psi_rate * off[1], st.y_rate + st.psi_rate * off[0]])
+            P = P + mB * vc
+            H += mB * float(cross(rc, vc)) + float(b[kernels.B_INERTIA]) * st.psi_rate
+            H += float(b[kernels.B_WHEEL]) * (st.psi_rate + st.wheel_rate)
+            com_sum = com_sum + mB * rc
+            mass += mB
+        com = com_sum / mass
+        return Momentum(P, H, H - float(cross(com, P)), com, mass)
 
     def snapshot(self, t: float, y: np.ndarray, held=None, mode=None) -> Snapshot:
         """Everything published about the chain at (t, y). hinge_moment = kappa (Delta -
@@ -359,8 +732,8 @@ class ChainModel:
         return Snapshot(
             t=float(t), phi=phi, phi_rate=dphi, alpha=np.asarray(alpha, float),
             beta=np.asarray(beta, float),
-            hinge_angle=np.diff(phi, prepend=0.0), hinge_rate=np.diff(dphi, prepend=0.0),
-            hinge_moment=moment, nodes=node_positions(p.l, phi), forces=self.forces(t, held))
+            hinge_angle=self.hinge_angles(y, t), hinge_rate=self.hinge_rates(y, t),
+            hinge_moment=moment, nodes=self.node_positions(t, y), forces=self.forces(t, held))
 
 
 class RigidModel(ChainModel):

@@ -35,10 +35,10 @@ def chain_workspace(chain, extra, size):
     """The Newton part (work[0:5]) of the Radau workspace for a chain model."""
     n = chain.l.shape[0]
     zeros3, zeros4 = np.zeros((3, n)), np.zeros((4, n))
-    parts = [np.zeros(n)]
+    parts = [np.zeros(n + 1)]                   # phi_J and the base angle psi_J
     for dtype in (float, complex):
         ex = _k.make_extra(zeros3, zeros4, np.zeros(n), np.zeros(n, bool), np.zeros(n, bool),
-                           kind=extra.kind, dtype=dtype)
+                           kind=extra.kind, dtype=dtype, nchains=chain.seg.shape[0] - 1)
         ch = chain._replace(c105=np.array(chain.c105, dtype=dtype),
                             c140=np.array(chain.c140, dtype=dtype))
         parts += [ex, ch]
@@ -49,8 +49,11 @@ def chain_workspace(chain, extra, size):
 def chain_jac(rhs, chain, extra, loads, held, t_side, t, y, f, work, stats):
     """The "Jacobian" update: the inertia is taken at the current angles."""
     phi_j = work[0]
-    for k in range(phi_j.shape[0]):
+    n = phi_j.shape[0] - 1
+    for k in range(n):
         phi_j[k] = y[k]
+    nb = int(chain.base[_k.B_NB])
+    phi_j[n] = y[y.shape[0] // 2 - nb + 2] if nb > 0 else 0.0
     if stats.shape[0] > 3:
         stats[3] += 1
 
@@ -98,12 +101,25 @@ def chain_factor(chain, extra, work, g_real, g_cplx, stats):
 @njit
 def chain_solve(chain, extra, phi_j, nex, nch, g, r, out):
     """out (N,) = (g I - J)^{-1} r (N,) for the approximate J of the module docstring, through
-    the Newton Extra ``nex`` / Chain ``nch`` set up for this g; ``out`` must not alias r."""
+    the Newton Extra ``nex`` / Chain ``nch`` set up for this g; ``out`` must not alias r. A
+    free base's coordinates (after the chains' in q) are part of the system: its inertia and
+    the hinge-0 dampers and springs couple it to every chain."""
     n = chain.l.shape[0]
     m = r.shape[0] // 2
     full = extra.kind == _k.KIND_FULL
+    i0 = 3 * n if full else n
+    nb = m - i0
     W = nex.work
+    bk = nex.bk
     g2 = g * g
+    for i in range(bk.shape[0]):
+        bk[i] = 0.0
+    psi = phi_j[n]
+    bk[_k.BK_PSI] = psi
+    bk[_k.BK_COS] = math.cos(psi)
+    bk[_k.BK_SIN] = math.sin(psi)
+    for i in range(nb):
+        bk[_k.BK_V + i] = r[m + i0 + i] + g * r[i0 + i]
     # c' = r_v + g r_q into spare columns, then M c' + C r_q into the solve's right-hand side
     for k in range(n):
         W[k, _k.W_C] = math.cos(phi_j[k])
@@ -113,27 +129,37 @@ def chain_solve(chain, extra, phi_j, nex, nch, g, r, out):
         W[k, _k.W_COR] = r[m + 2 * n + k] + g * r[2 * n + k] if full else 0.0
     # inertia product (full kind: the slope rows get m^{gamma phi} c' even for the reduced
     # model, whose Newton system keeps them)
-    _k.inertia_columns(True, chain, W, _k.W_GP, _k.W_GA, _k.W_COR, _k.W_FP, _k.W_FA, _k.W_FB)
+    _k.inertia_columns(True, chain, W, _k.W_GP, _k.W_GA, _k.W_COR, _k.W_FP, _k.W_FA, _k.W_FB,
+                       bk[_k.BK_V:_k.BK_V + 4], bk[_k.BK_M:_k.BK_M + 4], bk[_k.BK_COS],
+                       bk[_k.BK_SIN])
     # damping C_el r_q
+    r_psi = r[i0 + 2] if nb > 0 else 0.0
     for h in range(n):
         if extra.locked[h] != 0:
             continue
-        sig = r[h] - (r[h - 1] if h > 0 else 0.0)
+        p = chain.prev[h]
+        sig = r[h] - (r[p] if p >= 0 else r_psi)
         if full:
-            sig += r[n + h] - (r[2 * n + h - 1] if h > 0 else 0.0)
+            sig += r[n + h] - (r[2 * n + p] if p >= 0 else 0.0)
         nu = chain.nu[h]
         cphi = nu
         if not full and extra.contact[h] != 0.0:
             cphi += extra.stop_c[h]
         W[h, _k.W_FP] += cphi * sig
         W[h, _k.W_FA] += nu * sig
-        if h > 0:
-            W[h - 1, _k.W_FP] -= cphi * sig
-            W[h - 1, _k.W_FB] -= nu * sig
+        if p >= 0:
+            W[p, _k.W_FP] -= cphi * sig
+            W[p, _k.W_FB] -= nu * sig
+        else:
+            bk[_k.BK_M + 2] -= cphi * sig
     for k in range(n):
         W[k, _k.W_FP] /= g2
         W[k, _k.W_FA] /= g2
         W[k, _k.W_FB] /= g2
+    bk[_k.BK_FX] = bk[_k.BK_M] / g2
+    bk[_k.BK_FY] = bk[_k.BK_M + 1] / g2
+    bk[_k.BK_FPSI] = bk[_k.BK_M + 2] / g2
+    bk[_k.BK_FTH] = bk[_k.BK_M + 3] / g2
     if not _k.chain_solve(extra.kind, nch, nex, W):
         for i in range(out.shape[0]):
             out[i] = np.nan
@@ -143,5 +169,7 @@ def chain_solve(chain, extra, phi_j, nex, nch, g, r, out):
         if full:
             out[n + k] = W[k, _k.W_A]
             out[2 * n + k] = W[k, _k.W_B]
+    for i in range(nb):
+        out[i0 + i] = bk[_k.BK_AX + i] if i < 3 else bk[_k.BK_ATH]
     for i in range(m):
         out[m + i] = g * out[i] - r[i]

@@ -171,11 +171,16 @@ def _plain(value: Any) -> Any:
     return value
 
 
+# entries that are one pair [x, y], never a per-rod list (a scalar there is not a pair)
+_PAIR_KEYS = frozenset({"attach", "centre_of_mass", "gravity"})
+
+
 def _compact(value: Any) -> Any:
     """A list of equal numbers or booleans as that one value (the scene format broadcasts a
-    scalar to every rod, node or hinge): a uniform 100 000-rod chain's YAML stays small."""
+    scalar to every rod, node or hinge): a uniform 100 000-rod chain's YAML stays small.
+    Pairs (``attach``, ``centre_of_mass``, ``gravity``) stay pairs."""
     if isinstance(value, dict):
-        return {k: _compact(v) for k, v in value.items()}
+        return {k: v if k in _PAIR_KEYS else _compact(v) for k, v in value.items()}
     if isinstance(value, list) and len(value) > 1 and all(
             isinstance(v, (int, float)) and type(v) is type(value[0]) for v in value):
         first = value[0]
