@@ -806,7 +806,8 @@ class FullModel(ChainModel):
 
     def bending_rates(self, t, y, held=None):
         n = self.n
-        return np.array(y[4 * n:5 * n]), np.array(y[5 * n:6 * n])
+        d = self.dof
+        return np.array(y[d + n:d + 2 * n]), np.array(y[d + 2 * n:d + 3 * n])
 
     _kind = kernels.KIND_FULL
 
