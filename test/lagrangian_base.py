@@ -167,7 +167,8 @@ class ChainData:
         self.l = np.atleast_1d(np.asarray(self.l, float))
         n = len(self.l)
         for name in ("m", "mu", "EI", "kappa", "nu"):
-            setattr(self, name, np.broadcast_to(np.asarray(getattr(self, name), float), (n,)).copy())
+            v = np.asarray(getattr(self, name), float)
+            setattr(self, name, np.broadcast_to(v, (n,)).copy())
         self.rest = np.zeros(n) if self.rest is None else \
             np.broadcast_to(np.asarray(self.rest, float), (n,)).copy()
         self.attach = np.asarray(self.attach, float).reshape(2)

@@ -29,7 +29,8 @@ from scipy.integrate import solve_ivp
 from lagrangian_base import BaseData, BaseLagrangian, ChainData
 from sc_common import needs_spacecraft
 
-bsk = pytest.importorskip("Basilisk", reason="Basilisk (pip bsk, the 'peer' extra) is not installed")
+bsk = pytest.importorskip("Basilisk",
+                          reason="Basilisk (pip bsk, the 'peer' extra) is not installed")
 
 T_END, DT_OUT, DT_BSK = 10.0, 0.1, 1e-3
 HUB = dict(mass=750.0, inertia=600.0, com=(0.1, 0.05), omega=0.1)

@@ -80,7 +80,7 @@ def two_chains(seed, rigid=False, locked=False):
     return [a, b], rng
 
 
-# ----------------------------------------------------------------------------- heavy base, zero motion
+# ------------------------------------------------------------------------- heavy base, zero motion
 
 @SC
 @pytest.mark.slow
@@ -126,7 +126,7 @@ def test_prescribed_zero_motion_is_the_fixed_base_bit_for_bit(name, motion):
     assert np.array_equal(a.y, b.y), np.max(np.abs(a.y - b.y))
 
 
-# ----------------------------------------------------------------------------- locked: one rigid body
+# ------------------------------------------------------------------------- locked: one rigid body
 
 def locked_scene(seed, wheel=0.0, loads=(), base_twist=(0.3, -0.2, 0.4)):
     chains, rng = two_chains(seed, rigid=True, locked=True)
@@ -353,7 +353,8 @@ def test_momentum_follows_timed_loads():
     errH = []
     for t, y in zip(tr.t, tr.y):
         m = model.momentum(t, y)
-        errH.append(max(abs(m.angular_origin - m0.angular_origin - 9.0 * _step_integral(t, 0.2, 0.5)),
+        ang = 9.0 * _step_integral(t, 0.2, 0.5)
+        errH.append(max(abs(m.angular_origin - m0.angular_origin - ang),
                         np.max(np.abs(m.linear - m0.linear))))
     print(f"\n[timed loads] max |P - P0 - impulse| {max(errs):.2e} kg m/s, "
           f"max |H - H0 - angular impulse| {max(errH):.2e} kg m^2/s")
@@ -385,7 +386,8 @@ def pendulum_2(c, g):
     """Two rods hanging straight down (rest angles: hinge 0 -pi/2, hinge 1 0, so phi = -pi/2
     is the equilibrium), angles from the vertical theta_k = phi_k + pi/2. With M_k = m_k l_k,
     node masses mu_1 (joint), mu_2 (tip), the kinetic energy at theta = 0 is theta'^T A theta'/2:
-      A11 = M1 l1^2/3 + (mu1 + M2 + mu2) l1^2,  A12 = l1 l2 (M2/2 + mu2),  A22 = M2 l2^2/3 + mu2 l2^2,
+      A11 = M1 l1^2/3 + (mu1 + M2 + mu2) l1^2,  A12 = l1 l2 (M2/2 + mu2),
+      A22 = M2 l2^2/3 + mu2 l2^2,
     the potential -g [(M1/2 + mu1 + M2 + mu2) l1 cos th1 + (M2/2 + mu2) l2 cos th2] + springs
     k0 th1^2/2 + k1 (th2 - th1)^2/2, so K = g diag((M1/2 + mu1 + M2 + mu2) l1, (M2/2 + mu2) l2)
     + [[k0 + k1, -k1], [-k1, k1]]; omega^2 = eigenvalues of (K, A)."""
@@ -545,7 +547,7 @@ def test_heavy_cantilever_sag():
     assert mids[1] < mids[0] / 8 and mids[2] < mids[1] / 8
 
 
-# ----------------------------------------------------------------------------- the closed forms themselves
+# ------------------------------------------------------------------------- the closed forms themselves
 
 def test_pendulum_closed_forms_are_the_oracles_linearisation():
     """pendulum_1's equilibrium and frequency and pendulum_2's A and K are the independent
@@ -565,8 +567,9 @@ def test_pendulum_closed_forms_are_the_oracles_linearisation():
         idx = np.arange(n)
         assert np.max(np.abs(lag.potential_gradient(q)[idx])) < 1e-9
         h = 1e-5
-        K = np.array([(lag.potential_gradient(q + h * e)[idx] - lag.potential_gradient(q - h * e)[idx])
-                      / (2 * h) for e in np.eye(lag.nq)[idx]])
+        grad = lag.potential_gradient
+        K = np.array([(grad(q + h * e)[idx] - grad(q - h * e)[idx]) / (2 * h)
+                      for e in np.eye(lag.nq)[idx]])
         A = lag.mass_matrix(q)[np.ix_(idx, idx)]
         w_oracle = np.sqrt(np.sort(np.linalg.eigvals(np.linalg.solve(A, K)).real))
         assert np.allclose(w_oracle, np.atleast_1d(w), rtol=1e-8), (w_oracle, w)
