@@ -547,7 +547,7 @@ def test_heavy_cantilever_sag():
     assert mids[1] < mids[0] / 8 and mids[2] < mids[1] / 8
 
 
-# ------------------------------------------------------------------------- the closed forms themselves
+# --------------------------------------------------------------------- the closed forms themselves
 
 def test_pendulum_closed_forms_are_the_oracles_linearisation():
     """pendulum_1's equilibrium and frequency and pendulum_2's A and K are the independent
