@@ -96,6 +96,14 @@ def momentum_rates(model, t: float, y, held=None, mode=None) -> MomentumRates:
     mom = model.momentum(t, y, held)
     b = model.chain.base
     rc = model._base_com(model.base_state(t, y)) if model.nb else None
+    com = mom.com
+    if model.name == "reduced" and b[kernels.B_GRAVITY] != 0.0:
+        # its momentum is the chords' but gravity acts on the bent rods (quasi-static slopes)
+        p = model.params
+        alpha, beta = model.bending(t, y, held, mode)
+        phi = model.phi(y)
+        shift = p.m * p.l**2 / 12.0 * (alpha - beta)
+        com = com + np.array([-np.sum(shift * np.sin(phi)), np.sum(shift * np.cos(phi))]) / mom.mass
 
     def applied(t_side):
         loads = np.zeros((model.n + 2, 3))
@@ -109,7 +117,7 @@ def momentum_rates(model, t: float, y, held=None, mode=None) -> MomentumRates:
         if b[kernels.B_GRAVITY] != 0.0:
             g = np.array([b[kernels.B_GX], b[kernels.B_GY]])
             force = force + mom.mass * g
-            moment += float(_cross(mom.com, mom.mass * g))
+            moment += float(_cross(com, mom.mass * g))
         return force, moment
 
     force, moment = applied(t)
