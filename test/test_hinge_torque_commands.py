@@ -11,7 +11,7 @@ compared (``rod-sim compare``) and replayed (``rod-sim replay``) by the command 
 - physics through the node: one damped rod under a held torque T settles at phi_1 = T /
   kappa_0 and the node's energy balance (motor work included) closes.
 
-ROS_DOMAIN_IDs 212..214 (LOCALHOST)."""
+ROS domain ids from ros_domains (LOCALHOST)."""
 from __future__ import annotations
 
 import math
@@ -31,6 +31,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
 
+from ros_domains import next_domains  # noqa: E402
 from procs import ros_env  # noqa: E402
 from ros_graph import Client, NodeProcess, stamp_ns, unique_namespace  # noqa: E402
 from rod_sim.io.log_reader import LogReader  # noqa: E402
@@ -42,7 +43,7 @@ pytestmark = [pytest.mark.ros, pytest.mark.timeout(300)]
 
 REPO = Path(__file__).resolve().parents[1]
 SMALL = REPO / "config" / "small_chain.yaml"
-DOMAIN_LOCKSTEP, DOMAIN_REALTIME, DOMAIN_STATIC = 212, 213, 214
+DOMAIN_LOCKSTEP, DOMAIN_REALTIME, DOMAIN_STATIC = next_domains(3)
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 

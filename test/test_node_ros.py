@@ -2,9 +2,7 @@
 parameters, pacing and failures. Every test has its own context and ROS_DOMAIN_ID (LOCALHOST)."""
 from __future__ import annotations
 
-import itertools
 import math
-import sys
 import time
 from collections import defaultdict
 from pathlib import Path
@@ -29,6 +27,7 @@ from visualization_msgs.msg import MarkerArray  # noqa: E402
 from rod_sim.io.log_reader import LogReader  # noqa: E402
 from rod_sim.io.scene_yaml import load_scene, scene_to_yaml  # noqa: E402
 from rod_sim.ros.node import NodeConfigError, RodSimNode, params_files  # noqa: E402
+from ros_domains import next_domain  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(60)]
 
@@ -36,8 +35,6 @@ REPO = Path(__file__).resolve().parents[1]
 PAPER = REPO / "config" / "paper_example.yaml"
 SMALL = REPO / "config" / "small_chain.yaml"
 PARAMS = REPO / "config" / "sim_node.params.yaml"
-DOMAINS = itertools.count(160)
-"""ROS_DOMAIN_IDs of this module: 160, 161, ... (one per context)."""
 PERIOD_NS = 10_000_000
 
 
@@ -62,7 +59,7 @@ class Harness:
     """A RodSimNode and a test client node in one fresh context, spun by one executor."""
 
     def __init__(self, monkeypatch, ros_args=(), **params):
-        self.domain = next(DOMAINS)
+        self.domain = next_domain()
         monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
         monkeypatch.setenv("ROS_DOMAIN_ID", str(self.domain))
         self.context = rclpy.Context()
@@ -119,17 +116,12 @@ class Harness:
         self.context.try_shutdown()
 
 
-def harness_fixture(first_domain: int | None = None):
-    """A ``harness`` fixture: ``harness(**params)`` makes a :class:`Harness`, closed after the
-    test. With ``first_domain``, test k of the calling module gets ROS domains
-    ``first_domain + 2 k`` and ``first_domain + 2 k + 1`` (else this module's DOMAINS)."""
-    tests = itertools.count()
+def harness_fixture():
+    """A ``harness`` fixture: ``harness(**params)`` makes a :class:`Harness` (in a ROS domain of
+    its own, from ros_domains), closed after the test."""
 
     @pytest.fixture
     def harness(monkeypatch):
-        if first_domain is not None:
-            monkeypatch.setattr(sys.modules[__name__], "DOMAINS",
-                                itertools.count(first_domain + 2 * next(tests)))
         made = []
 
         def make(**kwargs) -> Harness:

@@ -20,6 +20,7 @@ from rod_sim.core.models import make_model
 from rod_sim.core.scene import Scene
 from rod_sim.core.simulator import Simulator
 from rod_sim.io.scene_yaml import load_scene
+from ros_domains import next_domain
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "config" / "paper_example.yaml"
@@ -337,7 +338,7 @@ def test_node_runs_radau_jit(monkeypatch):
 
     from rod_sim.ros.node import RodSimNode
 
-    domain = 150
+    domain = next_domain()
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
     context = rclpy.Context()
