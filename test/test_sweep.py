@@ -377,6 +377,7 @@ def test_interrupt_writes_the_finished_rows(tmp_path, monkeypatch, capsys):
 
 
 @pytest.mark.slow
+@pytest.mark.timing
 def test_sigint_stops_the_process_pool(tmp_path):
     spec = {**TINY, "scene": str(ROOT / "config" / "paper_example.yaml"), "models": ["full"],
             "rtol": 1e-10, "t_end": 2.0, "parameters": {"hinges.stiffness": {
