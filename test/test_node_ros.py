@@ -42,6 +42,14 @@ def stamp_ns(msg) -> int:
     return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
 
 
+def runnable_s() -> float:
+    """[s] this thread has been runnable so far: on a CPU or waiting in a run queue for one
+    (Linux schedstat), i.e. not sleeping. A busy loop is runnable all the time however loaded
+    the machine is; a thread that waits for a timer is not."""
+    on_cpu, queued, _ = Path("/proc/thread-self/schedstat").read_text().split()
+    return (int(on_cpu) + int(queued)) / 1e9
+
+
 def without_loads(path: Path, tmp_path: Path) -> Path:
     """A copy of a scene without scripted loads (applied forces = commands)."""
     out = tmp_path / f"{path.stem}_no_loads.yaml"
@@ -343,9 +351,16 @@ def test_parameters_from_the_params_file_and_descriptors(harness):
     assert not h.node.set_parameters([Parameter("real_time_factor", value=1e6)])[0].successful
     assert not h.node.set_parameters([Parameter("frame_id", value="")])[0].successful
     assert h.node.set_parameters([Parameter("real_time_factor", value=0.0)])[0].successful
-    t0 = h.node.sim_time
+    t0, wall0, runnable0 = h.node.sim_time, time.monotonic(), runnable_s()
     h.spin_for(0.5)
-    assert h.node.sim_time - t0 > 1.0, "real_time_factor 0 should run faster than real time"
+    advanced, wall = h.node.sim_time - t0, time.monotonic() - wall0
+    runnable = runnable_s() - runnable0
+    # as fast as possible: twice real time or more where this process gets the CPU; on a
+    # machine too busy to afford that, it still never waits for the wall clock (the node's
+    # thread runnable all along: 99.7 % of the window measured at load 8, where a node paced at
+    # real time was runnable 68 % of it: it sleeps between ticks)
+    assert advanced > 2.0 * wall or runnable > 0.95 * wall, \
+        f"real_time_factor 0: {advanced:.2f} s in {wall:.2f} s, runnable {runnable:.2f} s"
 
 
 @pytest.mark.parametrize("params, match", [
@@ -369,10 +384,15 @@ def test_real_time_pacing_within_bounds(harness):
     wall0, sim0 = time.monotonic(), h.node.sim_time
     h.spin_for(2.0)
     rtf = (h.node.sim_time - sim0) / (time.monotonic() - wall0)
-    assert 0.8 < rtf < 1.2
-    measured = [float({kv.key: kv.value for kv in m.status[0].values}
-                      ["real_time_factor_measured"]) for m in h.received["diagnostics"][1:]]
-    assert measured and all(0.8 < r < 1.2 for r in measured)
+    values = [{kv.key: kv.value for kv in m.status[0].values}
+              for m in h.received["diagnostics"][1:]]
+    measured = [float(v["real_time_factor_measured"]) for v in values]
+    assert measured and rtf < 1.2 and all(r < 1.2 for r in measured), (rtf, measured)
+    # never ahead of real time; behind it only where this process could not get the CPU to
+    # keep pace (a loaded machine), and then the node says so: it drops the backlog it cannot
+    # catch up within 1 s and counts it on diagnostics
+    dropped = int(values[-1]["dropped_periods"])
+    assert dropped > 0 or (rtf > 0.8 and all(r > 0.8 for r in measured)), (rtf, measured)
 
 
 def test_integration_failure_pauses_reports_and_recovers(harness, tmp_path):
