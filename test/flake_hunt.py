@@ -8,12 +8,13 @@ Each repeat is a separate ``pytest -m EXPR`` process (so each takes other ROS do
 test/ros_domains.py), with a JUnit XML report in DIR (default out/flake); ARGS go to pytest
 (e.g. ``-k clock``). The burners are plain busy loops at normal priority, as another user's
 build would be, killed at the end (also on Ctrl-C). Exit status 0 when no selected test failed
-in any repeat, 1 otherwise (2: bad arguments, or a repeat that ran no test)."""
+in any repeat, 1 otherwise (2: bad arguments, or a repeat that ran no test; 130: interrupted)."""
 from __future__ import annotations
 
 import argparse
 import os
 import shlex
+import signal
 import subprocess
 import sys
 import time
@@ -35,6 +36,28 @@ def stop(procs: list[subprocess.Popen]) -> None:
         if proc.poll() is None:
             proc.kill()
         proc.wait(timeout=10)
+
+
+def run_pytest(args: list[str], log: Path) -> int:
+    """``pytest ARGS`` in the repository, output to ``log``; on Ctrl-C or SIGTERM it gets
+    SIGINT (its fixtures stop the processes it started) and 60 s before it is killed."""
+    with open(log, "w") as out:
+        proc = subprocess.Popen([sys.executable, "-m", "pytest", *args], cwd=REPO, stdout=out,
+                                stderr=subprocess.STDOUT)
+        try:
+            return proc.wait()
+        except KeyboardInterrupt:
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(timeout=60)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+            raise
+
+
+def terminated(signum, frame):
+    raise KeyboardInterrupt
 
 
 def outcomes(report: Path) -> dict[str, tuple[str, str]]:
@@ -91,21 +114,20 @@ def main(argv: list[str] | None = None) -> int:
           f"{shlex.join(args.pytest_args)}"
           f" beside {args.burners} busy process(es); load {os.getloadavg()[0]:.1f}", flush=True)
     started = time.monotonic()
+    interrupted = False
+    signal.signal(signal.SIGTERM, terminated)
     busy = burners(args.burners)
     try:
         for k in range(args.repeats):
             report = args.out / f"run_{k + 1:03d}.xml"
             report.unlink(missing_ok=True)
             t0 = time.monotonic()
-            done = subprocess.run([sys.executable, "-m", "pytest", "-m", args.marker, "-q",
-                                   "-p", "no:cacheprovider", f"--junitxml={report}",
-                                   *args.pytest_args], cwd=REPO, stdout=subprocess.PIPE,
-                                  stderr=subprocess.STDOUT, text=True)
-            (args.out / f"run_{k + 1:03d}.log").write_text(done.stdout)
+            log = args.out / f"run_{k + 1:03d}.log"
+            code = run_pytest(["-m", args.marker, "-q", "-p", "no:cacheprovider",
+                               f"--junitxml={report}", *args.pytest_args], log)
             found = outcomes(report) if report.exists() else {}
             if not found:
-                print(f"run {k + 1}: no test ran (pytest exit {done.returncode}); see "
-                      f"{args.out / f'run_{k + 1:03d}.log'}", flush=True)
+                print(f"run {k + 1}: no test ran (pytest exit {code}); see {log}", flush=True)
                 return 2
             for test_id, outcome in found.items():
                 results[test_id].append(outcome)
@@ -114,11 +136,14 @@ def main(argv: list[str] | None = None) -> int:
                   f"{time.monotonic() - t0:.0f} s, load {os.getloadavg()[0]:.1f}"
                   + "".join(f"\n  FAILED {t}: {found[t][1][:160]}" for t in failed), flush=True)
     except KeyboardInterrupt:
+        interrupted = True
         print("flake hunt: interrupted; the figures so far:", flush=True)
     finally:
         stop(busy)
     print(f"\n{table(results)}\n\n{sum(len(r) for r in results.values())} test runs in "
           f"{time.monotonic() - started:.0f} s; load {os.getloadavg()[0]:.1f} at the end")
+    if interrupted:
+        return 130
     return 1 if any(o == "failed" for runs in results.values() for o, _ in runs) else 0
 
 
