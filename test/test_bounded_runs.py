@@ -73,6 +73,7 @@ def wait_with_usage(proc: subprocess.Popen, timeout: float):
     return None
 
 
+@pytest.mark.slow
 @pytest.mark.timing
 @pytest.mark.parametrize("integrator", ["radau-jit", "dop853-jit", "rk4"])
 def test_sigint_closes_the_log_of_a_stiff_run_within_a_second(tmp_path, integrator):
@@ -164,6 +165,7 @@ def nan_after_start(t, y, chain, extra, loads, held, t_side, out):
         out[i] = np.nan if t > 0.0 else 0.0
 
 
+@pytest.mark.slow
 def test_radau_gives_up_after_repeated_newton_failures():
     y0 = np.array([0.0, 1.0])
     t_out = np.array([0.0, 1.0])

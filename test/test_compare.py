@@ -257,6 +257,7 @@ def independent_phi_error(path: Path, scene):
     return worst
 
 
+@pytest.mark.slow
 def test_reported_phi_error_equals_independent_computation(reduced_log, small, capsys):
     code, rep, _ = run_json(capsys, reduced_log)
     err, rod, t = independent_phi_error(reduced_log, small)

@@ -36,6 +36,7 @@ def rod_sim(*args: str, timeout: float = 120.0) -> subprocess.CompletedProcess:
                           env=ros_env(DOMAIN), capture_output=True, text=True, timeout=timeout)
 
 
+@pytest.mark.slow
 def test_a_node_log_converted_to_sqlite3_compares_and_replays(tmp_path, monkeypatch):
     ns = unique_namespace()
     log = tmp_path / "node.mcap"
@@ -98,6 +99,7 @@ def test_a_node_log_converted_to_sqlite3_compares_and_replays(tmp_path, monkeypa
     assert len(states) == recorded > 100
 
 
+@pytest.mark.slow
 def test_a_simulate_log_converted_to_sqlite3_is_self_contained(tmp_path):
     log = tmp_path / "run.mcap"
     assert rod_sim("simulate", str(PAPER), "--t-end", "0.5", "--out", str(log)).returncode == 0

@@ -35,6 +35,7 @@ def stepped_to(done: subprocess.CompletedProcess) -> float:
     return float(re.search(r"stepped to t = ([0-9.e+-]+) s", done.stdout).group(1))
 
 
+@pytest.mark.slow
 def test_ctl_drives_a_namespaced_node(tmp_path):
     ns = unique_namespace()                  # e.g. /t1234_0: no other graph in this domain
     node = NodeProcess(tmp_path, DOMAIN, extra=["-r", f"__ns:={ns}"], scene_file=SCENE)
@@ -85,6 +86,7 @@ def test_ctl_drives_a_namespaced_node(tmp_path):
         node.kill()
 
 
+@pytest.mark.slow
 def test_ctl_without_the_node_is_one_line_exit_1():
     done = ctl("--ns", "/nowhere", "--timeout", "1", "pause")
     assert done.returncode == 1 and "Traceback" not in done.stderr

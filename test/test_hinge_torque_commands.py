@@ -82,6 +82,7 @@ def test_torque_commands_are_validated_like_forces():
 
 # ----- lockstep: the whole user path -----
 
+@pytest.mark.slow
 def test_lockstep_torques_rejections_log_compare_and_replay(tmp_path, monkeypatch):
     monkeypatch.setenv("ROS_DOMAIN_ID", str(DOMAIN_LOCKSTEP))
     ns = unique_namespace()
@@ -216,6 +217,7 @@ def test_lockstep_torques_rejections_log_compare_and_replay(tmp_path, monkeypatc
 
 # ----- real time: hold and timeout -----
 
+@pytest.mark.slow
 def test_realtime_torque_is_held_then_times_out(tmp_path, monkeypatch):
     monkeypatch.setenv("ROS_DOMAIN_ID", str(DOMAIN_REALTIME))
     ns = unique_namespace()
@@ -264,6 +266,7 @@ initial: {phi: 0.0, phi_rate: 0.0}
 """
 
 
+@pytest.mark.slow
 def test_held_torque_deflects_one_rod_to_t_over_kappa(tmp_path, monkeypatch):
     """A hand calculation: one rod, hinge 0 spring kappa_0 = 40 N m/rad, motor T = 2 N m:
     phi_1 -> T / kappa_0 = 0.05 rad (overdamped, time constant ~ nu / kappa = 0.5 s); the

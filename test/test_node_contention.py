@@ -49,6 +49,7 @@ def deschedule(pid: int, stop: threading.Event) -> None:
         os.kill(pid, signal.SIGCONT)
 
 
+@pytest.mark.slow
 def test_busy_siblings_and_scheduling_delays_keep_real_time(tmp_path, monkeypatch):
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     monkeypatch.setenv("ROS_DOMAIN_ID", str(DOMAIN))

@@ -217,6 +217,7 @@ def test_help_exits_0():
     assert done.returncode == 0 and "scene_file" in done.stdout
 
 
+@pytest.mark.slow
 def test_demo_runs_node_and_controller_and_records(tmp_path):
     out = tmp_path / "demo" / "demo.mcap"
     done = subprocess.run([sys.executable, "-m", "rod_sim.ros.demo", "--out", str(out),

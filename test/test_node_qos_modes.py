@@ -119,6 +119,7 @@ def test_default_and_transient_local_controllers_get_states_in_every_mode(
         assert advanced[:5] == [PERIOD_NS * k for k in range(1, 6)], f"{name}: {stamps}"
 
 
+@pytest.mark.slow
 def test_clock_of_a_period_is_published_before_its_states(client_in, node_in):
     """The node publishes a period's ``/clock`` before that period's states. Checked on the
     source timestamps the middleware puts on each sample when it is written (one system clock

@@ -122,6 +122,7 @@ def test_repair_refuses_a_corrupt_log(tmp_path, capsys):
     assert not (tmp_path / "r.mcap").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.ros
 @pytest.mark.timeout(90)
 def test_repair_a_sigkilled_node_log(tmp_path, capsys):

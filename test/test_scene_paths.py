@@ -91,6 +91,7 @@ def node_args(*ros_args: str) -> list[str]:
     return [sys.executable, "-m", "rod_sim.tools.cli", "node", "--ros-args", *ros_args]
 
 
+@pytest.mark.slow
 @pytest.mark.ros
 @pytest.mark.timeout(90)
 def test_the_shipped_params_file_starts_the_node_from_another_directory(tmp_path):
