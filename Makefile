@@ -1,4 +1,5 @@
-# rod_sim developer tasks. `make test` is what CI runs (through .ci/run).
+# rod_sim developer tasks. `make test` (the quick suite) and `make test-slow` (the tests marked
+# slow) are what CI runs, both (through .ci/run); `make flake` hunts flaky tests under load.
 # The virtual environment is created from scratch when missing; the package (with its ROS 2
 # Jazzy wheels and every optional extra) is reinstalled only when setup.py changes.
 
@@ -8,14 +9,19 @@ VPY = $(VENV)/bin/python
 STAMP = $(VENV)/.installed
 WARM = $(VENV)/.jit-warm
 
-# Tests that start a ROS graph pick their own ROS_DOMAIN_ID; this default keeps everything else
-# off the common domain 0. Discovery never leaves the machine.
+# Tests that start a ROS graph take their ROS_DOMAIN_IDs from test/ros_domains.py (from
+# ROD_SIM_TEST_DOMAIN_BASE when set, else from the process id, so that runs side by side do not
+# meet); this default keeps everything else off the common domain 0. Discovery never leaves the
+# machine.
 ROS_DOMAIN_ID ?= 42
 ROS_ENV = ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST ROS_DOMAIN_ID=$(ROS_DOMAIN_ID)
 
 PYTEST_ARGS ?=
+# make flake: repeats of the ros- and timing-marked tests beside one busy loop per core
+N ?= 20
+FLAKE_ARGS ?=
 
-.PHONY: venv warm test demo bench bench-report clean
+.PHONY: venv warm test test-slow flake demo bench bench-report clean
 
 venv: $(STAMP) $(WARM)
 
@@ -36,8 +42,17 @@ $(WARM): $(STAMP) $(shell grep -l njit rod_sim/core/*.py)
 	$(VPY) -m rod_sim.tools.jit_warm
 	touch $(WARM)
 
+# Every test not marked slow (README, "Testing": the time it takes); test-slow runs the rest.
 test: venv
-	$(ROS_ENV) $(VPY) -m pytest $(PYTEST_ARGS)
+	$(ROS_ENV) $(VPY) -m pytest -m "not slow" $(PYTEST_ARGS)
+
+test-slow: venv
+	$(ROS_ENV) $(VPY) -m pytest -m slow $(PYTEST_ARGS)
+
+# Each test marked ros or timing N times beside one busy loop per core: its failure rate in a
+# table (reports in out/flake/); exit 1 if any failed. Not part of `make test`.
+flake: venv
+	$(ROS_ENV) $(VPY) test/flake_hunt.py --repeats $(N) $(FLAKE_ARGS)
 
 # The mission end to end: Table 1; the ROS 2 node (reduced model) with the hinge PD controller
 # over topics, in lockstep (one control period per command: the same log on any machine, loaded

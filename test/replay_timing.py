@@ -3,7 +3,7 @@ an rclpy subscriber here and print, per run, the arrival lag against log offset 
 (median-centred |lag|: median, 95th percentile, max [ms]) and the wall span.
 
     ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST python test/replay_timing.py LOG --rate 1 \
-        --runs 3 --domain 198
+        --runs 3 [--domain ID]
 
 Not a test (timings are noisy on a shared machine); docs/replay.md quotes its output.
 """
@@ -18,6 +18,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import test_replay as T  # noqa: E402
+from ros_domains import next_domain  # noqa: E402
 
 
 class _Env:
@@ -55,8 +56,11 @@ def main() -> int:
     parser.add_argument("log", type=Path)
     parser.add_argument("--rate", type=float, default=1.0)
     parser.add_argument("--runs", type=int, default=3)
-    parser.add_argument("--domain", type=int, default=198)
+    parser.add_argument("--domain", type=int, default=None,
+                        help="ROS domain id (default: one from test/ros_domains.py)")
     args = parser.parse_args()
+    if args.domain is None:
+        args.domain = next_domain()
     workdir = Path(os.environ.get("TMPDIR", "/tmp"))
     for k in range(args.runs):
         print(f"run {k + 1}: {one_run(args.log.resolve(), args.rate, args.domain, workdir)}",

@@ -1,12 +1,14 @@
 """Bounded, interruptible integration (issue 19, item 1): every compiled driver returns to
 Python after a bounded amount of work (``drive`` calls it again), so Ctrl-C closes the log of
-a stiff run within a second or two; a collapsed step size and a Newton iteration that keeps
+a stiff run within a second; a collapsed step size and a Newton iteration that keeps
 failing stop with one clear line instead of spinning."""
 from __future__ import annotations
 
+import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -21,6 +23,7 @@ from rod_sim.io.series import read_rod_states
 
 from procs import terminal_signals  # noqa: E402
 from rod_sim.io.scene_yaml import load_scene
+from untimed import untimed_lines
 
 ROOT = Path(__file__).resolve().parents[1]
 DEPLOYMENT = ROOT / "config" / "deployment.yaml"
@@ -35,34 +38,82 @@ def stiff_deployment(tmp_path: Path) -> Path:
     return path
 
 
+STOP_CPU_S = 1.0
+"""[s] of CPU time the command may spend from SIGINT to its exit: the rest of a budget call,
+closing the log with its summary and the interpreter's exit. CPU time, unlike wall time, is not
+stretched by other processes: measured 0.27-0.47 s (12 runs, 3 integrators, quiet and beside two
+busy loops at load 3-7). A driver that did not return to Python within its work budget would
+spend seconds here."""
+CLOSED_WALL_S = 3.0
+"""[s] of wall time from SIGINT to the "interrupted" line, printed once the log is closed: the
+contract is ~1 s (docs/bench.md); measured 0.02-0.16 s at load 3 and up to 0.56 s at load 4.4-6.8
+beside two busy loops (12 runs), so 3 s leaves a margin of 5 over the worst loaded figure. The
+interpreter's exit after that line is not bounded in wall time: it took up to 4.1 s under that
+load (0.3-0.4 s of CPU), which is what failed the former 2 s bound on exit."""
+
+
+def cpu_seconds(pid: int) -> float:
+    """CPU time [s] process ``pid`` has used so far (all threads, waited-for children)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return sum(int(f) for f in fields[11:15]) / os.sysconf("SC_CLK_TCK")
+
+
+def wait_with_usage(proc: subprocess.Popen, timeout: float):
+    """Reap ``proc`` within ``timeout`` [s] of wall time: its resource usage (None: still
+    running, then it is killed)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
+        if pid == proc.pid:
+            proc.returncode = os.waitstatus_to_exitcode(status)
+            return usage
+        time.sleep(0.01)
+    proc.kill()
+    proc.wait()
+    return None
+
+
+@pytest.mark.slow
+@pytest.mark.timing
 @pytest.mark.parametrize("integrator", ["radau-jit", "dop853-jit", "rk4"])
-def test_sigint_closes_the_log_of_a_stiff_run_within_two_seconds(tmp_path, integrator):
+def test_sigint_closes_the_log_of_a_stiff_run_within_a_second(tmp_path, integrator):
     out = tmp_path / "run.mcap"
     args = [sys.executable, "-m", "rod_sim.tools.cli", "simulate", str(stiff_deployment(tmp_path)),
             "--model", "full", "--integrator", integrator, "--t-end", "0.2", "--out", str(out)]
     args += ["--step", "1e-8"] if integrator == "rk4" else ["--rtol", "1e-14"]
     proc = subprocess.Popen(args, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                             text=True, preexec_fn=terminal_signals)
+    lines: list[tuple[float, str]] = []              # (wall time read, line) of stderr
+
+    def read() -> None:
+        for line in proc.stderr:
+            lines.append((time.monotonic(), line.rstrip("\n")))
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
     try:
         deadline = time.monotonic() + 120.0            # a cold numba cache compiles first
         while not out.exists() and proc.poll() is None and time.monotonic() < deadline:
             time.sleep(0.1)
         time.sleep(3.0)                                # deep inside the integration
-        assert proc.poll() is None, proc.stderr.read()
+        assert proc.poll() is None, lines
+        cpu_before = cpu_seconds(proc.pid)
         sent = time.monotonic()
         proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout=10.0)
-        except subprocess.TimeoutExpired:
-            pytest.fail(f"{integrator}: still running 10 s after SIGINT")
-        took = time.monotonic() - sent
+        usage = wait_with_usage(proc, timeout=10.0)
     finally:
         if proc.poll() is None:
             proc.kill()
             proc.wait()
-    err = proc.stderr.read()
-    assert took < 2.0, f"{integrator}: exited {took:.2f} s after SIGINT"
-    assert proc.returncode == 130 and "interrupted" in err, (proc.returncode, err)
+    reader.join(timeout=10.0)
+    err = "\n".join(line for _, line in lines)
+    assert usage is not None, f"{integrator}: still running 10 s after SIGINT: {err}"
+    assert proc.returncode == 130, (proc.returncode, err)
+    closed = [t - sent for t, line in lines if "interrupted" in line]
+    assert closed and closed[0] < CLOSED_WALL_S, \
+        f"{integrator}: log closed {closed} s after SIGINT (wall): {err}"
+    cpu = usage.ru_utime + usage.ru_stime - cpu_before
+    assert cpu < STOP_CPU_S, f"{integrator}: {cpu:.2f} s of CPU from SIGINT to exit"
     t, phi, _ = read_rod_states(out)                    # a readable log, from t = 0 on
     assert t.size >= 1 and t[0] == 0.0 and np.all(np.isfinite(phi))
 
@@ -93,14 +144,14 @@ def test_collapsed_step_size_stops_with_one_line(tmp_path, monkeypatch, capsys):
 
     monkeypatch.setattr(integrators, "COLLAPSE_STEP", 1e-6)
     out = tmp_path / "run.mcap"
-    started = time.monotonic()
+    started = time.process_time()
     code = cli.main(["simulate", str(stiff_deployment(tmp_path)), "--model", "full",
                      "--integrator", "dop853-jit", "--rtol", "1e-12", "--t-end", "0.2",
                      "--out", str(out)])
     err = capsys.readouterr().err
     assert code == 1, err
-    assert time.monotonic() - started < 30.0
-    lines = [line for line in err.splitlines() if line.strip()]
+    assert time.process_time() - started < 30.0      # CPU time: not stretched by load
+    lines = [line for line in untimed_lines(err) if line.strip()]
     assert len(lines) == 1 and "step size collapsed" in lines[0], err
     t, _, _ = read_rod_states(out)
     assert t.size >= 1 and t[0] == 0.0
@@ -114,6 +165,7 @@ def nan_after_start(t, y, chain, extra, loads, held, t_side, out):
         out[i] = np.nan if t > 0.0 else 0.0
 
 
+@pytest.mark.slow
 def test_radau_gives_up_after_repeated_newton_failures():
     y0 = np.array([0.0, 1.0])
     t_out = np.array([0.0, 1.0])

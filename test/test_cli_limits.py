@@ -2,6 +2,7 @@
 or key, exit status 2 (1 when a started run stops), no traceback, no file left behind, and
 the resource limits of rod_sim/tools/limits.py."""
 import errno
+import io
 import os
 import subprocess
 import sys
@@ -18,6 +19,7 @@ from rod_sim.io.series import read_rod_states
 from rod_sim.io.scene_yaml import MAX_SCENE_BYTES, load_scene
 from rod_sim.tools import cli, limits
 from rod_sim.tools.common import COMPILE_NOTICE, UsageError, compile_notice
+from untimed import untimed_lines
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "config" / "paper_example.yaml"
@@ -49,7 +51,7 @@ def simulate(tmp_path, scene, *options, out="run.mcap"):
 
 def one_line_error(capsys) -> str:
     err = capsys.readouterr().err
-    lines = [ln for ln in err.splitlines() if "compiling kernels" not in ln]
+    lines = untimed_lines(err)
     assert len(lines) == 1, err
     assert "Traceback" not in err
     return lines[0]
@@ -85,15 +87,16 @@ def test_a_chain_too_large_for_memory_is_refused_with_the_figure(tmp_path, capsy
         limits.model_memory(100_000) - limits.model_memory(0)
 
 
+@pytest.mark.timing
 def test_quote_is_short_and_bounded_for_a_yaml_bomb():
     bomb = ["lol"] * 9
     for _ in range(12):                  # 9**13 leaves: repr() would never finish
         bomb = [bomb] * 9
-    started = time.perf_counter()
+    started = time.process_time()      # CPU time: not stretched by other processes
     assert len(quote(bomb)) <= QUOTE_LIMIT
     with pytest.raises(SceneError) as info:
         Scene.from_dict({**SMALL, "rods": {**SMALL["rods"], "length": bomb}})
-    assert time.perf_counter() - started < 5.0
+    assert time.process_time() - started < 5.0
     assert "rods.length" in str(info.value) and len(str(info.value)) < 200
     assert "..." in quote("x" * 10 ** 6) and len(quote("x" * 10 ** 6)) <= QUOTE_LIMIT and len(quote(10 ** 5000)) <= QUOTE_LIMIT
 
@@ -192,13 +195,19 @@ def test_full_disk_later_keeps_the_complete_chunks_and_says_so(tmp_path, capsys,
     assert t.size > 100 and t[0] == 0.0 and f"keeps the {t.size} samples" in err
 
 
-def test_compile_notice_only_when_slow(capsys):
-    with compile_notice(after=0.05):
-        time.sleep(0.5)
-    with compile_notice(after=5.0):
+@pytest.mark.timing
+def test_compile_notice_only_when_slow():
+    """A block still running after ``after`` seconds prints the notice once (waited for, not
+    slept for: a loaded machine may start the timer's thread late); a quick one prints none."""
+    slow, quick = io.StringIO(), io.StringIO()
+    with compile_notice(after=0.05, stream=slow):
+        deadline = time.monotonic() + 60.0
+        while COMPILE_NOTICE not in slow.getvalue() and time.monotonic() < deadline:
+            time.sleep(0.01)
+    with compile_notice(after=5.0, stream=quick):
         pass
     time.sleep(0.1)
-    assert capsys.readouterr().err.count(COMPILE_NOTICE) == 1
+    assert slow.getvalue().count(COMPILE_NOTICE) == 1 and quick.getvalue() == ""
 
 
 @pytest.mark.slow
@@ -212,8 +221,11 @@ def test_first_run_with_a_cold_cache_says_it_compiles(tmp_path):
 
     cold, warm = run("a.mcap"), run("b.mcap")
     assert cold.returncode == 0 and warm.returncode == 0
-    assert COMPILE_NOTICE in cold.stderr
-    assert COMPILE_NOTICE not in warm.stderr
+    assert COMPILE_NOTICE in cold.stderr           # compiling takes ~20 s, the notice 2 s
+    # not asserted: no notice in the warm run. Loading the cached kernels takes ~0.3 s on a
+    # quiet machine and more than the notice's 2 s on a loaded one (it failed
+    # test_simulate_exits_1_and_keeps_a_readable_log that way); the notice is timed, so its
+    # absence is speed, not behaviour (test_compile_notice_only_when_slow checks the timer)
 
 
 def test_a_failure_during_the_jit_warm_up_is_no_traceback(tmp_path, capsys, monkeypatch):

@@ -230,13 +230,14 @@ def bomb_metadata(path: Path, levels: int = 9) -> Path:
     return path
 
 
+@pytest.mark.timing
 def test_yaml_bomb_in_metadata_is_refused_quickly(tmp_path, capsys):
     log = bomb_metadata(tmp_path / "bomb.mcap")
     for args in (["compare", log], ["deployment-figure", log, tmp_path / "f.png"]):
-        started = time.monotonic()
+        started = time.process_time()      # CPU time: not stretched by other processes
         code = rod_sim(*args)
         err = capsys.readouterr().err
-        assert time.monotonic() - started < 10
+        assert time.process_time() - started < 10
         assert code == 2 and len(err.strip().splitlines()) == 1 and len(err) < 400, err
         assert "YAML bomb" in err
 

@@ -2,7 +2,7 @@
 URDF) on latched topics; converted to a rosbag2 sqlite3 bag with `rosbags-convert` (which drops
 MCAP metadata records), the log still compares (scene from /scene) and replays (its QoS kept),
 and a storage rod_sim cannot read names the tool to convert it with. Each step is a separate
-process as a user runs it. ROS_DOMAIN_ID 68 (LOCALHOST)."""
+process as a user runs it. ROS domain id from ros_domains (LOCALHOST)."""
 from __future__ import annotations
 
 import signal
@@ -16,6 +16,7 @@ import pytest
 pytest.importorskip("rclpy")
 pytest.importorskip("rosbags")
 
+from ros_domains import next_domain  # noqa: E402
 from procs import ros_env  # noqa: E402
 from rod_sim.io.log_reader import LogReader  # noqa: E402
 from rod_sim.io.playback import parse_offered_qos  # noqa: E402
@@ -26,7 +27,7 @@ pytestmark = [pytest.mark.ros, pytest.mark.timeout(240)]
 
 REPO = Path(__file__).resolve().parents[1]
 PAPER = REPO / "config" / "paper_example.yaml"
-DOMAIN = 68
+DOMAIN = next_domain()
 CONVERT = Path(sys.executable).parent / "rosbags-convert"
 
 
@@ -35,6 +36,7 @@ def rod_sim(*args: str, timeout: float = 120.0) -> subprocess.CompletedProcess:
                           env=ros_env(DOMAIN), capture_output=True, text=True, timeout=timeout)
 
 
+@pytest.mark.slow
 def test_a_node_log_converted_to_sqlite3_compares_and_replays(tmp_path, monkeypatch):
     ns = unique_namespace()
     log = tmp_path / "node.mcap"
@@ -97,6 +99,7 @@ def test_a_node_log_converted_to_sqlite3_compares_and_replays(tmp_path, monkeypa
     assert len(states) == recorded > 100
 
 
+@pytest.mark.slow
 def test_a_simulate_log_converted_to_sqlite3_is_self_contained(tmp_path):
     log = tmp_path / "run.mcap"
     assert rod_sim("simulate", str(PAPER), "--t-end", "0.5", "--out", str(log)).returncode == 0

@@ -1,7 +1,7 @@
 """Issue 20 item 7: `rod-sim ctl` against a running node in a namespace, each call a separate
 process as a user types it: pause, step, resume, step refused while running, param get/set
 (a read-only one refused with the node's reason), echo, hz, reset; and a node that is not there
-is one line, exit 1. ROS_DOMAIN_ID 65 (LOCALHOST)."""
+is one line, exit 1. ROS domain id from ros_domains (LOCALHOST)."""
 from __future__ import annotations
 
 import re
@@ -14,6 +14,7 @@ import yaml
 
 pytest.importorskip("rclpy")
 
+from ros_domains import next_domain  # noqa: E402
 from procs import ros_env  # noqa: E402
 from ros_graph import NodeProcess, unique_namespace  # noqa: E402
 
@@ -21,7 +22,7 @@ pytestmark = [pytest.mark.ros, pytest.mark.timeout(240)]
 
 REPO = Path(__file__).resolve().parents[1]
 SCENE = REPO / "config" / "small_chain.yaml"
-DOMAIN = 65
+DOMAIN = next_domain()
 
 
 def ctl(*args: str, timeout: float = 60.0) -> subprocess.CompletedProcess:
@@ -34,6 +35,7 @@ def stepped_to(done: subprocess.CompletedProcess) -> float:
     return float(re.search(r"stepped to t = ([0-9.e+-]+) s", done.stdout).group(1))
 
 
+@pytest.mark.slow
 def test_ctl_drives_a_namespaced_node(tmp_path):
     ns = unique_namespace()                  # e.g. /t1234_0: no other graph in this domain
     node = NodeProcess(tmp_path, DOMAIN, extra=["-r", f"__ns:={ns}"], scene_file=SCENE)
@@ -84,6 +86,7 @@ def test_ctl_drives_a_namespaced_node(tmp_path):
         node.kill()
 
 
+@pytest.mark.slow
 def test_ctl_without_the_node_is_one_line_exit_1():
     done = ctl("--ns", "/nowhere", "--timeout", "1", "pause")
     assert done.returncode == 1 and "Traceback" not in done.stderr

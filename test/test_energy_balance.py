@@ -248,7 +248,7 @@ def contact_terms(sc: Scene, phi, dphi) -> tuple[float, float]:
     return energy, dissipated
 
 
-@pytest.mark.parametrize("model", ["rigid", "full"])
+@pytest.mark.parametrize("model", ["rigid", pytest.param("full", marks=pytest.mark.slow)])
 def test_balance_across_stop_contacts(model):
     """Repeated stop contacts (no latch): the balance closes to quadrature error (4 kHz
     samples: 9e-4 J rigid, 3e-4 J full, of 35.8 J; the contact law's clamp max(0, k p + c p')

@@ -1,7 +1,7 @@
 """The node and ``simulate`` judge the same energy balance: on the shipped deployment scene
 (three latches) their residuals agree to integration error. The node runs in this process
-with real rclpy, stepped period by period without spinning (issue 19, item 6). ROS_DOMAIN_IDs
-81.. (LOCALHOST)."""
+with real rclpy, stepped period by period without spinning (issue 19, item 6). ROS domain ids
+from ros_domains (LOCALHOST)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -23,7 +23,7 @@ from rod_sim.tools.simulate import _LoggedRun  # noqa: E402
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
 
 DEPLOYMENT = Path(__file__).resolve().parents[1] / "config" / "deployment.yaml"
-harness = base.harness_fixture(81)
+harness = base.harness_fixture()
 
 
 def simulate_balance(model: str, t_end: float, rate_hz: float, tmp_path):

@@ -20,6 +20,7 @@ from rod_sim.core.simulator import Simulator
 from rod_sim.io.scene_yaml import load_scene, scene_to_yaml
 from rod_sim.tools import advise
 from rod_sim.tools.hard_cases import chain, folded, run_case, step_forces_case
+from untimed import untimed_lines
 
 REPO = Path(__file__).resolve().parents[1]
 PAPER = REPO / "config" / "paper_example.yaml"
@@ -246,6 +247,7 @@ def test_every_integrator_raises_instead_of_returning_nan(integrator, kw, force)
     assert np.all(np.isfinite(sim.y))
 
 
+@pytest.mark.timing
 def test_simulate_exits_1_and_keeps_a_readable_log(tmp_path):
     from rod_sim.io.log_reader import LogReader
     from rod_sim.io.series import read_rod_states
@@ -255,7 +257,7 @@ def test_simulate_exits_1_and_keeps_a_readable_log(tmp_path):
                            "--model", "full", "--integrator", "euler", "--step", "0.05",
                            "--t-end", "2", "--out", str(out)], capture_output=True, text=True)
     assert proc.returncode == 1
-    err = [line for line in proc.stderr.splitlines() if line.startswith("rod-sim:")]
+    err = [line for line in untimed_lines(proc.stderr) if line.startswith("rod-sim:")]
     assert len(err) == 1 and "non-finite" in err[0] and "phi_rate of rod 1" in err[0]
     assert "Traceback" not in proc.stderr
     t, phi, _ = read_rod_states(out)

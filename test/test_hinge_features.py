@@ -24,6 +24,7 @@ from rod_sim.io.scene_yaml import load_scene, scene_from_yaml_text, scene_to_yam
 from rod_sim.tools import cli
 
 from dense_kernels import constraint_matrix, dense_mass_matrix
+from ros_domains import next_domain
 
 REPO = Path(__file__).resolve().parents[1]
 DEPLOYMENT = REPO / "config" / "deployment.yaml"
@@ -362,9 +363,10 @@ def test_node_records_hinge_events(tmp_path, monkeypatch):
     from rclpy.parameter import Parameter
     from rod_sim.ros.node import RodSimNode
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    monkeypatch.setenv("ROS_DOMAIN_ID", "211")
+    domain = next_domain()
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
     ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=211)
+    rclpy.init(context=ctx, domain_id=domain)
     log = tmp_path / "node.mcap"
     try:
         node = RodSimNode(context=ctx, parameter_overrides=[

@@ -11,7 +11,7 @@ compared (``rod-sim compare``) and replayed (``rod-sim replay``) by the command 
 - physics through the node: one damped rod under a held torque T settles at phi_1 = T /
   kappa_0 and the node's energy balance (motor work included) closes.
 
-ROS_DOMAIN_IDs 212..214 (LOCALHOST)."""
+ROS domain ids from ros_domains (LOCALHOST)."""
 from __future__ import annotations
 
 import math
@@ -31,6 +31,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
 
+from ros_domains import next_domains  # noqa: E402
 from procs import ros_env  # noqa: E402
 from ros_graph import Client, NodeProcess, stamp_ns, unique_namespace  # noqa: E402
 from rod_sim.io.log_reader import LogReader  # noqa: E402
@@ -42,7 +43,7 @@ pytestmark = [pytest.mark.ros, pytest.mark.timeout(300)]
 
 REPO = Path(__file__).resolve().parents[1]
 SMALL = REPO / "config" / "small_chain.yaml"
-DOMAIN_LOCKSTEP, DOMAIN_REALTIME, DOMAIN_STATIC = 212, 213, 214
+DOMAIN_LOCKSTEP, DOMAIN_REALTIME, DOMAIN_STATIC = next_domains(3)
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
@@ -81,6 +82,7 @@ def test_torque_commands_are_validated_like_forces():
 
 # ----- lockstep: the whole user path -----
 
+@pytest.mark.slow
 def test_lockstep_torques_rejections_log_compare_and_replay(tmp_path, monkeypatch):
     monkeypatch.setenv("ROS_DOMAIN_ID", str(DOMAIN_LOCKSTEP))
     ns = unique_namespace()
@@ -215,6 +217,7 @@ def test_lockstep_torques_rejections_log_compare_and_replay(tmp_path, monkeypatc
 
 # ----- real time: hold and timeout -----
 
+@pytest.mark.slow
 def test_realtime_torque_is_held_then_times_out(tmp_path, monkeypatch):
     monkeypatch.setenv("ROS_DOMAIN_ID", str(DOMAIN_REALTIME))
     ns = unique_namespace()
@@ -263,6 +266,7 @@ initial: {phi: 0.0, phi_rate: 0.0}
 """
 
 
+@pytest.mark.slow
 def test_held_torque_deflects_one_rod_to_t_over_kappa(tmp_path, monkeypatch):
     """A hand calculation: one rod, hinge 0 spring kappa_0 = 40 N m/rad, motor T = 2 N m:
     phi_1 -> T / kappa_0 = 0.05 rad (overdamped, time constant ~ nu / kappa = 0.5 s); the

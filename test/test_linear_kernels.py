@@ -50,6 +50,7 @@ def _rel(a, b):
     return float(np.max(np.abs(a - b)) / max(1e-300, np.max(np.abs(b))))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model_name", MODELS)
 def test_rhs_equals_the_dense_formulation_with_every_hinge_feature(model_name):
     worst = 0.0

@@ -1,7 +1,7 @@
 """Command lines of the node and the demo controller (issues 11 and 13): bad ROS arguments and
 scenes that cannot start exit 2 with one line, errors name the command the user typed, ROS
 arguments without --ros-args get a hint, pd_controller has --help and says what it does at
-start. ROS_DOMAIN_IDs 132, 133 (LOCALHOST)."""
+start. ROS domain ids from ros_domains (LOCALHOST)."""
 from __future__ import annotations
 
 import os
@@ -10,12 +10,13 @@ import sys
 from pathlib import Path
 
 import pytest
+from ros_domains import next_domains  # noqa: E402
 
 pytest.importorskip("rclpy")
 
 REPO = Path(__file__).resolve().parents[1]
 SMALL = REPO / "config" / "small_chain.yaml"
-DOMAIN_BAD, DOMAIN_CONTROLLER = 132, 133
+DOMAIN_BAD, DOMAIN_CONTROLLER = next_domains(2)
 
 
 def run(args: list[str], timeout: float = 120.0, limit: int | None = None

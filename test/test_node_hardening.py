@@ -2,7 +2,7 @@
 rclpy: log lines never raise, a 1e12 N command fails fast with a named cause while services
 answer, oversize commands, recording after a reset, duplicate names, namespaces and the params
 file, /diagnostics, /clock while paused, start_paused, ~/step with a count, the lockstep t = 0
-state. ROS_DOMAIN_IDs 100.. (one per context, LOCALHOST)."""
+state. ROS domain ids from ros_domains (one per context, LOCALHOST)."""
 from __future__ import annotations
 
 import math
@@ -23,6 +23,7 @@ from std_msgs.msg import Float64MultiArray  # noqa: E402
 from std_srvs.srv import SetBool, Trigger  # noqa: E402
 
 import test_node_ros as base  # noqa: E402
+from ros_domains import next_domain  # noqa: E402
 from rod_sim.io.log_reader import LogReader  # noqa: E402
 from rod_sim.io.scene_yaml import load_scene  # noqa: E402
 from rod_sim.ros.node import (DIAGNOSTICS_STATUS_NAME, NodeConfigError, RodSimNode,  # noqa: E402
@@ -36,8 +37,7 @@ PERIOD_NS = base.PERIOD_NS
 force_command, without_loads, stamp_ns = base.force_command, base.without_loads, base.stamp_ns
 
 
-harness = base.harness_fixture(100)
-"""Each test gets domains 100 + 2 k and 101 + 2 k (k = its index in this module, < 13)."""
+harness = base.harness_fixture()
 
 
 def diag_values(msg) -> dict[str, str]:
@@ -208,9 +208,10 @@ def test_params_file_for_another_name_is_explained(tmp_path, monkeypatch):
     args = ["--ros-args", "-r", "__ns:=/arm1", "--params-file", str(params)]
     assert params_files(args) == (str(params),)
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    monkeypatch.setenv("ROS_DOMAIN_ID", "126")
+    domain = next_domain()
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
     context = rclpy.Context()
-    rclpy.init(args=["test", *args], context=context, domain_id=126)
+    rclpy.init(args=["test", *args], context=context, domain_id=domain)
     try:
         with pytest.raises(NodeConfigError) as err:
             RodSimNode(context=context, params_files=params_files(args))

@@ -1,6 +1,7 @@
 """The node as a separate process (``python -m rod_sim.ros.node``): lockstep against the offline
 model, clean shutdown on SIGTERM, a readable log after SIGKILL, exit status 2 for bad input,
-and the one-process demo. Each test uses its own ROS_DOMAIN_ID with LOCALHOST discovery."""
+and the one-process demo. Each test uses its own ROS domain id (ros_domains) with LOCALHOST
+discovery."""
 from __future__ import annotations
 
 import signal
@@ -21,6 +22,7 @@ from rosbags.typesys import Stores, get_typestore  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
 
+from ros_domains import next_domains  # noqa: E402
 import ros_graph  # noqa: E402
 from procs import ros_env  # noqa: E402
 from rod_sim.core.integrators import make_integrator  # noqa: E402
@@ -35,8 +37,7 @@ pytestmark = [pytest.mark.ros, pytest.mark.timeout(60)]
 REPO = Path(__file__).resolve().parents[1]
 PAPER = REPO / "config" / "paper_example.yaml"
 PERIOD_NS = 10_000_000
-DOMAIN_LOCKSTEP, DOMAIN_SIGTERM, DOMAIN_SIGKILL, DOMAIN_DEMO = 180, 181, 182, 183
-DOMAIN_BAD = 184
+DOMAIN_LOCKSTEP, DOMAIN_SIGTERM, DOMAIN_SIGKILL, DOMAIN_DEMO, DOMAIN_BAD = next_domains(5)
 STARTUP_S = 40.0
 """[s] allowed for a node process to come up (compiling the kernels on a cold cache)."""
 
@@ -216,6 +217,7 @@ def test_help_exits_0():
     assert done.returncode == 0 and "scene_file" in done.stdout
 
 
+@pytest.mark.slow
 def test_demo_runs_node_and_controller_and_records(tmp_path):
     out = tmp_path / "demo" / "demo.mcap"
     done = subprocess.run([sys.executable, "-m", "rod_sim.ros.demo", "--out", str(out),

@@ -2,9 +2,7 @@
 parameters, pacing and failures. Every test has its own context and ROS_DOMAIN_ID (LOCALHOST)."""
 from __future__ import annotations
 
-import itertools
 import math
-import sys
 import time
 from collections import defaultdict
 from pathlib import Path
@@ -29,6 +27,7 @@ from visualization_msgs.msg import MarkerArray  # noqa: E402
 from rod_sim.io.log_reader import LogReader  # noqa: E402
 from rod_sim.io.scene_yaml import load_scene, scene_to_yaml  # noqa: E402
 from rod_sim.ros.node import NodeConfigError, RodSimNode, params_files  # noqa: E402
+from ros_domains import next_domain  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(60)]
 
@@ -36,13 +35,19 @@ REPO = Path(__file__).resolve().parents[1]
 PAPER = REPO / "config" / "paper_example.yaml"
 SMALL = REPO / "config" / "small_chain.yaml"
 PARAMS = REPO / "config" / "sim_node.params.yaml"
-DOMAINS = itertools.count(160)
-"""ROS_DOMAIN_IDs of this module: 160, 161, ... (one per context)."""
 PERIOD_NS = 10_000_000
 
 
 def stamp_ns(msg) -> int:
     return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+
+
+def runnable_s() -> float:
+    """[s] this thread has been runnable so far: on a CPU or waiting in a run queue for one
+    (Linux schedstat), i.e. not sleeping. A busy loop is runnable all the time however loaded
+    the machine is; a thread that waits for a timer is not."""
+    on_cpu, queued, _ = Path("/proc/thread-self/schedstat").read_text().split()
+    return (int(on_cpu) + int(queued)) / 1e9
 
 
 def without_loads(path: Path, tmp_path: Path) -> Path:
@@ -62,7 +67,7 @@ class Harness:
     """A RodSimNode and a test client node in one fresh context, spun by one executor."""
 
     def __init__(self, monkeypatch, ros_args=(), **params):
-        self.domain = next(DOMAINS)
+        self.domain = next_domain()
         monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
         monkeypatch.setenv("ROS_DOMAIN_ID", str(self.domain))
         self.context = rclpy.Context()
@@ -119,17 +124,12 @@ class Harness:
         self.context.try_shutdown()
 
 
-def harness_fixture(first_domain: int | None = None):
-    """A ``harness`` fixture: ``harness(**params)`` makes a :class:`Harness`, closed after the
-    test. With ``first_domain``, test k of the calling module gets ROS domains
-    ``first_domain + 2 k`` and ``first_domain + 2 k + 1`` (else this module's DOMAINS)."""
-    tests = itertools.count()
+def harness_fixture():
+    """A ``harness`` fixture: ``harness(**params)`` makes a :class:`Harness` (in a ROS domain of
+    its own, from ros_domains), closed after the test."""
 
     @pytest.fixture
     def harness(monkeypatch):
-        if first_domain is not None:
-            monkeypatch.setattr(sys.modules[__name__], "DOMAINS",
-                                itertools.count(first_domain + 2 * next(tests)))
         made = []
 
         def make(**kwargs) -> Harness:
@@ -351,9 +351,16 @@ def test_parameters_from_the_params_file_and_descriptors(harness):
     assert not h.node.set_parameters([Parameter("real_time_factor", value=1e6)])[0].successful
     assert not h.node.set_parameters([Parameter("frame_id", value="")])[0].successful
     assert h.node.set_parameters([Parameter("real_time_factor", value=0.0)])[0].successful
-    t0 = h.node.sim_time
+    t0, wall0, runnable0 = h.node.sim_time, time.monotonic(), runnable_s()
     h.spin_for(0.5)
-    assert h.node.sim_time - t0 > 1.0, "real_time_factor 0 should run faster than real time"
+    advanced, wall = h.node.sim_time - t0, time.monotonic() - wall0
+    runnable = runnable_s() - runnable0
+    # as fast as possible: twice real time or more where this process gets the CPU; on a
+    # machine too busy to afford that, it still never waits for the wall clock (the node's
+    # thread runnable all along: 99.7 % of the window measured at load 8, where a node paced at
+    # real time was runnable 68 % of it: it sleeps between ticks)
+    assert advanced > 2.0 * wall or runnable > 0.95 * wall, \
+        f"real_time_factor 0: {advanced:.2f} s in {wall:.2f} s, runnable {runnable:.2f} s"
 
 
 @pytest.mark.parametrize("params, match", [
@@ -377,10 +384,15 @@ def test_real_time_pacing_within_bounds(harness):
     wall0, sim0 = time.monotonic(), h.node.sim_time
     h.spin_for(2.0)
     rtf = (h.node.sim_time - sim0) / (time.monotonic() - wall0)
-    assert 0.8 < rtf < 1.2
-    measured = [float({kv.key: kv.value for kv in m.status[0].values}
-                      ["real_time_factor_measured"]) for m in h.received["diagnostics"][1:]]
-    assert measured and all(0.8 < r < 1.2 for r in measured)
+    values = [{kv.key: kv.value for kv in m.status[0].values}
+              for m in h.received["diagnostics"][1:]]
+    measured = [float(v["real_time_factor_measured"]) for v in values]
+    assert measured and rtf < 1.2 and all(r < 1.2 for r in measured), (rtf, measured)
+    # never ahead of real time; behind it only where this process could not get the CPU to
+    # keep pace (a loaded machine), and then the node says so: it drops the backlog it cannot
+    # catch up within 1 s and counts it on diagnostics
+    dropped = int(values[-1]["dropped_periods"])
+    assert dropped > 0 or (rtf > 0.8 and all(r > 0.8 for r in measured)), (rtf, measured)
 
 
 def test_integration_failure_pauses_reports_and_recovers(harness, tmp_path):

@@ -2,7 +2,7 @@
 and ~/reset calls sent without waiting gets one answer each (done or refused "busy"), and a
 ~/step of many periods runs in bounded slices: the node answers ~/pause and publishes
 diagnostics meanwhile, a second ~/step is refused "busy", the first answers when done.
-ROS_DOMAIN_IDs 224..227 (LOCALHOST)."""
+ROS domain ids from ros_domains (LOCALHOST)."""
 from __future__ import annotations
 
 import time
@@ -20,7 +20,7 @@ import rod_sim.ros.node as node_module  # noqa: E402
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
 
 
-harness = base.harness_fixture(224)
+harness = base.harness_fixture()
 
 
 def ready_client(h, srv_type, name):

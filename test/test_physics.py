@@ -51,7 +51,7 @@ def test_rigid_balance_with_loads_and_damping_closes_to_integrator_tolerance():
     assert res / scale < 1e-8
 
 
-@pytest.mark.parametrize("model_name", ["reduced", "full"])
+@pytest.mark.parametrize("model_name", ["reduced", pytest.param("full", marks=pytest.mark.slow)])
 def test_bending_models_balance_closes_to_first_order_in_bending(model_name):
     """The paper's full and reduced models are energy-consistent only up to terms of first
     order in the bending (the reduced model drops the bending inertia and rates; the full

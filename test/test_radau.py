@@ -20,6 +20,7 @@ from rod_sim.core.models import make_model
 from rod_sim.core.scene import Scene
 from rod_sim.core.simulator import Simulator
 from rod_sim.io.scene_yaml import load_scene
+from ros_domains import next_domain
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "config" / "paper_example.yaml"
@@ -99,6 +100,7 @@ def test_shared_lu_solves_with_row_swaps(dtype):
     assert not dense_lu.lu_inplace(np.zeros((3, 3), dtype=dtype), np.zeros(3, dtype=np.int64))
 
 
+@pytest.mark.slow
 def test_one_step_is_the_collocation_solution_and_its_polynomial():
     rhs, chain, extra, loads, held = linear_args()
     y0 = Y0_LIN.copy()
@@ -128,6 +130,7 @@ def test_one_step_is_the_collocation_solution_and_its_polynomial():
     assert np.max(np.abs(y_new - expm(A_LIN * h) @ y0)) < 1e-2 * size
 
 
+@pytest.mark.slow
 def test_run_stops_at_an_event_located_on_the_collocation_polynomial():
     from scipy.optimize import brentq
 
@@ -209,7 +212,7 @@ def chain(EI=1e4):
                    "start": 0.2, "duration": 0.5}]})
 
 
-@pytest.mark.parametrize("model_name", ["rigid", "reduced", "full"])
+@pytest.mark.parametrize("model_name", ["rigid", "reduced", pytest.param("full", marks=pytest.mark.slow)])
 def test_models_converge_to_scipy_radau(model_name):
     model = make_model(model_name, chain())
     t_end = 0.8
@@ -338,7 +341,7 @@ def test_node_runs_radau_jit(monkeypatch):
 
     from rod_sim.ros.node import RodSimNode
 
-    domain = 150
+    domain = next_domain()
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
     context = rclpy.Context()

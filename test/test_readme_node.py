@@ -1,8 +1,7 @@
 """Every runnable code block of the README's node section, run as a user would (issue 13):
 the shell commands (real-time node with the shipped params file, the same in a namespace in
 lockstep, the one-process demo) and the lockstep Python client against the namespaced node.
-Only the domain id and the output directory are replaced. ROS_DOMAIN_IDs 129..131 and 215
-(LOCALHOST)."""
+Only the domain id (from ros_domains) and the output directory are replaced (LOCALHOST)."""
 from __future__ import annotations
 
 import re
@@ -16,6 +15,7 @@ import pytest
 
 pytest.importorskip("rclpy")
 
+from ros_domains import next_domains  # noqa: E402
 from procs import Child, ros_env  # noqa: E402
 from rod_sim.io.log_reader import LogReader  # noqa: E402
 
@@ -23,7 +23,7 @@ pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]
 
 REPO = Path(__file__).resolve().parents[1]
 SECTION = "## The ROS 2 node"
-DOMAIN_REALTIME, DOMAIN_LOCKSTEP, DOMAIN_DEMO, DOMAIN_TORQUES = 129, 130, 131, 215
+DOMAIN_REALTIME, DOMAIN_LOCKSTEP, DOMAIN_DEMO, DOMAIN_TORQUES = next_domains(4)
 STARTUP_S = 60.0
 
 

@@ -1,6 +1,7 @@
 """``rod-sim repair``: a log whose writer was SIGKILLed (no summary; rosbags cannot open it) is
 rewritten complete, with every message of its complete chunks, and rosbags reads it (issue 11
-item 6). The node's SIGKILL case is in the ros-marked test below (ROS_DOMAIN_ID 140)."""
+item 6). The node's SIGKILL case is in the ros-marked test below (ROS domain id from
+ros_domains)."""
 from __future__ import annotations
 
 import os
@@ -17,11 +18,12 @@ from rosbags.typesys import Stores, get_typestore
 
 from rod_sim.io.log_reader import LogReader
 from rod_sim.tools import cli
+from ros_domains import next_domain  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "config" / "paper_example.yaml"
 JAZZY = get_typestore(Stores.ROS2_JAZZY)
-DOMAIN_REPAIR_NODE = 140
+DOMAIN_REPAIR_NODE = next_domain()
 
 
 def rod_sim(*args) -> int:
@@ -120,6 +122,7 @@ def test_repair_refuses_a_corrupt_log(tmp_path, capsys):
     assert not (tmp_path / "r.mcap").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.ros
 @pytest.mark.timeout(90)
 def test_repair_a_sigkilled_node_log(tmp_path, capsys):

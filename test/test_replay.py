@@ -4,7 +4,7 @@ with the recorded bytes, in order, at its log-time offset / rate; /clock must fo
 time; --topics, --loop, --start-paused, QoS and bad input are checked. The pure parts (QoS
 parsing, bag directories, truncated logs, the timeline) are tested without ROS.
 
-Each ROS test uses its own ROS_DOMAIN_ID (190..199) with LOCALHOST discovery."""
+Each ROS test uses its own ROS domain id (ros_domains) with LOCALHOST discovery."""
 from __future__ import annotations
 
 import signal
@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 import yaml
 
+from ros_domains import next_domains  # noqa: E402
 from procs import Child
 from rod_sim.core.integrators import make_integrator
 from rod_sim.core.models import make_model
@@ -32,7 +33,7 @@ REPO = Path(__file__).resolve().parents[1]
 PAPER = REPO / "config" / "paper_example.yaml"
 RATE_HZ, T_END = 50.0, 1.0
 SAMPLES = 51
-DOMAIN_ALL, DOMAIN_RATE, DOMAIN_LOOP, DOMAIN_PAUSE, DOMAIN_SIGTERM = 190, 191, 192, 193, 194
+DOMAIN_ALL, DOMAIN_RATE, DOMAIN_LOOP, DOMAIN_PAUSE, DOMAIN_SIGTERM = next_domains(5)
 NS = 1_000_000_000
 TIMING_TOLERANCE_S = 0.1
 """[s] bound on the 90th percentile of |arrival lag - median lag|, the lag being a message's

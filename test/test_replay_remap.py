@@ -1,6 +1,7 @@
 """``rod-sim replay --remap FROM:=TO`` and ``--ros-args ...`` (issue 13): recorded topics
 published under other names, the player node in a namespace, ROS arguments no longer parsed
-as replay options, and bad ones refused in one line. ROS_DOMAIN_IDs 127, 128 (LOCALHOST)."""
+as replay options, and bad ones refused in one line. ROS domain ids from ros_domains
+(LOCALHOST)."""
 from __future__ import annotations
 
 import pytest
@@ -8,8 +9,9 @@ import pytest
 from rod_sim.tools import cli
 from rod_sim.tools.replay import ros_arguments
 from test_replay import ALL_TOPICS, STARTUP_S, log_path, recorded  # noqa: F401 (fixture)
+from ros_domains import next_domains  # noqa: E402
 
-DOMAIN_REMAP = 127
+DOMAIN_REMAP, DOMAIN_BAD_REMAP = next_domains(2)
 
 
 def test_ros_args_are_not_replay_options_and_remaps_become_ros_arguments():
@@ -67,8 +69,8 @@ def test_remap_and_namespace(log_path, listener, replay):  # noqa: F811
 @pytest.mark.ros
 @pytest.mark.timeout(90)
 def test_pause_service_in_the_namespace(log_path, listener, replay):  # noqa: F811
-    lis = listener(DOMAIN_REMAP + 1, [], clock=False)
-    proc = replay(DOMAIN_REMAP + 1, log_path, "--topics", "/rod_states", "--no-clock",
+    lis = listener(DOMAIN_BAD_REMAP, [], clock=False)
+    proc = replay(DOMAIN_BAD_REMAP, log_path, "--topics", "/rod_states", "--no-clock",
                   "--start-paused", "--ros-args", "-r", "__ns:=/arm1")
     client = lis.node.create_client(SetBool, "/arm1/rod_sim_replay/pause")
     lis.spin_until(client.service_is_ready, STARTUP_S, "the namespaced pause service",

@@ -1,7 +1,8 @@
 """Issue 20 item 3: the chain as URDF for the standard tools, met as a user meets it:
 `rod-sim urdf SCENE` parses with a URDF parser from PyPI (yourdfpy) with the masses of a hand
 calculation, and the node's latched ``robot_description`` + ``joint_states`` give, by forward
-kinematics in that parser, the node positions of ``node_poses`` to 1e-9 m. ROS_DOMAIN_ID 67."""
+kinematics in that parser, the node positions of ``node_poses`` to 1e-9 m. ROS domain id from
+ros_domains."""
 from __future__ import annotations
 
 import io
@@ -11,13 +12,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from ros_domains import next_domain  # noqa: E402
 
 yourdfpy = pytest.importorskip("yourdfpy")
 
 REPO = Path(__file__).resolve().parents[1]
 SMALL = REPO / "config" / "small_chain.yaml"
 PAPER = REPO / "config" / "paper_example.yaml"
-DOMAIN = 67
+DOMAIN = next_domain()
 
 
 def parse(text: str):

@@ -1,7 +1,7 @@
 """Issue 20 item 6: the node's ``scene_file`` is found relative to the params file that sets it
 (or as ``package://rod_sim/...`` or an absolute path), from any working directory; a missing
 one is one line naming the directory searched; package.xml lists every runtime dependency of
-setup.py. ROS_DOMAIN_IDs 63, 64 (LOCALHOST)."""
+setup.py. ROS domain ids from ros_domains (LOCALHOST)."""
 from __future__ import annotations
 
 import ast
@@ -14,12 +14,13 @@ from pathlib import Path
 
 import pytest
 
+from ros_domains import next_domains  # noqa: E402
 from procs import ros_env
 from rod_sim.ros.scene_path import (ScenePathError, params_file_value, resolve_scene_file)
 
 REPO = Path(__file__).resolve().parents[1]
 PAPER = REPO / "config" / "paper_example.yaml"
-DOMAIN_START, DOMAIN_MISSING = 63, 64
+DOMAIN_START, DOMAIN_MISSING = next_domains(2)
 
 
 def write_params(path: Path, scene_file: str, key: str = "/**") -> Path:
@@ -90,6 +91,7 @@ def node_args(*ros_args: str) -> list[str]:
     return [sys.executable, "-m", "rod_sim.tools.cli", "node", "--ros-args", *ros_args]
 
 
+@pytest.mark.slow
 @pytest.mark.ros
 @pytest.mark.timeout(90)
 def test_the_shipped_params_file_starts_the_node_from_another_directory(tmp_path):

@@ -41,6 +41,7 @@ def terminate(proc, timeout: float = 30.0) -> tuple[int, str]:
 
 
 @pytest.mark.slow
+@pytest.mark.timing
 def test_sigterm_closes_the_simulate_log_with_its_summary(tmp_path):
     log = tmp_path / "long.mcap"
     proc = rod_sim_proc("simulate", PAPER, "--t-end", 600, "--rate", 1000, "--out", log)
@@ -59,6 +60,7 @@ def test_sigterm_closes_the_simulate_log_with_its_summary(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.timing
 def test_sigterm_stops_compare_cleanly(tmp_path):
     log = tmp_path / "c.mcap"
     done = subprocess.run([sys.executable, "-m", "rod_sim.tools.cli", "simulate", str(PAPER),
@@ -74,6 +76,7 @@ def test_sigterm_stops_compare_cleanly(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.timing
 def test_sigterm_stops_a_sweep_and_writes_the_finished_rows(tmp_path):
     spec = {"name": "term", "scene": str(PAPER), "models": ["full"], "t_end": 2.0,
             "rtol": 1e-10, "rate": 50,
@@ -110,6 +113,7 @@ def test_an_interrupt_raised_inside_a_compiled_call_is_still_an_interrupt(monkey
     assert capsys.readouterr().err.strip() == "rod-sim compare: interrupted (SIGTERM)"
 
 
+@pytest.mark.timing
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_a_signal_in_the_middle_of_a_log_write_waits_for_its_end(tmp_path, monkeypatch, capsys,
                                                                  sig):

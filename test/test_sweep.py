@@ -347,6 +347,7 @@ def test_plot_is_written(tmp_path):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
 
 
+@pytest.mark.slow
 def test_local_dask_cluster_gives_the_same_rows(local_run, tmp_path):
     distributed = pytest.importorskip("dask.distributed")
     path, rows = local_run
@@ -377,6 +378,7 @@ def test_interrupt_writes_the_finished_rows(tmp_path, monkeypatch, capsys):
 
 
 @pytest.mark.slow
+@pytest.mark.timing
 def test_sigint_stops_the_process_pool(tmp_path):
     spec = {**TINY, "scene": str(ROOT / "config" / "paper_example.yaml"), "models": ["full"],
             "rtol": 1e-10, "t_end": 2.0, "parameters": {"hinges.stiffness": {
