@@ -714,7 +714,8 @@ class RodSimNode(Node):
         self._ledger.add(start_sample, end_sample, sim.events[self._events_sent:])
         self._balance_end = (sim.t_ns, held.copy(), end_sample)
         self._validity.update(sim.t, sim.y, held, snap.alpha, snap.beta)
-        self._validity.update_energy(sim.t, self._ledger.residual, self._ledger.scale)
+        self._validity.update_energy(sim.t, self._ledger.residual, self._ledger.scale,
+                                     self._ledger.unresolved)
         self._publish_state(snap)
         self._publish_events()
         return True

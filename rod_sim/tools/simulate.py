@@ -153,7 +153,8 @@ class _LoggedRun:
                 k += 1
             self.balance.add(self._last, sample, events[self.balanced_events:k])
             self.balanced_events = k
-            self.validity.update_energy(t, self.balance.residual, self.balance.scale)
+            self.validity.update_energy(t, self.balance.residual, self.balance.scale,
+                                        self.balance.unresolved)
         self._last = sample
         with signals_deferred():            # every record of a sample whole, or none
             self.log.write_snapshot(snap, self.scene, frame_id=self.frame_id)
