@@ -11,6 +11,7 @@ to rod h+1; hinge 0 joins rod 1 to the ground).
 from __future__ import annotations
 
 import math
+import unicodedata
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
@@ -229,6 +230,25 @@ class Scene:
             out["rods"]["rigid"] = [bool(v) for v in self.rod_rigid]
 
 
+MAX_NAME_CHARS = 200
+"""Longest scene name (characters): it is the URDF robot name, the log's scene title and the
+diagnostics' name."""
+
+
+def _check_name(name: str) -> None:
+    """Refuse a scene name that some writer could not carry as it is: more than
+    MAX_NAME_CHARS characters, or any character of Unicode category C (control, format,
+    surrogate, private use, unassigned: "a\\0b" is not XML, a newline breaks a log line) or a
+    line / paragraph separator. Checked once here, so every writer (URDF, logs, markers,
+    diagnostics) gets a name it can write as it is."""
+    if len(name) > MAX_NAME_CHARS:
+        raise SceneError("name", f"at most {MAX_NAME_CHARS} characters (got {len(name)})")
+    for i, ch in enumerate(name):
+        if unicodedata.category(ch)[0] == "C" or unicodedata.category(ch) in ("Zl", "Zp"):
+            raise SceneError("name", f"character {i + 1} is U+{ord(ch):04X} (control, format or "
+                             "unassigned characters are not allowed; printable text only)")
+
+
 _TOP_KEYS = {"name", "rods", "nodes", "hinges", "initial", "loads"}
 _SECTION_KEYS = {
     "rods": {"count", "length", "mass_per_length", "bending_stiffness", "rigid"},
@@ -281,6 +301,7 @@ class _SceneParser:
         name = data.get("name", "scene")
         if not isinstance(name, str) or not name:
             raise SceneError("name", f"must be a non-empty string (got {quote(name)})")
+        _check_name(name)
 
         def arr(section, key, *, default=None, minimum=None, strict=False):
             path = f"{section}.{key}"
