@@ -114,3 +114,24 @@ def test_a_simulate_log_converted_to_sqlite3_is_self_contained(tmp_path):
     refused = rod_sim("compare", str(other))
     assert refused.returncode == 2 and "rosbags-convert" in refused.stderr
     assert len(refused.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("storage", ["sqlite3", "mcap"])
+def test_deployment_figure_finds_the_scene_of_a_converted_bag(tmp_path, storage):
+    """Issue 27, item 7: on a rosbags-convert copy (no MCAP metadata, the /scene topic kept)
+    deployment-figure said "metadata holds no scene" while compare read the scene from
+    /scene. Every tool finds a log's scene one way (LogStream.scene)."""
+    pytest.importorskip("matplotlib")
+    log = tmp_path / "run.mcap"
+    deployment = REPO / "config" / "deployment.yaml"
+    assert rod_sim("simulate", str(deployment), "--t-end", "0.2", "--out",
+                   str(log)).returncode == 0
+    bag = tmp_path / "bag"
+    subprocess.run([str(CONVERT), "--src", str(log), "--dst", str(bag), "--dst-storage",
+                    storage], check=True, capture_output=True, timeout=120)
+    png = tmp_path / "fig.png"
+    done = rod_sim("deployment-figure", str(bag), str(png))
+    assert done.returncode == 0, done.stderr
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    compared = rod_sim("compare", str(bag), "--json")
+    assert '"scene": "deployment"' in compared.stdout, compared.stdout[:300]
