@@ -5,6 +5,7 @@ and a storage rod_sim cannot read names the tool to convert it with. Each step i
 process as a user runs it. ROS_DOMAIN_ID 68 (LOCALHOST)."""
 from __future__ import annotations
 
+import re
 import signal
 import subprocess
 import sys
@@ -135,3 +136,42 @@ def test_deployment_figure_finds_the_scene_of_a_converted_bag(tmp_path, storage)
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     compared = rod_sim("compare", str(bag), "--json")
     assert '"scene": "deployment"' in compared.stdout, compared.stdout[:300]
+
+
+def test_replay_skips_and_counts_the_corrupt_messages_of_a_sqlite3_bag(tmp_path):
+    """Issue 27, item 6: on a sqlite3 bag (no CRCs) whose payloads are corrupt every third
+    message, replay republished all of them, exit 0, no warning. Now each payload is checked
+    against its type before it is published (payload_check): the corrupt ones (cut short,
+    padded, random bytes) are skipped, counted per topic and reported, exit 1; the others are
+    all published."""
+    import random
+    import sqlite3
+
+    log = tmp_path / "run.mcap"
+    assert rod_sim("simulate", str(PAPER), "--t-end", "0.5", "--rate", "50", "--out",
+                   str(log)).returncode == 0
+    bag = tmp_path / "bag"
+    subprocess.run([str(CONVERT), "--src", str(log), "--dst", str(bag), "--dst-storage",
+                    "sqlite3"], check=True, capture_output=True, timeout=120)
+    db = next(bag.glob("*.db3"))
+    rng = random.Random(27)
+    with sqlite3.connect(db) as con:
+        rows = con.execute("SELECT id, data FROM messages ORDER BY id").fetchall()
+        damaged = 0
+        for k, (mid, data) in enumerate(rows):
+            if k % 3 != 2:
+                continue
+            kind = damaged % 3
+            bad = (data[:len(data) // 2] if kind == 0 else data + bytes(8) if kind == 1
+                   else bytes(rng.randrange(256) for _ in data))
+            con.execute("UPDATE messages SET data = ? WHERE id = ?", (bad, mid))
+            damaged += 1
+    assert damaged > 30
+    done = rod_sim("replay", str(bag), "--rate", "20", "--no-clock")
+    assert done.returncode == 1, done.stderr
+    assert "Traceback" not in done.stderr
+    last = done.stderr.strip().splitlines()[-1]
+    assert last.startswith(f"rod-sim replay: skipped {damaged} corrupt message(s), not "
+                           "published ("), last
+    published = re.search(r"end of log: (\d+) messages", done.stderr)
+    assert published and int(published.group(1)) == len(rows) - damaged, done.stderr
