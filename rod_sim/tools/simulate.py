@@ -18,7 +18,7 @@ from . import limits
 from .common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, compile_notice, load_scene, \
     new_output_path
 from .common import positive_float as _positive_float
-from .signals import signals_deferred
+from .signals import done, signals_deferred
 
 HELP = "offline run of a scene, written as an MCAP log"
 DESCRIPTION = ("Offline run of a scene (no ROS graph); writes the log of docs/interface.md "
@@ -103,6 +103,7 @@ def run(args) -> int:
         finally:
             with signals_deferred():        # the summary is written whole, even on Ctrl-C
                 log.close()
+                done(out)
     except OSError as err:
         print(f"rod-sim simulate: error: writing {out} failed at t = {logged.t_logged:g} s: "
               f"{err.strerror or err}; {_salvage(out)}", file=sys.stderr)

@@ -12,15 +12,18 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
 import time
 from pathlib import Path
 
 from ..core.quote import quote
 from .common import EXIT_OK, UsageError, new_output_path
+from .signals import done, exit_status, received
 
 HELP = "batch runs over parameter grids or Monte-Carlo draws (local pool or Dask cluster)"
 EXIT_INTERRUPTED = 130
+"""Ctrl-C; SIGTERM: 143 (:func:`rod_sim.tools.signals.exit_status`)."""
 
 
 class SweepInterrupted(Exception):
@@ -353,13 +356,16 @@ def run(args) -> int:
             bar.close()
         rows = [stop.rows[i] for i in sorted(stop.rows)]
         write_table(rows, out, result_columns(spec), metadata(spec))
-        print(f"rod-sim sweep: interrupted: {_summary(rows, len(tasks))}; finished rows "
-              f"written to {out}", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        done(out)
+        print(f"rod-sim sweep: interrupted{' (SIGTERM)' if received() == signal.SIGTERM else ''}"
+              f": {_summary(rows, len(tasks))}; finished rows written to {out}",
+              file=sys.stderr)
+        return exit_status()
     if bar is not None:
         bar.close()
     wall = time.perf_counter() - started
     write_table(rows, out, result_columns(spec), metadata(spec))
+    done(out)
     if plot is not None:
         from .sweep_plot import plot_sweep
 
