@@ -113,6 +113,10 @@ def main(argv: list[str] | None = None) -> int:
         signals.finished()
         if entry_point:         # the process ends now: a signal from here on ends it at once
             signals.exit_quietly_on_signal()
+    if entry_point and status in (signals.EXIT_SIGINT, signals.EXIT_SIGTERM):
+        # interrupted: the outputs are closed; tearing down a large heap (a 100 000-rod
+        # node's) took ~2 s more, past the 1 s a stop may take
+        signals.exit_now(status)
     return status
 
 

@@ -140,15 +140,21 @@ def finished() -> None:
     _done.set()
 
 
+def exit_now(status: int) -> None:
+    """End the process with ``status`` at once, stdout and stderr flushed (no interpreter
+    teardown: the outputs are already closed)."""
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    os._exit(status)
+
+
 def exit_quietly_on_signal() -> None:
     """After the command has returned (its outputs closed, its exit status known), while the
     interpreter shuts down: SIGINT / SIGTERM end the process at once, streams flushed, with
     status 130 / 143 and no further line (no traceback from the shutdown's own code)."""
     def end(signum, frame):
-        for stream in (sys.stdout, sys.stderr):
-            with contextlib.suppress(Exception):
-                stream.flush()
-        os._exit(exit_status(signum))
+        exit_now(exit_status(signum))
 
     if threading.current_thread() is threading.main_thread():
         for sig in (signal.SIGINT, signal.SIGTERM):
