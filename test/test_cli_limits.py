@@ -242,3 +242,122 @@ def test_a_failure_during_the_jit_warm_up_is_no_traceback(tmp_path, capsys, monk
     assert "Traceback" not in capsys.readouterr().err
     t, _, _ = read_rod_states(tmp_path / "run.mcap")
     assert t.size == 21
+
+
+def _address_space(limit: int):
+    def preexec():
+        import resource
+
+        resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+    return preexec
+
+
+def test_the_memory_check_honours_the_address_space_limit(tmp_path):
+    """Issue 27, item 10: `simulate` at n = 1e6 under `ulimit -v 6 GB` was accepted (the check
+    saw only the machine's memory) and did not finish a step in 400 s. Now the room under
+    RLIMIT_AS counts: refused at once, one line naming the limit."""
+    scene = scene_yaml(tmp_path, key="count", value="1000000")
+    started = time.monotonic()
+    done = subprocess.run([sys.executable, "-m", "rod_sim.tools.cli", "simulate", str(scene),
+                           "--t-end", "0.01", "--out", str(tmp_path / "run.mcap")],
+                          capture_output=True, text=True, timeout=120,
+                          preexec_fn=_address_space(6 * 1024 ** 3))
+    assert done.returncode == 2, done.stderr[-2000:]
+    assert done.stderr.strip().splitlines()[-1].startswith(
+        "rod-sim simulate: error: rods.count: a chain of 1000000 rods needs about 15.6 GiB"), \
+        done.stderr
+    assert "under the address-space limit (ulimit -v)" in done.stderr
+    assert time.monotonic() - started < 60 and not (tmp_path / "run.mcap").exists()
+
+
+@pytest.mark.parametrize("version", [1, 2])
+def test_the_memory_check_honours_the_cgroup_limit(tmp_path, monkeypatch, version):
+    """The room left under the process's cgroup memory limit counts (v1 and v2 layouts, read
+    from a copy of /proc/self/cgroup and /sys/fs/cgroup written here)."""
+    root = tmp_path / "cgroup"
+    if version == 2:
+        group = root / "jobs" / "rod"
+        group.mkdir(parents=True)
+        (group / "memory.max").write_text(f"{3 * 1024 ** 3}\n")
+        (group / "memory.current").write_text(f"{1024 ** 3}\n")
+        proc = "0::/jobs/rod\n"
+    else:
+        group = root / "memory" / "jobs" / "rod"
+        group.mkdir(parents=True)
+        (group / "memory.limit_in_bytes").write_text(f"{3 * 1024 ** 3}\n")
+        (group / "memory.usage_in_bytes").write_text(f"{1024 ** 3}\n")
+        proc = "4:memory:/jobs/rod\n1:cpu:/\n"
+    (tmp_path / "cgroup.txt").write_text(proc)
+    monkeypatch.setattr(limits, "PROC_CGROUP", str(tmp_path / "cgroup.txt"))
+    monkeypatch.setattr(limits, "CGROUP_ROOT", str(root))
+    assert limits._cgroup_memory() == 2 * 1024 ** 3
+    with pytest.raises(UsageError, match=r"2 GiB under the cgroup memory limit"):
+        limits.check_model_memory(200_000)                       # 3.45 GiB
+    limits.check_model_memory(50_000)                            # 1.15 GiB: fits
+    (group / ("memory.max" if version == 2 else "memory.limit_in_bytes")).write_text(
+        "max\n" if version == 2 else "9223372036854771712\n")
+    assert limits._cgroup_memory() is None
+
+
+def test_compare_over_a_folder_of_many_logs_is_refused_up_front(tmp_path):
+    """Issue 27, item 10: `compare` over a folder of 10 000 files had no bound (every file is
+    opened and checked, all at once, to merge their messages). Past MAX_LOG_FILES (1000) the
+    folder is refused before any file is read: one line, exit 2, in seconds."""
+    from rod_sim.io.log_open import MAX_LOG_FILES
+
+    log = tmp_path / "one.mcap"
+    done = subprocess.run([sys.executable, "-m", "rod_sim.tools.cli", "simulate",
+                           str(ROOT / "config" / "small_chain.yaml"), "--t-end", "0.05",
+                           "--out", str(log)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    folder = tmp_path / "many"
+    folder.mkdir()
+    for k in range(10_000):
+        os.link(log, folder / f"part_{k:05d}.mcap")
+    started = time.monotonic()
+    done = subprocess.run([sys.executable, "-m", "rod_sim.tools.cli", "compare", str(folder)],
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 2, done.stderr[-2000:]
+    assert done.stderr.count("\n") == 1 and "Traceback" not in done.stderr, done.stderr
+    assert f"more than {MAX_LOG_FILES} log files in one bag" in done.stderr
+    assert time.monotonic() - started < 30
+
+
+def test_urdf_of_a_long_chain_is_written_in_bounded_time_and_memory(tmp_path):
+    """Issue 27, item 10: `rod-sim urdf` at n = 1e6 wrote nothing in 300 s (an ElementTree of
+    19 elements per rod, serialised at the end). Written as text, 1000 rods at a time: 300 000
+    rods here (n = 1e6 measured: 24 s, 0.9 GB file, 206 MB max RSS)."""
+    scene = scene_yaml(tmp_path, key="count", value="300000")
+    out = tmp_path / "chain.urdf"
+    started = time.monotonic()
+    done = subprocess.run([sys.executable, "-m", "rod_sim.tools.cli", "urdf", str(scene),
+                           "--out", str(out)], capture_output=True, text=True, timeout=300)
+    took = time.monotonic() - started
+    assert done.returncode == 0, done.stderr
+    assert took < 45, f"{took:.1f} s"
+    with open(out, "rb") as f:
+        joints = sum(line.count(b"<joint ") for line in f)
+        f.seek(-10, 2)
+        tail = f.read()
+    assert joints == 300_001 and tail.endswith(b"</robot>\n")
+
+
+def test_a_slow_simulate_says_what_it_is_doing_and_how_long_it_will_take(tmp_path, capsys,
+                                                                         monkeypatch):
+    """Issue 27, item 10: radau-jit at rtol 1e-12 on the EI = 1e12 deployment variant ran
+    past 60 s with no line. A run says every PROGRESS_EVERY_S (10 s; 0.2 s here) the simulated
+    time reached, the integrator, its steps and rhs evaluations and the time left at its
+    pace (measured on that case: "t = 0 of 0.2 s after 10 s (radau-jit rtol=1e-12 ...:
+    347967 steps of ~2.4e-09 s ...; ~41 min more at this pace)")."""
+    from rod_sim.tools import cli, simulate
+
+    monkeypatch.setattr(simulate._LoggedRun, "PROGRESS_EVERY_S", 0.2)
+    monkeypatch.setattr(simulate._LoggedRun, "CHUNK_SECONDS", 0.05)
+    assert cli.main(["simulate", str(ROOT / "config" / "paper_example.yaml"), "--t-end", "2",
+                     "--rate", "1000", "--out", str(tmp_path / "run.mcap")]) == 0
+    lines = [line for line in capsys.readouterr().err.splitlines()
+             if line.startswith("rod-sim simulate: t = ")]
+    assert lines, "no progress line"
+    assert " of 2 s after " in lines[-1] and "dop853-jit rtol=1e-08" in lines[-1]
+    assert "rhs evaluations" in lines[-1] and ("more at this pace" in lines[-1]
+                                               or "no estimate yet" in lines[-1])

@@ -95,3 +95,21 @@ def test_ctl_without_the_node_is_one_line_exit_1():
         f"/nowhere/rod_sim in ROS_DOMAIN_ID {DOMAIN}? (--ns, --node)")
     bad = ctl("param")
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("args, rule", [
+    (["--ns", "bad//ns", "pause"], "--ns 'bad//ns': namespace must not contain repeated '/'"),
+    (["--ns", "/1abc", "pause"], "--ns '/1abc': namespace must not have a token that starts"),
+    (["--node", "x y", "pause"], "--node 'x y': node name must not contain characters"),
+    (["echo", "bad topic!"], "topic 'bad topic!': topic name 'bad topic!' is invalid"),
+    (["hz", "~/a{b"], "topic '~/a{b': "),
+])
+def test_ctl_bad_names_are_one_line_exit_2(args, rule):
+    """Issue 27, item 3: a namespace, node or topic name ROS 2 refuses printed a 36-line rclpy
+    traceback (exit 1), or rcl's C source location (exit 1): now one line naming the option and
+    the rule, exit 2, before any ROS context is created."""
+    done = ctl("--timeout", "1", *args)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.count("\n") == 1 and "Traceback" not in done.stderr, done.stderr
+    assert done.stderr.startswith(f"rod-sim ctl: error: {rule}"), done.stderr
+    assert ".c:" not in done.stderr and done.stdout == ""

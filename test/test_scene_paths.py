@@ -155,3 +155,41 @@ def test_package_xml_lists_every_runtime_dependency_of_setup_py():
                           "\n".join(p.read_text() for p in (REPO / "rod_sim").rglob("*.py")),
                           re.M))
     assert used and used <= depends, f"package.xml lacks {sorted(used - depends)}"
+
+
+def test_package_urls_never_lead_outside_the_share_directory(tmp_path, monkeypatch):
+    """Issue 27, item 4: `package://rod_sim/../../../../etc/passwd` read a file outside the
+    package. '..' above the share folder, an absolute path and a symbolic link whose target is
+    outside the package are refused naming the URL; a link inside the share folder, or into
+    another of the package's directories (colcon --symlink-install links share/ into the
+    source tree), is followed."""
+    from rod_sim.ros import scene_path
+
+    share, src, outside = tmp_path / "share", tmp_path / "src", tmp_path / "outside"
+    for d in (share / "config", src, outside):
+        d.mkdir(parents=True)
+    (share / "config" / "ok.yaml").write_text("ok")
+    (src / "linked.yaml").write_text("linked")
+    (outside / "secret.yaml").write_text("secret")
+    (share / "config" / "in.yaml").symlink_to(share / "config" / "ok.yaml")
+    (share / "config" / "src.yaml").symlink_to(src / "linked.yaml")
+    (share / "config" / "out.yaml").symlink_to(outside / "secret.yaml")
+    (share / "config" / "dir").symlink_to(outside, target_is_directory=True)
+    monkeypatch.setattr(scene_path, "package_share_dirs", lambda package: [share, src])
+
+    def read(url: str) -> str:
+        return resolve_scene_file(url, "/rod_sim", cwd=tmp_path)[0].read_text()
+
+    assert read("package://p/config/ok.yaml") == "ok"
+    assert read("package://p/config/in.yaml") == "ok"
+    assert read("package://p/config/src.yaml") == "linked"
+    assert read("package://p/config/../config/ok.yaml") == "ok"
+    for url in ("package://p/../outside/secret.yaml", "package://p/config/../../outside/secret.yaml",
+                f"package://p/{outside / 'secret.yaml'}", "package://p/config/out.yaml",
+                "package://p/config/dir/secret.yaml"):
+        with pytest.raises(ScenePathError, match="refused: .* leads outside the share directory"):
+            read(url)
+    monkeypatch.undo()
+    with pytest.raises(ScenePathError, match="refused"):
+        resolve_scene_file("package://rod_sim/../../../../../../../../etc/passwd", "/rod_sim",
+                           cwd=tmp_path)

@@ -1,6 +1,7 @@
 """rod-sim sweep: spec validation (exit 2, one line), grid and Monte-Carlo expansion, runs on a
 local process pool and on a local Dask cluster against independent serial runs, result tables,
 failed runs as rows, Ctrl-C."""
+import contextlib
 import math
 import os
 import shutil
@@ -480,3 +481,69 @@ def test_default_workers_leave_a_core_and_the_design_is_worded(monkeypatch):
         "2 grid, 64 Monte-Carlo draws per grid point, 2 models"
     assert sweep._design(NS(parameters=[rnd], draws=1, models=("full",))) == \
         "1 Monte-Carlo draw, 1 model"
+
+
+def _descendants(pid: int) -> set[int]:
+    """Every living descendant of process ``pid`` (from /proc; zombies count as dead)."""
+    children: dict[int, list[int]] = {}
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            with contextlib.suppress(OSError, IndexError, ValueError):
+                stat = (entry / "stat").read_text()
+                fields = stat[stat.rindex(")") + 2:].split()
+                if fields[0] != "Z":
+                    children.setdefault(int(fields[1]), []).append(int(entry.name))
+    found, todo = set(), [pid]
+    while todo:
+        for child in children.get(todo.pop(), []):
+            if child not in found:
+                found.add(child)
+                todo.append(child)
+    return found
+
+
+def _alive(pid: int) -> bool:
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat[stat.rindex(")") + 2:].split()[0] != "Z"
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="parent-death signal: Linux")
+def test_sigkill_of_the_sweep_takes_its_workers_forkserver_and_tracker_with_it(tmp_path):
+    """Issue 27, item 8: SIGKILL of `rod-sim sweep`'s main process left its forkserver,
+    resource tracker and workers running (> 81 s). The workers get a parent-death signal and
+    the helpers see their pipes close: all are gone within 5 s."""
+    spec = {**TINY, "scene": str(ROOT / "config" / "paper_example.yaml"), "models": ["full"],
+            "rtol": 1e-10, "t_end": 2.0, "parameters": {"hinges.stiffness": {
+                "linspace": [50.0, 150.0, 400]}}}
+    proc = subprocess.Popen([sys.executable, "-m", "rod_sim.tools.cli", "sweep",
+                             str(write_spec(tmp_path, spec)), "--out", str(tmp_path / "k.csv"),
+                             "--workers", "2"], cwd=tmp_path, stderr=subprocess.PIPE,
+                            text=True, preexec_fn=terminal_signals)
+    helpers: set[int] = set()
+    try:
+        assert "400 runs" in proc.stderr.readline()
+        deadline = time.monotonic() + 60
+        while len(_descendants(proc.pid)) < 3:          # forkserver, tracker, workers
+            assert proc.poll() is None and time.monotonic() < deadline
+            time.sleep(0.2)
+        time.sleep(3.0)                                  # runs under way
+        helpers = _descendants(proc.pid)
+        proc.kill()
+        proc.wait()
+        deadline = time.monotonic() + 5.0
+        while any(_alive(p) for p in helpers) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        left = sorted(p for p in helpers if _alive(p))
+        cmdlines = [Path(f"/proc/{p}/cmdline").read_bytes().replace(b"\0", b" ")[:120]
+                    for p in left if _alive(p)]
+        assert not left, f"still running 5 s after SIGKILL of the sweep: {cmdlines}"
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        for p in helpers | _descendants(proc.pid):
+            with contextlib.suppress(OSError):
+                os.kill(p, signal.SIGKILL)

@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Mapping
+import unicodedata
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -414,6 +415,25 @@ class Scene:
             out["rods"]["rigid"] = [bool(v) for v in rigid]
 
 
+MAX_NAME_CHARS = 200
+"""Longest scene name (characters): it is the URDF robot name, the log's scene title and the
+diagnostics' name."""
+
+
+def _check_name(name: str) -> None:
+    """Refuse a scene name that some writer could not carry as it is: more than
+    MAX_NAME_CHARS characters, or any character of Unicode category C (control, format,
+    surrogate, private use, unassigned: "a\\0b" is not XML, a newline breaks a log line) or a
+    line / paragraph separator. Checked once here, so every writer (URDF, logs, markers,
+    diagnostics) gets a name it can write as it is."""
+    if len(name) > MAX_NAME_CHARS:
+        raise SceneError("name", f"at most {MAX_NAME_CHARS} characters (got {len(name)})")
+    for i, ch in enumerate(name):
+        if unicodedata.category(ch)[0] == "C" or unicodedata.category(ch) in ("Zl", "Zp"):
+            raise SceneError("name", f"character {i + 1} is U+{ord(ch):04X} (control, format or "
+                             "unassigned characters are not allowed; printable text only)")
+
+
 _TOP_KEYS = {"name", "rods", "nodes", "hinges", "initial", "loads", "base", "chains", "gravity"}
 _CHAIN_SECTIONS = ("rods", "nodes", "hinges", "initial")
 _CHAIN_KEYS = {"name", "attach", *_CHAIN_SECTIONS}
@@ -462,6 +482,7 @@ class _SceneParser:
         name = data.get("name", "scene")
         if not isinstance(name, str) or not name:
             raise SceneError("name", f"must be a non-empty string (got {quote(name)})")
+        _check_name(name)
         return name
 
     def _chains(self, chains, psi0: float) -> tuple[tuple[ChainSpec, ...], dict[str, Any]]:

@@ -72,6 +72,18 @@ def _bag_info(meta: Path) -> dict:
                              f"{text})") from None
 
 
+MAX_LOG_FILES = 1000
+"""Most files of one log (a bag directory): their messages are merged in time order, so all
+are open at once (a file descriptor and a chunk each); more is refused before any is read."""
+
+
+def _check_file_count(path: Path, count: int) -> None:
+    if count > MAX_LOG_FILES:
+        raise LogFormatError(f"{path}: more than {MAX_LOG_FILES} log files in one bag (they "
+                             "are read together, all open at once); merge them first (e.g. "
+                             "mcap merge) or pass fewer")
+
+
 def bag_layout(path: str | os.PathLike) -> BagLayout:
     """How the log at ``path`` is read (see the module docstring). Raises LogFormatError."""
     path = Path(path)
@@ -81,11 +93,15 @@ def bag_layout(path: str | os.PathLike) -> BagLayout:
         return BagLayout(MCAP_STORAGE, False, (path,))
     meta = path / BAG_METADATA
     if not meta.is_file():
-        files = tuple(sorted(p for p in path.glob("*.mcap") if p.is_file()))
+        files = []
+        for p in path.glob("*.mcap"):           # stops counting past the bound
+            if p.is_file():
+                files.append(p)
+                _check_file_count(path, len(files))
         if not files:
             raise LogFormatError(f"{path}: a directory without {BAG_METADATA} or .mcap files "
                                  "is not a rosbag2 bag")
-        return BagLayout(MCAP_STORAGE, False, files)
+        return BagLayout(MCAP_STORAGE, False, tuple(sorted(files)))
     info = _bag_info(meta)
     names = [str(name) for name in info.get("relative_file_paths") or ()]
     storage = str(info.get("storage_identifier") or MCAP_STORAGE)
@@ -96,6 +112,7 @@ def bag_layout(path: str | os.PathLike) -> BagLayout:
     compressed = str(info.get("compression_mode") or "").strip().lower() not in ("", "none")
     if storage != MCAP_STORAGE or compressed:
         return BagLayout(storage, compressed, ())
+    _check_file_count(path, len(names))
     files = tuple(path / name for name in names)
     if not files:
         raise LogFormatError(f"{meta} lists no files")

@@ -537,7 +537,9 @@ class LogReader:
                     topic=c.topic,
                     type_name=schemas[c.schema_id].name if c.schema_id in schemas else "",
                     encoding=c.message_encoding, metadata=dict(c.metadata),
-                    message_count=counts.get(c.id))
+                    message_count=counts.get(c.id),
+                    schema=(schemas[c.schema_id].data.decode("utf-8", "replace")
+                            if c.schema_id in schemas else ""))
                 for c in channels}
 
     def raw_messages(self, topics: Iterable[str] | None = None
@@ -562,3 +564,6 @@ class ChannelInfo:
     encoding: str
     metadata: dict[str, str]
     message_count: int | None = None
+    schema: str = ""
+    """The type's definition as recorded (ros2msg text, dependencies concatenated), '' when
+    the log has none."""

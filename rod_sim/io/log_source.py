@@ -118,6 +118,18 @@ class LogStream:
                 return metadata_scene({"scene": str(msg.data)}, f"{self.path} ({topic})")
         return None
 
+    def scene(self):
+        """(the log's :class:`~rod_sim.core.scene.Scene`, where it came from) or (None, ''):
+        the ``rod_sim`` metadata record first, else the latched ``scene`` topic (a log
+        converted by rosbag2 tools keeps the topic, not the metadata). The one way every tool
+        (compare, deployment-figure) finds a log's scene. Raises LogFormatError for an
+        invalid scene."""
+        logged = metadata_scene(self.metadata, str(self.path))
+        if logged is not None:
+            return logged, "the log's metadata"
+        logged = self.topic_scene()
+        return (logged, "the log's /scene topic") if logged is not None else (None, "")
+
     def __enter__(self) -> "LogStream":
         return self
 

@@ -105,7 +105,7 @@ def parse_offered_qos(text: str | None) -> QosSpec:
 class Track:
     """A topic of a source: ``topic`` (absolute), ``type_name`` (``pkg/msg/Name``),
     ``encoding`` ('cdr' for ROS 2), ``qos`` to offer, ``message_count`` (None if unknown) and
-    ``note`` (why the QoS is a default, or '')."""
+    ``note`` (why the QoS is a default, or ''), ``schema`` (the recorded definition)."""
 
     topic: str
     type_name: str
@@ -113,6 +113,7 @@ class Track:
     qos: QosSpec
     message_count: int | None = None
     note: str = ""
+    schema: str = ""
 
 
 def _track(info: ChannelInfo) -> Track:
@@ -122,7 +123,7 @@ def _track(info: ChannelInfo) -> Track:
     except ValueError as exc:
         qos, note = QosSpec(), f"{exc}; offering the default QoS"
     return Track(topic=info.topic, type_name=info.type_name, encoding=info.encoding, qos=qos,
-                 message_count=info.message_count, note=note)
+                 message_count=info.message_count, note=note, schema=info.schema)
 
 
 class PlaybackSource:

@@ -156,10 +156,17 @@ def load_scene(path: str | os.PathLike) -> Scene:
     return _parse(text, os.fspath(path), default_name=p.stem or None)
 
 
+_BUILTIN_SCALARS = {bool, int, float, str, type(None)}
+
+
 def _plain(value: Any) -> Any:
     """Python built-ins only (numpy scalars and arrays converted), so SafeDumper can write it."""
     if isinstance(value, Mapping):
         return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, np.ndarray) and value.dtype.kind in "biuf":
+        return value.tolist()           # built-in bool / int / float, at C speed (O(n))
+    if isinstance(value, list) and set(map(type, value)) <= _BUILTIN_SCALARS:
+        return value                    # already plain (Scene.to_dict's per-rod lists)
     if isinstance(value, (list, tuple, np.ndarray)):
         return [_plain(v) for v in value]
     if isinstance(value, (bool, np.bool_)):
@@ -181,10 +188,11 @@ def _compact(value: Any) -> Any:
     Pairs (``attach``, ``centre_of_mass``, ``gravity``) stay pairs."""
     if isinstance(value, dict):
         return {k: v if k in _PAIR_KEYS else _compact(v) for k, v in value.items()}
-    if isinstance(value, list) and len(value) > 1 and all(
-            isinstance(v, (int, float)) and type(v) is type(value[0]) for v in value):
+    if isinstance(value, list) and len(value) > 1 and isinstance(value[0], (int, float)):
         first = value[0]
-        if all(v == first for v in value) and not (isinstance(first, float) and first != first):
+        kind = type(first)
+        if (value.count(first) == len(value) and all(type(v) is kind for v in value)
+                and not (isinstance(first, float) and first != first)):
             return first
     if isinstance(value, list):
         return [_compact(v) if isinstance(v, dict) else v for v in value]

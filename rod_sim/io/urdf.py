@@ -21,9 +21,6 @@ beyond anything the simulator limits (1e12 N m, 1e6 rad/s).
 """
 from __future__ import annotations
 
-import math
-import xml.etree.ElementTree as ET
-
 import numpy as np
 
 RADIUS_FRACTION = 1.0 / 50.0
@@ -41,9 +38,11 @@ def _fmt(x: float) -> str:
     return repr(float(x))
 
 
-def _origin(parent: ET.Element, xyz=(0.0, 0.0, 0.0), rpy=(0.0, 0.0, 0.0)) -> None:
-    ET.SubElement(parent, "origin", xyz=" ".join(_fmt(v) for v in xyz),
-                  rpy=" ".join(_fmt(v) for v in rpy))
+def _attr(text: str) -> str:
+    """``text`` escaped for a double-quoted XML attribute (as ElementTree escapes it)."""
+    return (text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+            .replace('"', "&quot;").replace("\r", "&#13;").replace("\n", "&#10;")
+            .replace("\t", "&#09;"))
 
 
 def rod_inertia(length: float, rod_mass: float, node_mass: float) -> tuple[float, float, float]:
@@ -58,57 +57,84 @@ def rod_inertia(length: float, rod_mass: float, node_mass: float) -> tuple[float
     return total, xc, izz
 
 
-def _stops(scene, h: int) -> tuple[float, float]:
-    lower = upper = None
-    if scene.stop_lower is not None:
-        lower = float(np.broadcast_to(np.asarray(scene.stop_lower, float), (scene.n,))[h])
-    if scene.stop_upper is not None:
-        upper = float(np.broadcast_to(np.asarray(scene.stop_upper, float), (scene.n,))[h])
-    lower = lower if lower is not None and math.isfinite(lower) else -WIDE
-    upper = upper if upper is not None and math.isfinite(upper) else WIDE
-    return lower, upper
+def _stop_limits(scene) -> tuple[np.ndarray, np.ndarray]:
+    """(lower, upper) (n,) [rad] joint limits: the hinge stops, +-WIDE where there is none."""
+    n = scene.n
+    limits = []
+    for stop, wide in ((scene.stop_lower, -WIDE), (scene.stop_upper, WIDE)):
+        values = np.full(n, wide) if stop is None else np.array(
+            np.broadcast_to(np.asarray(stop, float), (n,)))
+        values[~np.isfinite(values)] = wide
+        limits.append(values)
+    return limits[0], limits[1]
+
+
+_ROD = """  <link name="rod_{k}">
+    <inertial>
+      <origin xyz="{xc} 0.0 0.0" rpy="0.0 0.0 0.0" />
+      <mass value="{mass}" />
+      <inertia ixx="{ixx}" ixy="0.0" ixz="0.0" iyy="{izz}" iyz="0.0" izz="{izz}" />
+    </inertial>
+    <visual name="rod_{k}_chord">
+      <origin xyz="{half} 0.0 0.0" rpy="0.0 1.5707963267948966 0.0" />
+      <geometry>
+        <cylinder radius="{radius}" length="{length}" />
+      </geometry>
+    </visual>
+{node}  </link>
+  <joint name="hinge_{h}" type="revolute">
+    <origin xyz="{at} 0.0 0.0" rpy="0.0 0.0 0.0" />
+    <parent link="{parent}" />
+    <child link="rod_{k}" />
+    <axis xyz="0 0 1" />
+    <limit lower="{lower}" upper="{upper}" effort="1000000000000.0" velocity="1000000.0" />
+  </joint>
+"""
+_NODE = """    <visual name="node_{k}">
+      <origin xyz="{length} 0.0 0.0" rpy="0.0 0.0 0.0" />
+      <geometry>
+        <sphere radius="{sphere}" />
+      </geometry>
+    </visual>
+"""
 
 
 def scene_urdf(scene, fixed_frame: str = "world") -> str:
     """The URDF XML text of ``scene`` (see the module docstring); ``fixed_frame`` names the
-    root link (the node's ``frame_id``)."""
+    root link (the node's ``frame_id``). Written as text, one template per rod: O(n), ~20 us
+    per rod (the ElementTree tree it replaced took ~0.25 ms per rod: 25 s at n = 100 000);
+    the same bytes as ElementTree with ``indent`` writes (tested)."""
+    return "".join(urdf_chunks(scene, fixed_frame))
+
+
+def urdf_chunks(scene, fixed_frame: str = "world", rods: int = 1000):
+    """:func:`scene_urdf`'s text in pieces of ``rods`` rods (``rod-sim urdf`` writes them as
+    they come: memory bounded whatever n; ~915 bytes per rod)."""
     n = scene.n
     length = np.asarray(scene.length, dtype=float)
     rod_mass = np.asarray(scene.mass_per_length, dtype=float) * length
     node_mass = np.broadcast_to(np.asarray(scene.node_mass, dtype=float), (n,))
-    robot = ET.Element("robot", name=scene.name)
-    ET.SubElement(robot, "link", name=fixed_frame)
+    lower, upper = _stop_limits(scene)
+    frame = _attr(fixed_frame)
+    parts = ['<?xml version="1.0"?>\n', f'<robot name="{_attr(scene.name)}">\n',
+             f'  <link name="{frame}" />\n']
     for k in range(1, n + 1):
-        l_k, m_k, mu_k = length[k - 1], rod_mass[k - 1], node_mass[k - 1]
+        l_k, m_k, mu_k = float(length[k - 1]), float(rod_mass[k - 1]), float(node_mass[k - 1])
         radius = RADIUS_FRACTION * l_k
-        link = ET.SubElement(robot, "link", name=f"rod_{k}")
-        inertial = ET.SubElement(link, "inertial")
         mass, xc, izz = rod_inertia(l_k, m_k, mu_k)
-        _origin(inertial, (xc, 0.0, 0.0))
-        ET.SubElement(inertial, "mass", value=_fmt(mass))
-        ET.SubElement(inertial, "inertia", ixx=_fmt(0.5 * mass * radius ** 2), ixy="0.0",
-                      ixz="0.0", iyy=_fmt(izz), iyz="0.0", izz=_fmt(izz))
-        visual = ET.SubElement(link, "visual", name=f"rod_{k}_chord")
-        _origin(visual, (0.5 * l_k, 0.0, 0.0), (0.0, 0.5 * math.pi, 0.0))
-        ET.SubElement(ET.SubElement(visual, "geometry"), "cylinder", radius=_fmt(radius),
-                      length=_fmt(l_k))
-        if mu_k > 0.0:
-            node = ET.SubElement(link, "visual", name=f"node_{k}")
-            _origin(node, (l_k, 0.0, 0.0))
-            ET.SubElement(ET.SubElement(node, "geometry"), "sphere", radius=_fmt(2 * radius))
-        parent = fixed_frame if k == 1 else f"rod_{k - 1}"
-        joint = ET.SubElement(robot, "joint", name=f"hinge_{k - 1}", type="revolute")
-        _origin(joint, (0.0 if k == 1 else length[k - 2], 0.0, 0.0))
-        ET.SubElement(joint, "parent", link=parent)
-        ET.SubElement(joint, "child", link=f"rod_{k}")
-        ET.SubElement(joint, "axis", xyz="0 0 1")
-        lower, upper = _stops(scene, k - 1)
-        ET.SubElement(joint, "limit", lower=_fmt(lower), upper=_fmt(upper),
-                      effort=_fmt(UNLIMITED_EFFORT), velocity=_fmt(UNLIMITED_VELOCITY))
-    ET.SubElement(robot, "link", name="tip")
-    tip = ET.SubElement(robot, "joint", name="tip_joint", type="fixed")
-    _origin(tip, (length[-1], 0.0, 0.0))
-    ET.SubElement(tip, "parent", link=f"rod_{n}")
-    ET.SubElement(tip, "child", link="tip")
-    ET.indent(robot)
-    return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
+        node = (_NODE.format(k=k, length=_fmt(l_k), sphere=_fmt(2 * radius))
+                if mu_k > 0.0 else "")
+        parts.append(_ROD.format(
+            k=k, h=k - 1, xc=_fmt(xc), mass=_fmt(mass), ixx=_fmt(0.5 * mass * radius ** 2),
+            izz=_fmt(izz), half=_fmt(0.5 * l_k), radius=_fmt(radius), length=_fmt(l_k),
+            node=node, at=_fmt(0.0 if k == 1 else length[k - 2]),
+            parent=frame if k == 1 else f"rod_{k - 1}", lower=_fmt(lower[k - 1]),
+            upper=_fmt(upper[k - 1])))
+        if k % rods == 0:
+            yield "".join(parts)
+            parts = []
+    parts.append(f'  <link name="tip" />\n  <joint name="tip_joint" type="fixed">\n'
+                 f'    <origin xyz="{_fmt(length[-1])} 0.0 0.0" rpy="0.0 0.0 0.0" />\n'
+                 f'    <parent link="rod_{n}" />\n    <child link="tip" />\n  </joint>\n'
+                 '</robot>\n')
+    yield "".join(parts)

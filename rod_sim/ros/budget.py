@@ -74,24 +74,61 @@ class WorkBudget:
                 f"{self.unit_cost_s * 1e6:.3g} us each measured)")
 
 
+PROBE_UNITS = 1
+"""Work units of the first (kernel-loading) calibration call: one step of a 100 000-rod
+chain takes ~0.5 s, so nothing more is done before the cost of a unit is known."""
+CALL_WALL_S = 0.1
+"""[s] of work each later calibration call is limited to, from the cost measured so far."""
+CALIBRATION_WALL_S = 1.0
+"""[s] after the first call, calibration stops (with at least one timed call)."""
+
+
 def measure(sim, period_s: float, seconds: float) -> WorkBudget:
     """The budget for ``seconds`` of wall time per period, timing the scratch simulator
     ``sim`` (advanced and modified) over a few periods of ``period_s`` [s]; its first period
-    loads the compiled kernels and is not timed. Raises what ``Simulator.advance`` raises."""
+    loads the compiled kernels and is not timed. Every call is bounded (issue 27, item 1: an
+    unbounded calibration period of a 10 000-rod chain took 22 s, of 100 000 rods minutes):
+    the first to :data:`PROBE_UNITS` work units, the others to :data:`CALL_WALL_S` at the
+    cost measured so far, all of it to ~:data:`CALIBRATION_WALL_S` after the first; a call
+    that reaches its limit counts its work like one that ends the period (the scratch
+    simulator then stays where it was). O(n) work, bounded wall time; a signal interrupts it
+    between calls. Raises what ``Simulator.advance`` raises, except the work limit's own
+    IntegrationError."""
+    from rod_sim.core.integrators import IntegrationError
+
     name = limit_attribute(sim.integrator)
     if name is None:
         sim.advance(period_s)
         return WorkBudget(seconds)
     if hasattr(sim.integrator, "max_step"):   # many short steps: a per-step cost, not overhead
         sim.configure(max_step=period_s / CALIBRATION_SUBSTEPS)
-    sim.advance(period_s)
-    costs = []
-    for _ in range(CALIBRATION_PERIODS):
+    from rod_sim.ros.startup import phase
+
+    units, costs = PROBE_UNITS, []
+    started = None
+    for call in range(1 + CALIBRATION_PERIODS):
+        phase("loading the compiled kernels" if call == 0 else
+              f"calibrating the work budget ({call} of {CALIBRATION_PERIODS} timed calls)")
+        sim.configure(**{name: units})
         before = WorkBudget.work(sim)
         start = time.perf_counter()
-        sim.advance(period_s)
-        costs.append((time.perf_counter() - start) / max(WorkBudget.work(sim) - before, 1))
-    return _budget(name, seconds, statistics.median(costs))
+        try:
+            sim.advance(period_s)
+        except IntegrationError:
+            if WorkBudget.work(sim) - before < units:
+                raise                               # failed before its limit: a real failure
+        done = WorkBudget.work(sim) - before
+        cost = (time.perf_counter() - start) / max(done, 1)
+        if call == 0:
+            started = time.perf_counter()
+        else:
+            costs.append(cost)
+            if time.perf_counter() - started > CALIBRATION_WALL_S:
+                break
+        units = max(1, int(CALL_WALL_S / max(cost, 1e-9)))
+    phase("preparing the run (validity checks, messages, topics)")
+    # the first timed call was sized by the kernel-loading one (a unit or so: overhead)
+    return _budget(name, seconds, statistics.median(costs[1:] if len(costs) >= 3 else costs))
 
 
 def _budget(name: str, seconds: float, unit_cost_s: float) -> WorkBudget:

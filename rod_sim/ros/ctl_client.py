@@ -30,13 +30,52 @@ class CtlError(RuntimeError):
     """A control request that could not be carried out; ``str()`` is one line."""
 
 
+class CtlNameError(ValueError):
+    """A namespace, node name or topic name that ROS 2 does not accept (bad input: ``rod-sim
+    ctl`` exits 2); ``str()`` is one line naming the option and the rule broken."""
+
+
+def normal_namespace(namespace: str) -> str:
+    """``namespace`` made absolute without a trailing slash ('' and '/' are the root)."""
+    return "/" + namespace.strip("/") if namespace.strip("/") else "/"
+
+
+def _rule(exc: Exception) -> str:
+    """The rule rclpy's name check reports, one line (no caret, no C source location)."""
+    text = str(exc).splitlines()[0].rstrip(":").split(", at ")[0]
+    return text.split(": ", 1)[1] if text.startswith("Invalid ") and ": " in text else text
+
+
+def check_names(namespace: str, node_name: str, topic: str | None = None) -> None:
+    """Raise :class:`CtlNameError` unless ``namespace`` (as --ns), ``node_name`` (--node) and
+    ``topic`` (relative to the namespace, as the client resolves it) are valid ROS 2 names,
+    by rclpy's own validators, before any ROS context exists."""
+    from rclpy.expand_topic_name import expand_topic_name
+    from rclpy.validate_full_topic_name import validate_full_topic_name
+    from rclpy.validate_namespace import validate_namespace
+    from rclpy.validate_node_name import validate_node_name
+
+    ns = normal_namespace(namespace)
+    checks = [("--ns", namespace, lambda: validate_namespace(ns)),
+              ("--node", node_name, lambda: validate_node_name(node_name))]
+    if topic is not None:
+        checks.append(("topic", topic, lambda: validate_full_topic_name(
+            expand_topic_name(topic, CTL_NODE_NAME, ns))))
+    for what, value, check in checks:
+        try:
+            check()
+        except Exception as exc:  # noqa: BLE001 -- rclpy raises NameValidationException or ValueError
+            raise CtlNameError(f"{what} {value!r}: {_rule(exc)}") from None
+
+
 class CtlClient:
     """A client node in namespace ``namespace`` talking to the simulator node ``node_name``
     there; ``timeout`` [s] bounds each wait for discovery or an answer. Use as a context
     manager (it owns its rclpy context)."""
 
     def __init__(self, namespace: str = "/", node_name: str = NODE_NAME, timeout: float = 10.0):
-        self.namespace = "/" + namespace.strip("/") if namespace.strip("/") else "/"
+        check_names(namespace, node_name)
+        self.namespace = normal_namespace(namespace)
         self.target = f"{self.namespace.rstrip('/')}/{node_name}"
         self.timeout = timeout
         self.context = rclpy.Context()

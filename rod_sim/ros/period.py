@@ -117,7 +117,8 @@ class PeriodRunner:
         self.ledger.add(start_sample, end_sample, sim.events[self.events_seen:])
         self._balance_end = (sim.t_ns, held.copy(), end_sample)
         self.validity.update(sim.t, sim.y, held, snap.alpha, snap.beta)
-        self.validity.update_energy(sim.t, self.ledger.residual, self.ledger.scale)
+        self.validity.update_energy(sim.t, self.ledger.residual, self.ledger.scale,
+                                    self.ledger.unresolved)
         return snap
 
     def _failure(self, exc: Exception, work, start_ns: int) -> str:

@@ -17,6 +17,7 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 
 from rod_sim.ros.errors import one_line
+from rod_sim.ros.startup import Progress
 
 ROS_ARGS_HINT = "ROS arguments go after --ros-args, e.g. --ros-args -p scene_file:=SCENE.yaml"
 
@@ -46,12 +47,17 @@ def params_files(args: list[str]) -> tuple[str, ...]:
 
 class StopRequest:
     """SIGINT/SIGTERM handler: the first signal asks the spin loop to stop (so that the log is
-    closed between callbacks, never in the middle of a write); a second one interrupts."""
+    closed between callbacks, never in the middle of a write); a second one interrupts. While
+    ``starting`` (the node is being created: nothing to close yet) the first signal
+    interrupts at once (KeyboardInterrupt), so a long start-up stops within its current
+    bounded call; ``signum`` is the first signal received."""
 
     SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
-    def __init__(self):
+    def __init__(self, starting: bool = False):
         self.event = threading.Event()
+        self.starting = starting
+        self.signum: int | None = None
         self._previous: dict[int, Any] = {}
 
     def __enter__(self) -> "StopRequest":
@@ -65,8 +71,13 @@ class StopRequest:
 
     def _handle(self, signum, frame) -> None:
         if self.event.is_set():
+            if self.starting:
+                return              # the start-up is already being interrupted
             raise KeyboardInterrupt
+        self.signum = signum
         self.event.set()
+        if self.starting:
+            raise KeyboardInterrupt
 
     @property
     def requested(self) -> bool:
@@ -84,12 +95,17 @@ def spin_until(executor, stop: StopRequest, done: Callable[[], bool] = lambda: F
 def run_node(prog: str, make_node, args: list[str], config_errors) -> int:
     """Create ``make_node()`` under rclpy and spin it until SIGINT/SIGTERM, then destroy it
     and shut rclpy down. Returns 0, or 2 with a one-line reason on stderr when creating the
-    node raises one of ``config_errors``."""
+    node raises one of ``config_errors``, or 130 / 143 (SIGINT / SIGTERM) with one line when a
+    signal stops the start-up (which prints what it is doing after 2 s: :mod:`startup`)."""
     rclpy.init(args=[prog, *args], signal_handler_options=SignalHandlerOptions.NO)
     node = None
-    with StopRequest() as stop:
+    with StopRequest(starting=True) as stop:
         try:
-            node = make_node()
+            with Progress(prog):
+                node = make_node()
+            stop.starting = False
+            if stop.requested:
+                raise KeyboardInterrupt
             # the start-up heap (numba, rclpy, the model) out of the collector's full passes:
             # they stalled a 1024-rod node ~60 ms every few seconds (rate_bench --record:
             # inter-arrival p99 67 ms before, 13 ms after)
@@ -101,7 +117,11 @@ def run_node(prog: str, make_node, args: list[str], config_errors) -> int:
             print(f"{prog}: error: {exc}", file=sys.stderr)
             return 2
         except (KeyboardInterrupt, ExternalShutdownException):
-            pass
+            if node is None:        # stopped during the start-up: one line, 130 / 143
+                signum = stop.signum or signal.SIGINT
+                print(f"{prog}: interrupted during start-up"
+                      + (" (SIGTERM)" if signum == signal.SIGTERM else ""), file=sys.stderr)
+                return 128 + signum
         finally:
             if node is not None:
                 node.destroy_node()

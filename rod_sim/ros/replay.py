@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -28,6 +28,7 @@ from rosgraph_msgs.msg import Clock
 from std_srvs.srv import SetBool, Trigger
 
 from rod_sim.core.units import NS_PER_S
+from rod_sim.io.payload_check import PayloadCheck
 from rod_sim.io.playback import PlaybackSource, QosSpec, Timeline
 from rod_sim.ros.conversions import message_class
 from rod_sim.ros.process import StopRequest, spin_until
@@ -70,6 +71,11 @@ class PlayStats:
     stopped: bool = False
     max_late_s: float = 0.0
     """[s] largest delay of a publication after its due wall time (player side)."""
+    skipped: dict = field(default_factory=dict)
+    """topic -> messages not published because their payload is not a whole message of the
+    topic's type (:func:`rod_sim.ros.payload_check.payload_problem`), over all passes."""
+    first_skip: str = ""
+    """The first skipped message: topic, log time and reason (one line)."""
 
 
 class Player(Node):
@@ -96,8 +102,10 @@ class Player(Node):
             self.live_view = live_view
             """A :class:`~rod_sim.io.live_view.LiveView` shown what is replayed (or None)."""
             self._pubs = {}
+            self._checks = {}
             for topic in self.topics:
                 track = source.tracks[topic]
+                self._checks[topic] = PayloadCheck(track.type_name, track.schema)
                 self._pubs[topic] = self.create_publisher(
                     message_class(track.type_name), topic, qos_profile(track.qos))
             self._clock_pub = (self.create_publisher(Clock, "/clock", CLOCK_QOS)
@@ -194,6 +202,8 @@ class Player(Node):
                     stats.first_ns = start
                 if t_ns < start:
                     continue
+                if self._corrupt(topic, t_ns, data):
+                    continue
                 if not self._wait_until_due(executor, stop, t_ns):
                     stats.stopped = True
                     break
@@ -211,6 +221,22 @@ class Player(Node):
                 return stats
             executor.spin_once(timeout_sec=0)
 
+
+    def _corrupt(self, topic: str, t_ns: int, data: bytes) -> bool:
+        """Whether the payload ``data`` of ``topic`` is not a whole message of its type: then
+        it is counted in ``stats.skipped`` and not published (the first one per topic is
+        logged as a warning)."""
+        problem = self._checks[topic].problem(data)
+        if not problem:
+            return False
+        skipped = self.stats.skipped
+        skipped[topic] = skipped.get(topic, 0) + 1
+        if skipped[topic] == 1:
+            where = f"{topic} at log time {t_ns / NS_PER_S:.9g} s: {problem}"
+            self.stats.first_skip = self.stats.first_skip or where
+            self.get_logger().warning(f"skipping a corrupt message (and counting the rest) on "
+                                      f"{where}")
+        return True
 
     def flush(self, timeout_s: float = 2.0) -> bool:
         """Wait (at most ``timeout_s`` in all) until the matched subscribers acknowledged

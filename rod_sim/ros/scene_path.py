@@ -76,6 +76,25 @@ def package_share_dirs(package: str) -> list[Path]:
     return list(dict.fromkeys(dirs))
 
 
+def _inside(base: Path, rest: str, roots) -> Path | None:
+    """``base / rest`` with every symbolic link and '..' resolved, or None when that leads
+    outside the package: ``rest`` must stay inside ``base`` as written (no '..' above it, not
+    absolute), and its resolved target inside one of the package's directories ``roots``
+    (resolved; a colcon ``--symlink-install`` share folder links into the source tree, which
+    is one of them for rod_sim), so ``package://`` never reads outside the package."""
+    parts = Path(rest).parts
+    depth = 0
+    for part in parts:
+        depth += -1 if part == ".." else 0 if part in ("", ".") else 1
+        if depth < 0 or Path(rest).is_absolute():
+            return None
+    target = (base / rest).resolve()
+    for root in (Path(r).resolve() for r in roots):
+        if target != root and target.is_relative_to(root):
+            return target
+    return None
+
+
 def resolve_scene_file(value: str, full_name: str, params_files=(), cwd=None) -> tuple[Path, str]:
     """The scene file the node's ``scene_file`` parameter ``value`` names, and a note ('' or a
     warning to log). ``full_name``: the node's full name; ``params_files``: the params files of
@@ -88,8 +107,13 @@ def resolve_scene_file(value: str, full_name: str, params_files=(), cwd=None) ->
             raise ScenePathError(f"{value}: expected package://PACKAGE/PATH")
         dirs = package_share_dirs(package)
         for base in dirs:
-            if (base / rest).is_file():
-                return base / rest, ""
+            found = _inside(base, rest, dirs)
+            if found is not None and found.is_file():
+                return found, ""
+            if found is None and (base / rest).exists():
+                raise ScenePathError(f"{value}: refused: {rest} leads outside the share "
+                                     f"directory of {package} ({base}) by '..', an absolute "
+                                     "path or a symbolic link")
         raise ScenePathError(f"{value}: file not found: no {rest} in the share directory of "
                              f"{package} (searched {', '.join(str(d) for d in dirs)})")
     path = Path(value).expanduser()

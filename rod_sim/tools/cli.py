@@ -15,12 +15,13 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
 from types import ModuleType
 
 from .. import __version__
-from ..core.scene import SceneError
 
+from . import signals
 from .common import EXIT_BAD_INPUT, EXIT_CHECK_FAILED, EXIT_OK, PAPER_EXAMPLE, UsageError
 from .signals import Terminated, handle_sigterm
 from .signals import reset as reset_signals
@@ -82,9 +83,46 @@ def _error(command: str, err, status: int) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run ``rod-sim`` with ``argv`` (default: the command line); returns the exit status.
+    Ctrl-C / SIGTERM at any moment, from here on (the command table's imports included): one
+    line, exit 130 / 143 (:mod:`rod_sim.tools.signals`)."""
+    entry_point = argv is None
     argv = list(sys.argv[1:] if argv is None else argv)
-    reset_signals()
+    name = argv[0] if argv and argv[0] in COMMANDS else ""
+    reset_signals(f"rod-sim {name}".strip())
     handle_sigterm()
+    status = None
+    try:
+        status = _main(argv)
+    except KeyboardInterrupt as err:
+        status = _interrupted(err)
+    except SystemError as err:
+        # a signal handler's exception raised inside a compiled (numba) call comes back as
+        # "SystemError: ... returned a result with an exception set", caused by it
+        stop = _interruption(err)
+        if stop is None:
+            raise
+        status = _interrupted(stop)
+    finally:
+        if status is not None and signals.received() is not None and status not in (
+                signals.EXIT_SIGINT, signals.EXIT_SIGTERM):
+            # the signal's exception was swallowed (e.g. raised inside a finalizer) and the
+            # command ran on: still an interrupted command
+            status = _interrupted(Terminated() if signals.received() == signal.SIGTERM
+                                  else KeyboardInterrupt())
+        signals.finished()
+        if entry_point:         # the process ends now: a signal from here on ends it at once
+            signals.exit_quietly_on_signal()
+    if entry_point and status in (signals.EXIT_SIGINT, signals.EXIT_SIGTERM):
+        # interrupted: the outputs are closed; tearing down a large heap (a 100 000-rod
+        # node's) took ~2 s more, past the 1 s a stop may take
+        signals.exit_now(status)
+    return status
+
+
+def _main(argv: list[str]) -> int:
+    from ..core.scene import SceneError
+
     log_module = sys.modules.get("rod_sim.io.log_reader")
     if log_module is not None:          # a log's damage warnings: once per command
         log_module._reported.clear()
@@ -105,15 +143,6 @@ def main(argv: list[str] | None = None) -> int:
         return _error(args.command, "out of memory", EXIT_CHECK_FAILED)
     except RuntimeError as err:             # IntegrationError: the run could not go on
         return _error(args.command, err, EXIT_CHECK_FAILED)
-    except KeyboardInterrupt as err:
-        return _interrupted(args.command, err)
-    except SystemError as err:
-        # a signal handler's exception raised inside a compiled (numba) call comes back as
-        # "SystemError: ... returned a result with an exception set", caused by it
-        stop = _interruption(err)
-        if stop is None:
-            raise
-        return _interrupted(args.command, stop)
 
 
 def _interruption(err: BaseException) -> KeyboardInterrupt | None:
@@ -127,10 +156,11 @@ def _interruption(err: BaseException) -> KeyboardInterrupt | None:
     return None
 
 
-def _interrupted(command: str, err: KeyboardInterrupt) -> int:
-    how = " (SIGTERM)" if isinstance(err, Terminated) else ""
-    print(f"rod-sim {command}: interrupted{how}", file=sys.stderr)
-    return 130
+def _interrupted(err: KeyboardInterrupt) -> int:
+    """Print the interrupted command's one line; its exit status (130, or 143 for SIGTERM)."""
+    signum = signal.SIGTERM if isinstance(err, Terminated) else signal.SIGINT
+    print(signals.interrupted_line(signum), file=sys.stderr)
+    return signals.exit_status(signum)
 
 
 if __name__ == "__main__":

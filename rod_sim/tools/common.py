@@ -60,12 +60,16 @@ def load_scene(path: str):
 
 
 def new_output_path(text: str, option: str = "--out") -> Path:
-    """A file path that does not exist yet, in an existing directory (UsageError otherwise)."""
+    """A file path that does not exist yet, in an existing directory (UsageError otherwise),
+    registered as this command's unfinished output (:func:`rod_sim.tools.signals.done`)."""
     out = Path(text)
     if out.exists():
         raise UsageError(f"{option}: {out} exists; refusing to overwrite it")
     if not out.parent.is_dir():
         raise UsageError(f"{option}: directory {out.parent} does not exist")
+    from .signals import unfinished
+
+    unfinished(out)         # removed if a signal's watchdog must end the command before done()
     return out
 
 

@@ -50,14 +50,11 @@ def _scene_for(log, scene_path: str | None):
     from ..io.scene_yaml import load_scene, scene_to_yaml
 
     if scene_path is None:
-        logged = metadata_scene(log.metadata, str(log.path))
-        if logged is not None:
-            return logged, "log metadata", None
-        logged = log.topic_scene()
+        logged, where = log.scene()
         if logged is None:
             raise UsageError(f"{log.path} has no rod_sim metadata and no /scene topic with a "
                              "scene; pass --scene SCENE.yaml")
-        return logged, "the log's /scene topic", None
+        return logged, "log metadata" if where == "the log's metadata" else where, None
     scene = load_scene(scene_path)
     note = None
     try:

@@ -45,7 +45,7 @@ def _expect(args, low: int, high: int, usage: str) -> None:
 
 
 def run(args) -> int:
-    from ..ros.ctl_client import CtlClient, CtlError
+    from ..ros.ctl_client import CtlClient, CtlError, CtlNameError, check_names
 
     if args.action in ("pause", "resume", "step", "reset"):
         _expect(args, 0, 0, "no further arguments")
@@ -55,6 +55,10 @@ def run(args) -> int:
         _expect(args, 1, 1, "TOPIC")
     if args.count < 0:
         raise UsageError("--count: must be >= 0")
+    try:
+        check_names(args.ns, args.node, args.args[0] if args.action in ("echo", "hz") else None)
+    except CtlNameError as exc:
+        raise UsageError(str(exc)) from None
     try:
         with CtlClient(args.ns, args.node, args.timeout) as ctl:
             if args.action == "param" and len(args.args) == 1:

@@ -19,7 +19,8 @@ HELP = "draw snapshots of a logged chain (e.g. the deployment scene) with its la
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("log", help="MCAP log written by rod-sim simulate or the node")
+    parser.add_argument("log", help="log written by rod-sim simulate or the node (an MCAP "
+                        "file or a rosbag2 bag directory, e.g. a rosbags-convert copy)")
     parser.add_argument("png", help="picture to write (must not exist)")
     parser.add_argument("--times", type=finite_time, nargs="+", default=None,
                         help="snapshot times [s] (default: 8 evenly spaced up to the last "
@@ -38,15 +39,16 @@ def finite_time(text: str) -> float:
 
 
 def _log_scene(path: str):
-    """The scene of a log's metadata (UsageError when the log has none or it is invalid)."""
-    from ..io.log_open import open_log
-    from ..io.log_source import metadata_scene
+    """(the log's scene, where it came from) as compare finds it: the rod_sim metadata, else
+    the latched /scene topic (a rosbag2-converted copy); UsageError when there is neither."""
+    from ..io.log_source import read_log
 
-    with open_log(path) as log:
-        scene = metadata_scene(log.metadata(), path)   # bounded: YAML bombs refused
+    with read_log(path) as log:
+        scene, where = log.scene()       # bounded: YAML bombs refused
     if scene is None:
-        raise UsageError(f"{path}: the log's metadata holds no scene")
-    return scene
+        raise UsageError(f"{path}: the log holds no scene (no rod_sim metadata and no /scene "
+                         "topic)")
+    return scene, where
 
 
 def run(args) -> int:
@@ -54,11 +56,11 @@ def run(args) -> int:
     from ..io.series import read_rod_states
 
     png = new_output_path(args.png, "png")
-    scene = _log_scene(args.log)
+    scene, where = _log_scene(args.log)
     t, phi, _ = read_rod_states(args.log)
     if phi.shape[1] != scene.n:
-        raise UsageError(f"{args.log}: /rod_states has {phi.shape[1]} rods but the scene in the "
-                         f"log's metadata has {scene.n}")
+        raise UsageError(f"{args.log}: /rod_states has {phi.shape[1]} rods but the scene in "
+                         f"{where} has {scene.n}")
     try:
         import matplotlib
     except ImportError:

@@ -11,7 +11,7 @@ import argparse
 import gc
 import sys
 
-from .common import EXIT_OK, UsageError, positive_float
+from .common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, positive_float
 
 HELP = "republish a log's topics on a live ROS graph with their timing and /clock"
 DEFAULT_CLOCK_HZ = 100.0
@@ -168,6 +168,11 @@ def run(args: argparse.Namespace) -> int:
           f"{stats.wall_s:.3f} s wall at rate {args.rate:g} (latest publication "
           f"{stats.max_late_s * 1e3:.1f} ms after its time), {stats.clock_messages} /clock "
           "messages", file=sys.stderr)
+    if stats.skipped:
+        counts = ", ".join(f"{t} {k}" for t, k in sorted(stats.skipped.items()))
+        print(f"rod-sim replay: skipped {sum(stats.skipped.values())} corrupt message(s), not "
+              f"published ({counts}); the first: {stats.first_skip}", file=sys.stderr)
+        return EXIT_CHECK_FAILED
     return EXIT_OK
 
 

@@ -1,11 +1,21 @@
 """Ctrl-C and SIGTERM for the ``rod-sim`` commands: both raise a KeyboardInterrupt in the main
 thread (SIGTERM as :class:`Terminated`), deferred while a log record is being written
-(:func:`signals_deferred`), so that every command closes its files as for Ctrl-C."""
+(:func:`signals_deferred`), so that every command closes its files as for Ctrl-C.
+
+Whenever the signal arrives (while the command table imports, while a library swallows the
+exception, during the cleanup), the command ends within :data:`GRACE_S` with exit status 130
+(SIGINT) or 143 (SIGTERM) and one line (:func:`exit_status`, ``rod_sim.tools.cli.main``): the
+first signal starts a watchdog thread that ends the process then if it is still running,
+removing the outputs it had not finished (:func:`unfinished`), so an output is closed or absent.
+Later signals are only counted: the cleanup of the first is not interrupted."""
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
+import sys
 import threading
+from pathlib import Path
 
 
 class Terminated(KeyboardInterrupt):
@@ -13,22 +23,85 @@ class Terminated(KeyboardInterrupt):
     cleanup runs (a log is closed with its summary, a sweep writes its finished rows)."""
 
 
+GRACE_S = 0.75
+"""[s] from the first signal to the forced end of a command that has not ended by itself."""
+EXIT_SIGINT, EXIT_SIGTERM = 128 + signal.SIGINT, 128 + signal.SIGTERM      # 130, 143
+
 _deferring = 0
 _pending: list = []
+_received: list[int] = []
+_unfinished: dict[Path, int] = {}
+command = "rod-sim"
+"""The name the forced end's line gives the command (``rod-sim simulate``)."""
+_done = threading.Event()
+"""Set when the current command has returned (:func:`finished`): its watchdog stands down."""
+
+
+def received() -> int | None:
+    """The first signal (SIGINT or SIGTERM) this command received, or None."""
+    return _received[0] if _received else None
+
+
+def exit_status(signum: int | None = None) -> int:
+    """130 for SIGINT, 143 for SIGTERM (the shell's 128 + signal number): of ``signum``,
+    else of the first signal received (130 when none was, e.g. a KeyboardInterrupt raised by
+    a library)."""
+    signum = received() if signum is None else signum
+    return EXIT_SIGTERM if signum == signal.SIGTERM else EXIT_SIGINT
+
+
+def interrupted_line(signum: int | None = None) -> str:
+    """The one line of an interrupted command."""
+    signum = received() if signum is None else signum
+    return f"{command}: interrupted" + (" (SIGTERM)" if signum == signal.SIGTERM else "")
 
 
 def _on_signal(signum, frame) -> None:
     """SIGINT raises KeyboardInterrupt, SIGTERM :class:`Terminated`; inside
     :func:`signals_deferred` (a log write) the exception waits until the write is done. The
-    first SIGTERM interrupts; a second one during the cleanup is ignored (SIGKILL is the way
-    to stop a cleanup that hangs)."""
-    if signum == signal.SIGTERM:
-        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    first signal interrupts and starts the watchdog; later ones are ignored (the cleanup is
+    bounded by the watchdog)."""
+    if _received:
+        return
+    _received.append(signum)
+    threading.Thread(target=_watchdog, args=(_done,), name="rod-sim-signal-watchdog",
+                     daemon=True).start()
     stop = Terminated if signum == signal.SIGTERM else KeyboardInterrupt
     if _deferring:
         _pending.append(stop)
         return
     raise stop
+
+
+def _watchdog(done: threading.Event) -> None:
+    """End the process :data:`GRACE_S` after the first signal unless the command has returned
+    by then (``done``): the unfinished outputs removed, one line, exit 130 / 143."""
+    if done.wait(GRACE_S):
+        return
+    removed = []
+    for path in list(_unfinished):
+        with contextlib.suppress(OSError):
+            path.unlink()
+            removed.append(str(path))
+    line = interrupted_line()
+    if removed:
+        line += f"; removed the unfinished {', '.join(removed)}"
+    with contextlib.suppress(Exception):
+        sys.stderr.flush()
+        os.write(2, (line + "\n").encode("utf-8", "replace"))
+    os._exit(exit_status())
+
+
+def unfinished(path) -> None:
+    """``path`` is an output this command creates (:func:`rod_sim.tools.common.new_output_path`
+    registers each): if the watchdog has to end the process before :func:`done` is called
+    for it, the file is removed (an output is whole or absent)."""
+    _unfinished[Path(path)] = 1
+
+
+def done(path) -> None:
+    """The output ``path`` is closed (complete): the watchdog leaves it."""
+    _unfinished.pop(Path(path), None)
 
 
 @contextlib.contextmanager
@@ -48,9 +121,9 @@ def signals_deferred():
 
 
 def handle_sigterm() -> None:
-    """SIGTERM raises :class:`Terminated` (a KeyboardInterrupt) in the main thread, as SIGINT
-    does: ``simulate``, ``compare``, ``sweep`` and the other commands close their files and
-    exit with status 130, as for Ctrl-C (the node and ``replay`` install their own handler).
+    """SIGINT and SIGTERM raise KeyboardInterrupt / :class:`Terminated` in the main thread:
+    ``simulate``, ``compare``, ``sweep`` and the other commands close their files and exit
+    with status 130 / 143 (the node and ``replay`` install their own handler once they run).
     Both wait for the end of a log write (:func:`signals_deferred`)."""
     if threading.current_thread() is threading.main_thread():
         # a mask inherited from the launcher (or left by a library's worker threads in this
@@ -58,10 +131,44 @@ def handle_sigterm() -> None:
         if hasattr(signal, "pthread_sigmask"):
             signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
         signal.signal(signal.SIGTERM, _on_signal)
-        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        if signal.getsignal(signal.SIGINT) in (signal.default_int_handler, _on_signal):
             signal.signal(signal.SIGINT, _on_signal)
 
 
-def reset() -> None:
-    """Forget a signal deferred by an earlier command of this process (``rod-sim`` in tests)."""
+def finished() -> None:
+    """The current command has returned: its watchdog (if a signal started one) stands down."""
+    _done.set()
+
+
+def exit_now(status: int) -> None:
+    """End the process with ``status`` at once, stdout and stderr flushed (no interpreter
+    teardown: the outputs are already closed)."""
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    os._exit(status)
+
+
+def exit_quietly_on_signal() -> None:
+    """After the command has returned (its outputs closed, its exit status known), while the
+    interpreter shuts down: SIGINT / SIGTERM end the process at once, streams flushed, with
+    status 130 / 143 and no further line (no traceback from the shutdown's own code)."""
+    def end(signum, frame):
+        exit_now(exit_status(signum))
+
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            if signal.getsignal(sig) is not signal.SIG_IGN:
+                signal.signal(sig, end)
+
+
+def reset(name: str = "rod-sim") -> None:
+    """Start a command: forget a signal of an earlier command of this process (``rod-sim`` in
+    tests); ``name`` is the command's name in the forced end's line."""
+    global command, _done
+    _done.set()
+    _done = threading.Event()
     _pending.clear()
+    _received.clear()
+    _unfinished.clear()
+    command = name

@@ -12,15 +12,18 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
 import time
 from pathlib import Path
 
 from ..core.quote import quote
 from .common import EXIT_OK, UsageError, new_output_path
+from .signals import done, exit_status, received
 
 HELP = "batch runs over parameter grids or Monte-Carlo draws (local pool or Dask cluster)"
 EXIT_INTERRUPTED = 130
+"""Ctrl-C; SIGTERM: 143 (:func:`rod_sim.tools.signals.exit_status`)."""
 
 
 class SweepInterrupted(Exception):
@@ -84,10 +87,14 @@ def run_serial(tasks: list[dict], on_row=None) -> dict:
     return rows
 
 
-def _ignore_sigint() -> None:
-    import signal
+def _worker_init() -> None:
+    """Initializer of a pool worker: Ctrl-C is the parent's to handle, and the worker dies with
+    its parent (the forkserver, which dies with the sweep: :mod:`sweep_forkserver`; or the
+    sweep, for spawned workers) even when that is SIGKILLed (issue 27, item 8)."""
+    from .parent_death import die_with_parent
 
-    signal.signal(signal.SIGINT, signal.SIG_IGN)       # the parent handles Ctrl-C
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    die_with_parent()
 
 
 def _pool_context():
@@ -97,7 +104,9 @@ def _pool_context():
 
     if "forkserver" in multiprocessing.get_all_start_methods():
         ctx = multiprocessing.get_context("forkserver")
-        ctx.set_forkserver_preload(["rod_sim.tools.sweep_worker"])
+        # the first import makes the forkserver die with the sweep (parent-death signal)
+        ctx.set_forkserver_preload(["rod_sim.tools.sweep_forkserver",
+                                    "rod_sim.tools.sweep_worker"])
         return ctx
     return multiprocessing.get_context("spawn")
 
@@ -145,7 +154,7 @@ def _pool_round(tasks: list[dict], workers: int, function, marker_dir: str, rows
 
     from .sweep_worker import failed_row
 
-    executor = ProcessPoolExecutor(max_workers=workers, initializer=_ignore_sigint,
+    executor = ProcessPoolExecutor(max_workers=workers, initializer=_worker_init,
                                    mp_context=_pool_context())
     futures = {}
     lost: list[dict] = []
@@ -353,13 +362,16 @@ def run(args) -> int:
             bar.close()
         rows = [stop.rows[i] for i in sorted(stop.rows)]
         write_table(rows, out, result_columns(spec), metadata(spec))
-        print(f"rod-sim sweep: interrupted: {_summary(rows, len(tasks))}; finished rows "
-              f"written to {out}", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        done(out)
+        print(f"rod-sim sweep: interrupted{' (SIGTERM)' if received() == signal.SIGTERM else ''}"
+              f": {_summary(rows, len(tasks))}; finished rows written to {out}",
+              file=sys.stderr)
+        return exit_status()
     if bar is not None:
         bar.close()
     wall = time.perf_counter() - started
     write_table(rows, out, result_columns(spec), metadata(spec))
+    done(out)
     if plot is not None:
         from .sweep_plot import plot_sweep
 

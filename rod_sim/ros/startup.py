@@ -1,0 +1,67 @@
+"""Start-up of a rod_sim ROS 2 process (issue 27, item 1): what it is doing, said on stderr
+when it takes longer than :data:`NOTICE_AFTER_S`, and a stop that does not wait for it.
+
+:func:`phase` names the current step (``run_node`` and :mod:`rod_sim.ros.budget` set it);
+:class:`Progress` is a thread that prints ``PROG: starting: PHASE (n s so far)`` after 2 s and
+then every :data:`NOTICE_EVERY_S` until the start-up ends. The work it watches is done in
+bounded calls (compiled integrator calls return after bounded work), so the thread, and the
+signal handler that interrupts the start-up (:class:`rod_sim.ros.process.StopRequest`), get
+to run between them."""
+from __future__ import annotations
+
+import sys
+import threading
+import time
+
+NOTICE_AFTER_S = 2.0
+"""[s] of start-up after which the first progress line is printed."""
+NOTICE_EVERY_S = 5.0
+"""[s] between later progress lines."""
+
+_phase = "starting"
+
+
+def phase(text: str) -> None:
+    """Name what the start-up is doing now (e.g. 'calibrating the work budget')."""
+    global _phase
+    _phase = text
+
+
+class Progress:
+    """Context manager around a start-up: a daemon thread prints what it is doing after
+    :data:`NOTICE_AFTER_S` and every :data:`NOTICE_EVERY_S` after that, until the block
+    ends. ``prog`` names the process; ``what`` (e.g. 'scene big, n = 100000') is printed with
+    the first line."""
+
+    def __init__(self, prog: str, what=lambda: "", stream=None):
+        self.prog = prog
+        self.what = what
+        self.stream = stream
+        self.lines = 0
+        self._done = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="rod-sim-startup", daemon=True)
+
+    def __enter__(self) -> "Progress":
+        phase("creating the node")
+        self._started = time.monotonic()
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._done.set()
+
+    def _run(self) -> None:
+        wait = NOTICE_AFTER_S
+        while not self._done.wait(wait):
+            elapsed = time.monotonic() - self._started
+            extra = ""
+            if not self.lines:
+                try:
+                    extra = self.what() or ""
+                except Exception:  # noqa: BLE001 -- a description is never worth a failure
+                    extra = ""
+            text = f"{self.prog}: starting: {_phase} ({elapsed:.0f} s so far"
+            text += f"; {extra})" if extra else ")"
+            print(text, file=self.stream or sys.stderr, flush=True)
+            self.lines += 1
+            wait = NOTICE_EVERY_S

@@ -1,0 +1,107 @@
+"""Issue 27, item 1: the node's start-up on long chains. `rod-sim node` on a 10 000- or
+100 000-rod scene printed nothing, never subscribed within 240 s and ignored SIGINT: its
+start-up calibration integrated whole periods with no work bound (22 s for one 10 000-rod
+calibration here) and the validity monitor solved the chain's bending mode by Lanczos (40 s at
+10 000 rods). Now the start-up is bounded work (budget.measure: every call bounded, ~1 s in
+all; the mode of a chain above 4096 rods from its rods), says what it is doing after 2 s, and
+SIGINT / SIGTERM at any moment of it end the process within 1 s: status 130 / 143, one line.
+ROS_DOMAIN_ID 146 (LOCALHOST)."""
+from __future__ import annotations
+
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("rclpy")
+
+from procs import terminal_signals  # noqa: E402
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(600)]
+
+REPO = Path(__file__).resolve().parents[1]
+DOMAIN = 146
+LAUNCH = "import sys; from rod_sim.tools.cli import main; sys.exit(main())"   # as bin/rod-sim
+
+
+def chain(tmp_path: Path, n: int) -> Path:
+    """n of the paper's rods at rest along x, a tip pulse at node n (in motion from t = 0)."""
+    path = tmp_path / f"chain{n}.yaml"
+    path.write_text(f"name: chain{n}\nrods: {{count: {n}, length: 2.0, mass_per_length: 3.0, "
+                    "bending_stiffness: 1.0e5}\nnodes: {mass: 3.0}\nhinges: {stiffness: "
+                    "100.0, damping: 0.01}\nloads:\n  - {node: " + str(n) + ", axis: y, shape: "
+                    "raised_cosine_pulse, amplitude: 1200.0, start: 0.0, duration: 1.0}\n")
+    return path
+
+
+def start(scene: Path, err: Path) -> subprocess.Popen:
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(DOMAIN),
+               PYTHONUNBUFFERED="1")
+    with open(err, "w") as f:
+        return subprocess.Popen([sys.executable, "-c", LAUNCH, "node", "--ros-args", "-p",
+                                 f"scene_file:={scene}"], cwd=REPO, env=env, stdout=f,
+                                stderr=subprocess.STDOUT, preexec_fn=terminal_signals)
+
+
+def wait_for(proc, err: Path, text: str, timeout: float) -> float:
+    started = time.monotonic()
+    while text not in err.read_text():
+        assert proc.poll() is None, err.read_text()
+        assert time.monotonic() - started < timeout, f"no {text!r} in {timeout} s: " \
+                                                     + err.read_text()[-2000:]
+        time.sleep(0.05)
+    return time.monotonic() - started
+
+
+@pytest.mark.parametrize("n, limit", [(10_000, 60.0), (100_000, 120.0)])
+def test_a_long_chain_starts_in_bounded_time_and_says_so(tmp_path, n, limit):
+    err = tmp_path / "node.log"
+    proc = start(chain(tmp_path, n), err)
+    try:
+        took = wait_for(proc, err, f"(n = {n})", limit)          # the node's start line
+        log = err.read_text()
+        if took > 6.0:          # > 2 s after the imports: what it is doing was said
+            assert "rod-sim node: starting: " in log, log
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=30) == 0, err.read_text()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
+def test_a_signal_at_any_moment_of_the_start_up_ends_it_within_1_s(tmp_path):
+    scene = chain(tmp_path, 100_000)
+    rng = random.Random(27)
+    for trial in range(6):
+        sig = rng.choice([signal.SIGINT, signal.SIGTERM])
+        delay = rng.uniform(0.1, 6.0)
+        err = tmp_path / f"node{trial}.log"
+        proc = start(scene, err)
+        try:
+            time.sleep(delay)
+            log = err.read_text()
+            if "(n = 100000)" in log:
+                continue                                 # already running: test_node_process
+            sent = time.monotonic()
+            proc.send_signal(sig)
+            status = proc.wait(timeout=30)
+            took = time.monotonic() - sent
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+        log = err.read_text()
+        what = f"{sig.name} at {delay:.2f} s: "
+        lines = [line for line in log.splitlines() if not line.startswith("[")
+                 and ": starting: " not in line]
+        assert status == 128 + sig, what + log
+        assert "Traceback" not in log, what + log
+        assert len(lines) == 1 and lines[0].startswith("rod-sim node: interrupted"), what + log
+        assert ("(SIGTERM)" in lines[0]) == (sig == signal.SIGTERM), what + log
+        assert took < 1.0, what + f"ended {took:.2f} s after the signal"
