@@ -32,7 +32,7 @@ setup(
         "ros": ["ros-jazzy-rclpy[fastrtps]", "ros-jazzy-common-interfaces"],
         "test": ["pytest", "pytest-timeout", "rosbags", "sympy", "yourdfpy"],
         "plot": ["matplotlib"],
-        "peer": ["mujoco", "pin"],              # bench: MuJoCo and Pinocchio side by side
+        "peer": ["mujoco", "pin", "bsk"],       # bench: MuJoCo, Pinocchio, Basilisk (bsk pins matplotlib<=3.10.9)
         "sweep": ["dask[distributed]", "pyarrow", "tqdm"],      # rod-sim sweep on a cluster
     },
     zip_safe=True,
