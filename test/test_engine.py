@@ -77,6 +77,33 @@ def test_every_spacecraft_scene_runs_in_every_model(scene_file, t_end, model):
         assert abs(last.psi - first.psi) > 1e-9
 
 
+def test_advise_counts_a_free_bases_angle(capsys):
+    # rod-sim advise on the two-wing deployment: a candidate's error is the larger of its rod
+    # angles' and its bus angle's distance from the full model's reference
+    wings = CONFIG / "two_wing_deployment.yaml"
+    assert cli.main(["advise", str(wings), "--tolerance", "1e-3", "--t-end", "0.2",
+                     "--repeats", "1", "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    trial = next(r for r in res["trials"] if r["model"] == "rigid" and r["rtol"] == 1e-4)
+    sc = load_scene(wings)
+    runs = {}
+    for name, rtol in (("rigid", 1e-4), ("full", 1e-11)):
+        m = make_model(name, sc)
+        traj = Simulator(m, make_integrator(rtol=rtol)).run(0.2, 100.0)
+        runs[name] = (traj.phi, traj.y[:, m.base_index + 2])
+    phi_err = np.max(np.abs(runs["rigid"][0] - runs["full"][0]))
+    psi_err = np.max(np.abs(runs["rigid"][1] - runs["full"][1]))
+    assert psi_err > 1e-9                                   # the bus turns differently
+    assert trial["max_phi_error"] == pytest.approx(max(phi_err, psi_err), rel=1e-6)
+    assert res["recommendation"] is not None
+    # here the rods' error is the larger; the angles advise compares end with the bus's psi
+    from rod_sim.tools import advise
+    angles, _, _ = advise._run(sc, "rigid", 1e-4, 0.2)
+    assert angles.shape == (21, sc.n + 1)
+    assert np.array_equal(angles[:, :-1], runs["rigid"][0])
+    assert np.array_equal(angles[:, -1], runs["rigid"][1])
+
+
 def test_every_shipped_config_compares_with_its_own_full_log(tmp_path, capsys):
     for scene_file, t_end, rate in SHIPPED:
         log = _full_log(tmp_path, scene_file, t_end, rate)
