@@ -24,14 +24,15 @@ $(VPY):
 
 $(STAMP): setup.py | $(VPY)
 	$(VPY) -m pip install -q --upgrade pip
-	$(VPY) -m pip install -q -e '.[ros,test,plot,peer,sweep]'
+	$(VPY) -m pip install -q -e '.[ros,test,plot,peer,sweep,view]'
 	touch $(STAMP)
 
 # Compile every registered model x integrator (and the hinge drivers) into numba's cache, so
-# that the first command does not wait ~20 s for it; again whenever rod_sim/core changes.
+# that the first command does not wait ~20 s for it; again whenever a module of rod_sim/core
+# that holds compiled code changes (rod_sim/core/jit.py: the modules that name njit).
 warm: $(WARM)
 
-$(WARM): $(STAMP) $(wildcard rod_sim/core/*.py)
+$(WARM): $(STAMP) $(shell grep -l njit rod_sim/core/*.py)
 	$(VPY) -m rod_sim.tools.jit_warm
 	touch $(WARM)
 

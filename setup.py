@@ -30,9 +30,11 @@ setup(
     ],
     extras_require={
         "ros": ["ros-jazzy-rclpy[fastrtps]", "ros-jazzy-common-interfaces"],
-        "test": ["pytest", "pytest-timeout", "rosbags", "sympy", "yourdfpy"],
+        "view": ["foxglove-sdk"],               # the live view (live_view_port, --live-view)
+        "test": ["pytest", "pytest-timeout", "rosbags", "sympy", "yourdfpy", "websockets",
+                 "foxglove-sdk"],
         "plot": ["matplotlib"],
-        "peer": ["mujoco", "pin", "bsk"],       # bench: MuJoCo, Pinocchio, Basilisk (bsk pins matplotlib<=3.10.9)
+        "peer": ["mujoco", "pin", "bsk"],       # bench: MuJoCo, Pinocchio, Basilisk; tests: Basilisk (bsk pins matplotlib<=3.10.9)
         "sweep": ["dask[distributed]", "pyarrow", "tqdm"],      # rod-sim sweep on a cluster
     },
     zip_safe=True,

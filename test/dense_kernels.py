@@ -31,7 +31,29 @@ import numpy as np
 
 from rod_sim.core.dense_lu import _pivot, lu_inplace, lu_solve  # noqa: F401
 from rod_sim.core.jit import njit
-from rod_sim.core.kernels import hinge_angle, load_forces  # noqa: F401  (shared, not under test)
+from rod_sim.core.kernels import scripted_value  # noqa: F401  (the one load law, not under test)
+
+
+@njit(inline="always")
+def hinge_angle(phi, dphi, h):
+    """Rigid hinge angle theta_h [rad] and its rate of the one chain on the ground."""
+    if h == 0:
+        return phi[0], dphi[0]
+    return phi[h] - phi[h - 1], dphi[h] - dphi[h - 1]
+
+
+@njit(inline="always")
+def load_forces(t, loads, held, t_side, out):
+    """Nodal forces (n, 2) [N]: the held ones (held[:, :2]) plus the scripted chain-node loads
+    (rows < n, columns x, y of the models' load table)."""
+    row, col, shape, amp, start, dur = loads
+    n = out.shape[0]
+    for k in range(n):
+        out[k, 0] = held[k, 0]
+        out[k, 1] = held[k, 1]
+    for i in range(row.shape[0]):
+        if row[i] < n and col[i] < 2:
+            out[row[i], col[i]] += scripted_value(t, shape[i], amp[i], start[i], dur[i], t_side)
 
 SHAPE_PULSE, SHAPE_CONSTANT, SHAPE_STEP = 0, 1, 2
 

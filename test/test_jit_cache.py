@@ -1,6 +1,7 @@
-"""The on-disk cache of compiled code is keyed by every module of rod_sim.core: an integrator
-that inlined an older kernel must not be loaded after the kernel changed (numba alone looks
-only at the integrator's own file)."""
+"""The on-disk cache of compiled code is keyed by every module of rod_sim.core that holds
+compiled code: an integrator that inlined an older kernel must not be loaded after the kernel
+changed (numba alone looks only at the integrator's own file), and an edit of a pure-Python
+module (models, scene, ...) must not recompile anything."""
 from __future__ import annotations
 
 import shutil
@@ -10,15 +11,23 @@ import pytest
 from rod_sim.core import erk, jit, kernels
 
 
-def test_stamp_changes_when_any_core_module_changes(tmp_path):
+def test_stamp_changes_when_a_compiled_module_changes_and_only_then(tmp_path):
     for path in jit.CORE_DIR.glob("*.py"):
         shutil.copy(path, tmp_path / path.name)
     before = jit.sources_stamp(tmp_path)
     assert jit.sources_stamp(tmp_path) == before
-    kernel_file = tmp_path / "kernels.py"
-    kernel_file.write_text(kernel_file.read_text() + "\n# edited\n")
-    assert jit.sources_stamp(tmp_path) != before
-    (tmp_path / "new_module.py").write_text("")
+    names = {p.name for p in jit.compiled_sources(tmp_path)}
+    assert {"kernels.py", "erk.py", "radau.py", "newton.py", "motion.py"} <= names
+    assert not names & {"models.py", "scene.py", "validity.py", "simulator.py"}
+    models_file = tmp_path / "models.py"
+    models_file.write_text(models_file.read_text() + "\n# edited\n")
+    assert jit.sources_stamp(tmp_path) == before             # pure Python: no recompile
+    for name in ("kernels.py", "motion.py"):                  # compiled, or compiled elsewhere
+        path = tmp_path / name
+        path.write_text(path.read_text() + "\n# edited\n")
+        assert jit.sources_stamp(tmp_path) != before
+        before = jit.sources_stamp(tmp_path)
+    (tmp_path / "new_module.py").write_text("from .jit import njit\n")
     assert jit.sources_stamp(tmp_path) not in (before, jit.sources_stamp(jit.CORE_DIR))
 
 

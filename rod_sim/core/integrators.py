@@ -71,10 +71,20 @@ _GROUPS = {1: (("phi", "rad"), ("phi_rate", "rad/s")),
                ("alpha_rate", "rad/s"), ("beta_rate", "rad/s"))}
 
 
+_BASE = (("base x", "m"), ("base y", "m"), ("base psi", "rad"), ("wheel angle", "rad"))
+
+
 def state_component(model, i: int) -> tuple[str, int, str]:
-    """(quantity, rod 1..n, unit) of component ``i`` of the model's state vector."""
-    name, unit = _GROUPS[model.dof_per_rod][i // model.n]
-    return name, i % model.n + 1, unit
+    """(quantity, rod 1..n, unit) of component ``i`` of the model's state vector (a free
+    base's coordinates: rod 0)."""
+    dof, chains = model.dof, model.dof_per_rod * model.n
+    j = i % dof
+    if j >= chains:
+        name, unit = _BASE[j - chains]
+        return (name, 0, unit) if i < dof else (name + " rate", 0, unit + "/s")
+    group = j // model.n + (model.dof_per_rod if i >= dof else 0)
+    name, unit = _GROUPS[model.dof_per_rod][group]
+    return name, j % model.n + 1, unit
 
 
 def explain_state(model, t: float, y, held=None) -> str:

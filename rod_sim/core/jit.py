@@ -7,8 +7,11 @@ Compiled code is cached on disk (``cache=True``). numba judges a cache entry fre
 content of the function's own source file only, but the compiled integrators of ``erk.py``
 inline the kernels of ``kernels.py``: after an edit or an upgrade that changes a kernel and
 not ``erk.py``, numba would load an integrator with the old kernel inside. The functions of
-this package are therefore cached under a stamp of *every* module of ``rod_sim.core``
-(:func:`sources_stamp`), so that any change there recompiles them all.
+this package are therefore cached under a stamp of every module of ``rod_sim.core`` that
+holds compiled code (:func:`compiled_sources`: the modules that name ``njit``, including a
+plain-Python function compiled elsewhere, as motion.py's ``profile_at``), so that a change to
+any of them recompiles them all, and an edit of the pure-Python modules (models, scene,
+validity, ...) recompiles nothing.
 """
 from __future__ import annotations
 
@@ -19,10 +22,20 @@ from pathlib import Path
 CORE_DIR = Path(__file__).resolve().parent
 
 
+COMPILED_MARK = b"njit"
+"""A module of rod_sim.core whose text holds this word holds compiled code (or code that
+compiled code inlines) and is part of the cache stamp."""
+
+
+def compiled_sources(directory: Path = CORE_DIR) -> list[Path]:
+    """The ``*.py`` files of ``directory`` that hold compiled code, sorted by name."""
+    return [p for p in sorted(Path(directory).glob("*.py")) if COMPILED_MARK in p.read_bytes()]
+
+
 def sources_stamp(directory: Path = CORE_DIR) -> str:
-    """SHA-256 over the names and contents of the ``*.py`` files in ``directory``."""
+    """SHA-256 over the names and contents of :func:`compiled_sources` of ``directory``."""
     digest = hashlib.sha256()
-    for path in sorted(Path(directory).glob("*.py")):
+    for path in compiled_sources(directory):
         digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
     return digest.hexdigest()
 

@@ -46,7 +46,8 @@ KIND_REDUCED, KIND_FULL = 0, 1
 # columns of Extra.work (n, N_WORK)
 W_C, W_S, W_GP, W_GA, W_FP, W_FA, W_FB, W_X, W_A, W_B, W_COR = range(11)
 W_REC = 11                # 15 columns: v0 (3) and V (3 x 4) of each rod's elimination
-N_WORK = W_REC + 15
+W_G = W_REC + 15          # reduced model with gravity: C_k (g . e_k), the slopes' weight term
+N_WORK = W_G + 1
 N_SMALL = 64              # Extra.small: the 4-vector P, 4 x 4 K and 3 x 5 systems
 
 
@@ -534,6 +535,7 @@ def _sweep_back(kind, ch, ex, W, r0, r1):
     (z (2), rho or beta, x) of the rod before rod r0 and each rod's affine record in W.
     False if singular."""
     full = kind == KIND_FULL
+    grav = not full and ch.base[B_GRAVITY] != 0.0
     sm = ex.small
     P = sm[0:4]
     K = sm[4:20].reshape((4, 4))
@@ -587,6 +589,10 @@ def _sweep_back(kind, ch, ex, W, r0, r1):
             E[0, 0] = ch.Akk[r] + lc0 * kx[0] + lc1 * kx[1] - kt * kx[2] - kx[3]
             E[0, 1] = ka
             E[0, 2] = lc0 * kb[0] + lc1 * kb[1] + kt - kt * kb[2] - kb[3]
+            if grav:
+                # gravity's bending term -C (g . e)(alpha - beta) of the phi row, moved left
+                E[0, 1] += W[r, W_G]
+                E[0, 2] -= W[r, W_G]
             G[0, 0] = W[r, W_FP] - (lc0 * P[0] + lc1 * P[1] - kt * P[2] - P[3])
             G[0, 1] = -(lc0 * K[0, 0] + lc1 * K[1, 0] + lM * c - kt * K[2, 0] - K[3, 0])
             G[0, 2] = -(lc0 * K[0, 1] + lc1 * K[1, 1] + lM * s - kt * K[2, 1] - K[3, 1])
@@ -942,6 +948,7 @@ def rigid_rhs(t, y, chain, extra, loads, held, t_side, out):
     _hinge_moments(phi, dphi, chain, extra, W, tau)
     for k in range(n):
         W[k, W_FP] += extra.rest_phi[k] - W[k, W_GP] - tau[k] + _tn(chain, tau, k)
+        W[k, W_G] = 0.0                     # rigid rods: no bending term
     if chain.base[B_MODE] == MODE_FREE:
         _base_forces(False, chain, extra, W, dphi, dphi, dphi, tau)
     _stop_moments(phi, dphi, chain, extra, W)
@@ -974,6 +981,7 @@ def reduced_rhs(t, y, chain, extra, loads, held, t_side, out):
             gp = chain.C[k] * (W[k, W_C] * gy - W[k, W_S] * gx)
             W[k, W_FA] += gp
             W[k, W_FB] -= gp
+            W[k, W_G] = chain.C[k] * (W[k, W_C] * gx + W[k, W_S] * gy)
     if chain.base[B_MODE] == MODE_FREE:
         _base_forces(False, chain, extra, W, dphi, dphi, dphi, tau)
     _stop_moments(phi, dphi, chain, extra, W)
@@ -1192,6 +1200,7 @@ def solve_with(kind, phi, chain, extra, fp, fa, fb, out, out_a, out_b, fbase, ou
         W[k, W_FP] = fp[k]
         W[k, W_FA] = fa[k]
         W[k, W_FB] = fb[k]
+        W[k, W_G] = 0.0                     # the inertia structure only (no gravity term)
     if not chain_solve(kind, chain, extra, W):
         return False
     for k in range(n):

@@ -34,14 +34,17 @@ def shape_table(length: np.ndarray, points_per_rod: int = 11
 
 
 def rod_points(length: np.ndarray, phi: np.ndarray, alpha: np.ndarray, beta: np.ndarray,
-               points_per_rod: int = 11, table=None) -> np.ndarray:
+               points_per_rod: int = 11, table=None, starts=None) -> np.ndarray:
     """Points of the bent rods, eq. (4): array (n, points_per_rod, 2) [m].
 
     Point j of rod k is at s = l_k j / (points_per_rod - 1); the first and last point of
     each rod are its end nodes. ``alpha``, ``beta`` (n,) are the end slopes [rad]. ``table``:
-    ``shape_table(length, points_per_rod)`` if already computed (same result).
+    ``shape_table(length, points_per_rod)`` if already computed (same result). ``starts``
+    (n, 2) [m]: where each rod starts (several chains on a base; default: one chain from
+    the origin, eq. (3)).
     """
-    nodes = node_positions(length, phi)
+    nodes = node_positions(length, phi) if starts is None else \
+        np.concatenate([np.asarray(starts, dtype=float), np.zeros((1, 2))])
     s, sigma, tau = shape_table(length, points_per_rod) if table is None else table
     eta = alpha[:, None] * sigma + beta[:, None] * tau     # transverse deflection (n, P)
     c, sn = np.cos(phi)[:, None], np.sin(phi)[:, None]

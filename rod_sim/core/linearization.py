@@ -31,9 +31,13 @@ def stiffness_times(model, v: np.ndarray) -> np.ndarray:
     n = model.n
     ch = model.chain
     phi, al, be = v[:n], v[n:2 * n], v[2 * n:]
-    delta = phi + al - np.concatenate([[0.0], phi[:-1] + be[:-1]])
+    first = np.asarray(ch.prev) < 0                 # each chain's hinge 0 (on the base)
+    left = np.concatenate([[0.0], phi[:-1] + be[:-1]])
+    left[first] = 0.0
+    delta = phi + al - left
     tau = ch.kappa * delta
     tau_next = np.append(tau[1:], 0.0)
+    tau_next[np.append(first[1:], True)] = 0.0
     out = np.empty(3 * n)
     out[:n] = tau - tau_next
     out[n:2 * n] = tau + ch.Kt * (al + 0.5 * be)
@@ -41,9 +45,15 @@ def stiffness_times(model, v: np.ndarray) -> np.ndarray:
     return out
 
 
+def _clamped(chain):
+    """The chains on a base held still: the bending modes here are those of the chains on a
+    fixed base (a moving base's coordinates are left out of the linearization)."""
+    return chain._replace(base=np.zeros(kernels.N_BASE))
+
+
 def mass_times(model, phi: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """M v (3n,) at rod angles phi (n,) for v (3n,)."""
-    return kernels.inertia_times(kernels.KIND_FULL, model.chain, phi, v)
+    """M v (3n,) at rod angles phi (n,) for v (3n,) (the base held still)."""
+    return kernels.inertia_times(kernels.KIND_FULL, _clamped(model.chain), phi, v)
 
 
 def shifted_solver(model, phi: np.ndarray, s: float):
@@ -56,11 +66,11 @@ def shifted_solver(model, phi: np.ndarray, s: float):
     sprung = (ch.kappa > 0.0) & ~locked
     comp = np.zeros(n)
     comp[sprung] = -1.0 / (s * ch.kappa[sprung])
-    chain = ch._replace(c105=ch.c105 + s * ch.Kt, c140=ch.c140 - 0.5 * s * ch.Kt,
-                        kappa=np.zeros(n), kappa_tip=np.zeros(n))
+    chain = _clamped(ch)._replace(c105=ch.c105 + s * ch.Kt, c140=ch.c140 - 0.5 * s * ch.Kt,
+                                  kappa=np.zeros(n), kappa_tip=np.zeros(n))
     extra = kernels.make_extra(np.zeros((3, n)), np.zeros((4, n)), np.zeros(n),
                                locked | sprung, np.asarray(sc.rod_rigid, dtype=bool), comp,
-                               kind=kernels.KIND_FULL)
+                               kind=kernels.KIND_FULL, nchains=len(ch.seg) - 1)
     phi = np.ascontiguousarray(phi, dtype=float)
 
     def solve(f):
@@ -68,7 +78,7 @@ def shifted_solver(model, phi: np.ndarray, s: float):
         x = np.empty(3 * n)
         ok = kernels.solve_with(kernels.KIND_FULL, phi, chain, extra, np.ascontiguousarray(f[:n]),
                                 np.ascontiguousarray(f[n:2 * n]), np.ascontiguousarray(f[2 * n:]),
-                                x[:n], x[n:2 * n], x[2 * n:])
+                                x[:n], x[n:2 * n], x[2 * n:], np.zeros(4), np.zeros(4), 0.0)
         if not ok:
             raise np.linalg.LinAlgError("singular shifted stiffness")
         return x

@@ -533,8 +533,26 @@ class ChainModel:
 
     def kinetic_energy(self, t, y, held=None) -> float:
         """(1/2) x'^T M x' [J] (rigid and reduced: rod motion only; a free base and its wheel
-        included), O(n)."""
-        return 0.5 * float(np.dot(y[self.dof:], self.mass_times(y)))
+        included; on a prescribed base the chains' motion with their node 0's velocity
+        v_0: + v_0 . P_rel + M_c |v_0|^2 / 2 per chain, P_rel = sum_j (l_j M_j phi_j' +
+        C_j (alpha_j' - beta_j')) e_j^perp), O(n)."""
+        ke = 0.5 * float(np.dot(y[self.dof:], self.mass_times(y)))
+        if self.base_mode != kernels.MODE_PRESCRIBED:
+            return ke
+        ch = self.chain
+        phi, dphi = self.phi(y), self.phi_rate(y)
+        w = ch.l * ch.Mt * dphi
+        if self.dof_per_rod == 3:
+            da, db = self.bending_rates(t, y, held)
+            w = w + ch.C * (da - db)
+        px, py = -w * np.sin(phi), w * np.cos(phi)
+        v = self.node_velocities(t, y)
+        for ci in range(len(self.seg) - 1):
+            a, b = self.seg[ci], self.seg[ci + 1]
+            v0 = v[a + ci]
+            ke += float(v0[0] * px[a:b].sum() + v0[1] * py[a:b].sum()
+                        + 0.5 * ch.Mc[ci] * (v0[0] ** 2 + v0[1] ** 2))
+        return ke
 
     def gravity_energy(self, t, y, bending=None) -> float:
         """-sum m g.r over every mass point [J] (rods with their bending, node masses, a free
@@ -788,7 +806,8 @@ class FullModel(ChainModel):
 
     def bending_rates(self, t, y, held=None):
         n = self.n
-        return np.array(y[4 * n:5 * n]), np.array(y[5 * n:6 * n])
+        d = self.dof
+        return np.array(y[d + n:d + 2 * n]), np.array(y[d + 2 * n:d + 3 * n])
 
     _kind = kernels.KIND_FULL
 

@@ -35,13 +35,16 @@ def _cross(a, b):
 @dataclass(frozen=True)
 class MomentumRates:
     """Rates [N, N m] at one instant: ``force`` (2,) and ``moment`` (about O) of the applied
-    loads and gravity on the whole system; ``defect_force`` (2,), ``defect_moment``: the
-    full model's defect (0 for the rigid and reduced models)."""
+    loads and gravity on the whole system (after a load that jumps at this instant) and
+    ``force_before``, ``moment_before`` (before it; equal elsewhere); ``defect_force`` (2,),
+    ``defect_moment``: the full model's defect (0 for the rigid and reduced models)."""
 
     force: np.ndarray
     moment: float
     defect_force: np.ndarray
     defect_moment: float
+    force_before: np.ndarray | None = None
+    moment_before: float | None = None
 
 
 def _accelerations(model, t, y, held, mode):
@@ -88,26 +91,41 @@ def momentum_rates(model, t: float, y, held=None, mode=None) -> MomentumRates:
     """dP/dt and dH_O/dt of the whole system by the model's equations, split into the applied
     loads with gravity (the external force and moment about O) and the model's defect."""
     y = np.asarray(y, dtype=float)
-    loads = model.loads_at(t, held)
     nodes = model.node_positions(t, y)
-    i0 = model._node_index_of_rod_start()
-    tips = nodes[i0 + 1]
-    f = loads[:model.n, :2]
-    force = f.sum(axis=0)
-    moment = float(np.sum(_cross(tips, f)))
+    tips = nodes[model._node_index_of_rod_start() + 1]
     mom = model.momentum(t, y, held)
     b = model.chain.base
-    if model.nb:
-        st = model.base_state(t, y)
-        rc = model._base_com(st)
-        force = force + loads[model.n, :2]
-        moment += float(_cross(rc, loads[model.n, :2])) + float(loads[model.n, 2])
-    if b[kernels.B_GRAVITY] != 0.0:
-        g = np.array([b[kernels.B_GX], b[kernels.B_GY]])
-        force = force + mom.mass * g
-        moment += float(_cross(mom.com, mom.mass * g))
+    rc = model._base_com(model.base_state(t, y)) if model.nb else None
+    com = mom.com
+    if model.name == "reduced" and b[kernels.B_GRAVITY] != 0.0:
+        # its momentum is the chords' but gravity acts on the bent rods (quasi-static slopes)
+        p = model.params
+        alpha, beta = model.bending(t, y, held, mode)
+        phi = model.phi(y)
+        shift = p.m * p.l**2 / 12.0 * (alpha - beta)
+        com = com + np.array([-np.sum(shift * np.sin(phi)), np.sum(shift * np.cos(phi))]) / mom.mass
+
+    def applied(t_side):
+        loads = np.zeros((model.n + 2, 3))
+        kernels.load_forces(t, model.loads, model._held(held), t_side, loads)
+        f = loads[:model.n, :2]
+        force = f.sum(axis=0)
+        moment = float(np.sum(_cross(tips, f)))
+        if model.nb:
+            force = force + loads[model.n, :2]
+            moment += float(_cross(rc, loads[model.n, :2])) + float(loads[model.n, 2])
+        if b[kernels.B_GRAVITY] != 0.0:
+            g = np.array([b[kernels.B_GX], b[kernels.B_GY]])
+            force = force + mom.mass * g
+            moment += float(_cross(com, mom.mass * g))
+        return force, moment
+
+    force, moment = applied(t)
+    before = (force, moment)
+    if any(bp == t for bp in model.scene.load_breakpoints()):
+        before = applied(np.nextafter(t, -np.inf))
     dP, dH = defect_rates(model, t, y, held, mode)
-    return MomentumRates(force, moment, dP, dH)
+    return MomentumRates(force, moment, dP, dH, before[0], before[1])
 
 
 def defect_rates(model, t: float, y, held=None, mode=None) -> tuple[np.ndarray, float]:
@@ -156,12 +174,14 @@ class MomentumBalance:
         """Book the sample at time t [s]: the momentum then and its rates."""
         f = rates.force + rates.defect_force
         m = rates.moment + rates.defect_moment
+        fb = f if rates.force_before is None else rates.force_before + rates.defect_force
+        mb = m if rates.moment_before is None else rates.moment_before + rates.defect_moment
         if self._last is None:
             self.p0, self.h0 = np.array(momentum.linear), momentum.angular_origin
         else:
             t0, f0, m0 = self._last
-            self.impulse = self.impulse + 0.5 * (t - t0) * (f0 + f)
-            self.angular_impulse += 0.5 * (t - t0) * (m0 + m)
+            self.impulse = self.impulse + 0.5 * (t - t0) * (f0 + fb)
+            self.angular_impulse += 0.5 * (t - t0) * (m0 + mb)
         self._last = (t, f, m)
         self.p, self.h = np.array(momentum.linear), momentum.angular_origin
         self.scale_p = max(self.scale_p, float(np.max(np.abs(momentum.linear))),
@@ -177,3 +197,83 @@ class MomentumBalance:
     def residual_angular(self) -> float:
         """H(t) - H(0) - int (M + D_H) dt [kg m^2/s]."""
         return self.h - self.h0 - self.angular_impulse
+
+
+def base_reaction(model, t: float, y, held=None, mode=None) -> tuple[np.ndarray, np.ndarray]:
+    """What each chain needs from the base at (t, y): the force (nc, 2) [N] the base exerts on
+    the chain at its node 0, and the moment (nc,) [N m] the chain exerts on the base through
+    its hinge 0 (spring, damper, motor, stop, lock: the chain's generalized force on psi).
+
+    From the model's own accelerations: the force is the chain's rate of momentum (the
+    paper's accelerations: rigid chords, plus the bending inertia and Coriolis terms of the
+    full model) less its applied loads and weight; the moment is the moment about node 0 of
+    the chain's loads and weight less the rate of its moment of momentum about node 0 (the sum
+    of the chain's phi rows, in which every other hinge's moment cancels)."""
+    y = np.asarray(y, dtype=float)
+    p = model.params
+    n = model.n
+    ddphi, dgam, base_acc = _accelerations(model, t, y, held, mode)
+    phi, dphi = model.phi(y), model.phi_rate(y)
+    full = model.dof_per_rod == 3
+    if full:
+        dgam_rate = y[model.dof + n:model.dof + 2 * n] - y[model.dof + 2 * n:model.dof + 3 * n]
+        alpha, beta = y[n:2 * n], y[2 * n:3 * n]
+    else:
+        dgam_rate = np.zeros(n)
+        alpha = beta = np.zeros(n)
+    e = np.stack([np.cos(phi), np.sin(phi)], axis=-1)
+    ep = np.stack([-np.sin(phi), np.cos(phi)], axis=-1)
+    ml = p.m * p.l
+    C = p.m * p.l**2 / 12.0
+    l3 = p.m * p.l**3
+    i0 = model._node_index_of_rod_start()
+    nodes = model.node_positions(t, y)
+    acc = node_accelerations(model, t, y, ddphi, base_acc)
+    r0, a0 = nodes[i0], acc[i0]
+    r1, a1 = nodes[i0 + 1], acc[i0 + 1]
+    # int m a_lin ds over rod j and its tip mass
+    rel = (0.5 * ml * p.l)[:, None] * (ddphi[:, None] * ep - (dphi**2)[:, None] * e) \
+        + (C * dgam)[:, None] * ep - (2.0 * C * dphi * dgam_rate)[:, None] * e
+    rod_force = ml[:, None] * a0 + rel
+    loads = model.loads_at(t, held)[:n, :2]
+    b = model.chain.base
+    g = np.array([b[kernels.B_GX], b[kernels.B_GY]]) if b[kernels.B_GRAVITY] != 0.0 \
+        else np.zeros(2)
+    nc = len(model.seg) - 1
+    force = np.zeros((nc, 2))
+    moment = np.zeros(nc)
+    chain_of_rod = np.cumsum(model.first) - 1
+    root = nodes[np.asarray(model.seg[:-1]) + np.arange(nc)]
+    d0 = r0 - root[chain_of_rod]            # rod j's first node from its chain's node 0
+    d1 = r1 - root[chain_of_rod]
+    # moment of momentum rate about node 0: int m (d0 + s e) x a_lin + mu (d1 x a1)
+    mom_rate = _cross(d0, rod_force) + 0.5 * ml * p.l * _cross(e, a0) + l3 / 3.0 * ddphi
+    if full:
+        dy = model.rhs(t, y, held, mode)
+        ddal = dy[model.dof + n:model.dof + 2 * n]
+        ddbe = dy[model.dof + 2 * n:model.dof + 3 * n]
+        mom_rate = mom_rate + l3 / 30.0 * ddal - l3 / 20.0 * ddbe
+    mom_rate = mom_rate + p.mu * _cross(d1, a1)
+    weight_arm = d0 + 0.5 * p.l[:, None] * e          # chord midpoint from node 0
+    grav_moment = ml * _cross(weight_arm, g) + p.mu * _cross(d1, g)
+    if full:
+        grav_moment = grav_moment + (C * (alpha - beta)) * _cross(ep, g)
+    load_moment = _cross(d1, loads)
+    total = rod_force + p.mu[:, None] * a1 - loads - (ml + p.mu)[:, None] * g
+    np.add.at(force, chain_of_rod, total)
+    np.add.at(moment, chain_of_rod, load_moment + grav_moment - mom_rate)
+    return force, moment
+
+
+def injected_power(model, t: float, y, held=None, mode=None) -> float:
+    """[W] the power a prescribed base delivers to the chains: sum over chains of F_c . v_0c
+    - psi' M_c (:func:`base_reaction`; v_0c the velocity of the chain's node 0). 0 for a fixed
+    or free base (a free base's work is internal to the system)."""
+    if model.base_mode != kernels.MODE_PRESCRIBED:
+        return 0.0
+    force, moment = base_reaction(model, t, y, held, mode)
+    v = model.node_velocities(t, y)
+    nc = len(model.seg) - 1
+    v0 = v[np.asarray(model.seg[:-1]) + np.arange(nc)]
+    st = model.base_state(t, y)
+    return float(np.sum(force * v0) - st.psi_rate * np.sum(moment))

@@ -276,15 +276,26 @@ def latch_losses(events, t_after: float = -math.inf, t_upto: float = math.inf) -
 def _unpaired_coefficients(model, y) -> np.ndarray:
     """A_j (n,) [kg m^2/s] with P_unpaired = -sum_j A_j (alpha_j' - beta_j'):
     A_j = C_j phi_j' sum_{k<j} l_k phi_k' sin(phi_k - phi_j), C_j = m_j l_j^2 / 12 (prefix
-    sums, O(n))."""
+    sums, O(n)); on a moving base or with several chains, A_j = -C_j phi_j' e_j . v_{j-1}
+    with v_{j-1} the velocity of rod j's first node (the same sum plus its node 0's)."""
     n = model.n
-    phi, dphi = y[:n], y[3 * n:4 * n]
     p = model.params
-    c, s = np.cos(phi), np.sin(phi)
-    w = p.l * dphi
-    before_c = np.concatenate([[0.0], np.cumsum(w * c)[:-1]])      # sum_{k<j}
-    before_s = np.concatenate([[0.0], np.cumsum(w * s)[:-1]])
-    return p.m * p.l**2 / 12.0 * dphi * (before_s * c - before_c * s)
+    if _plain(model):
+        phi, dphi = y[:n], y[3 * n:4 * n]
+        c, s = np.cos(phi), np.sin(phi)
+        w = p.l * dphi
+        before_c = np.concatenate([[0.0], np.cumsum(w * c)[:-1]])      # sum_{k<j}
+        before_s = np.concatenate([[0.0], np.cumsum(w * s)[:-1]])
+        return p.m * p.l**2 / 12.0 * dphi * (before_s * c - before_c * s)
+    phi, dphi = model.phi(y), model.phi_rate(y)
+    v = model.node_velocities(0.0, y)[model._node_index_of_rod_start()]
+    return -p.m * p.l**2 / 12.0 * dphi * (np.cos(phi) * v[:, 0] + np.sin(phi) * v[:, 1])
+
+
+def _plain(model) -> bool:
+    """One chain on a fixed base at the origin (the paper's layout)."""
+    return getattr(model, "base_mode", 0) == 0 and len(getattr(model, "seg", (0, 0))) == 2 \
+        and not getattr(model, "nb", 0)
 
 
 def unpaired_power(model, y) -> float:
@@ -302,16 +313,21 @@ def unpaired_power(model, y) -> float:
     against the model's right-hand side in test_energy_balance. O(n)."""
     if getattr(model, "dof_per_rod", 1) != 3:
         return 0.0
-    n = model.n
+    n, d = model.n, model.dof
     y = np.asarray(y, dtype=float)
-    return -float(np.dot(_unpaired_coefficients(model, y), y[4 * n:5 * n] - y[5 * n:6 * n]))
+    return -float(np.dot(_unpaired_coefficients(model, y),
+                         y[d + n:d + 2 * n] - y[d + 2 * n:d + 3 * n]))
 
 
 def net_power(model, t: float, y, held=None, mode=None) -> float:
     """[W] P_load - P_damper + P_unpaired at (t, y) with the latched hinges ``mode`` locked:
     the rate of change of the model's mechanical energy between hinge events."""
     load, damper = model.powers(t, y, held, mode=mode)
-    return load - damper + unpaired_power(model, y)
+    if _plain(model):
+        return load - damper + unpaired_power(model, y)
+    from .momentum import injected_power        # local: momentum imports the models' kernels
+
+    return load - damper + unpaired_power(model, y) + injected_power(model, t, y, held, mode)
 
 
 def load_jump_power(model, t: float, y, held=None) -> float:
@@ -325,14 +341,24 @@ def load_jump_power(model, t: float, y, held=None) -> float:
     n = model.n
     phi, dphi = model.phi(y), model.phi_rate(y)
     held = model._held(held)
-    before, after = np.zeros((n, 2)), np.zeros((n, 2))
+    before, after = np.zeros((n + 2, 3)), np.zeros((n + 2, 3))
     load_forces(t, model.loads, held, math.nextafter(t, -math.inf), before)
     load_forces(t, model.loads, held, t, after)
-    l = model.params.l
-    vx = np.cumsum(-l * np.sin(phi) * dphi)
-    vy = np.cumsum(l * np.cos(phi) * dphi)
     d = before - after
-    return float(np.sum(d[:, 0] * vx + d[:, 1] * vy))
+    if _plain(model):
+        l = model.params.l
+        vx = np.cumsum(-l * np.sin(phi) * dphi)
+        vy = np.cumsum(l * np.cos(phi) * dphi)
+        return float(np.sum(d[:n, 0] * vx + d[:n, 1] * vy))
+    v = model.node_velocities(t, y)[model._node_index_of_rod_start() + 1]
+    power = float(np.sum(d[:n, 0] * v[:, 0] + d[:n, 1] * v[:, 1]))
+    if model.nb:
+        st = model.base_state(t, y)
+        rc = model._base_com(st) - np.array([st.x, st.y])
+        power += float(d[n, 0] * (st.x_rate - st.psi_rate * rc[1])
+                       + d[n, 1] * (st.y_rate + st.psi_rate * rc[0])
+                       + d[n, 2] * st.psi_rate + d[n + 1, 2] * st.wheel_rate)
+    return power
 
 
 RATE_STEP = 1e-7
@@ -389,7 +415,7 @@ def balance_sample(model, t: float, y, held=None, mode=None, bending=None) -> Ba
     if getattr(model, "dof_per_rod", 1) != 3:
         return BalanceSample(float(t), energy, power, before, rate, rate_before)
     n = model.n
-    u = y[n:2 * n] - y[2 * n:3 * n]
+    u = y[n:2 * n] - y[2 * n:3 * n]         # alpha - beta (q comes first in every layout)
     a = _unpaired_coefficients(model, y)
     da = (_unpaired_coefficients(model, up) - _unpaired_coefficients(model, down)) / (2.0 * h)
     return BalanceSample(float(t), energy, power, before, rate, rate_before,

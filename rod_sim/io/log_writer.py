@@ -30,7 +30,7 @@ from mcap.writer import Writer as McapWriter
 from rod_sim import __version__
 from rod_sim.core.scene import Scene
 from rod_sim.core.snapshot import Snapshot
-from rod_sim.io import cdr, msgdefs, topics as topic_msgs
+from rod_sim.io import cdr, encoders, msgdefs, topics as topic_msgs
 from rod_sim.io.log_format import CHUNK_SIZE, METADATA_NAME, PROFILE, REQUIRED_METADATA
 
 RMW_DURATION_INFINITE = {"sec": 9223372036, "nsec": 854775807}
@@ -150,20 +150,33 @@ class LogWriter:
         """Log ``msg`` (nested dicts/lists) on the absolute ``topic`` at ``t_ns`` [ns] (used for
         both log_time and publish_time). Raises LogWriteError for an unknown type, a field the
         type does not have, a negative time or a time before the topic's previous message."""
-        if self._closed:
-            raise LogWriteError(f"{self.path} is closed")
-        if isinstance(t_ns, bool) or not isinstance(t_ns, (int, np.integer)) or t_ns < 0:
-            raise LogWriteError(f"{topic}: t_ns must be an integer >= 0 (got {t_ns!r})")
-        t_ns = int(t_ns)
-        channel_id = self._channel(topic, type_name)
-        if t_ns < self._last_ns.get(topic, 0):
-            raise LogWriteError(f"{topic}: time goes backwards ({t_ns} ns after "
-                                f"{self._last_ns[topic]} ns)")
+        channel_id = self._check(topic, type_name, t_ns)
         try:
             data = self._encoders[type_name](msg)  # also rejects fields the type lacks
         except (ValueError, TypeError, KeyError, AttributeError, struct.error,
                 NotImplementedError) as exc:
             raise LogWriteError(f"{topic}: cannot encode {type_name}: {exc}") from exc
+        self._add(topic, channel_id, int(t_ns), data)
+
+    def write_cdr(self, topic: str, type_name: str, t_ns: int, data: bytes) -> None:
+        """Log a message already encoded (CDR with its encapsulation header, e.g. by
+        :mod:`rod_sim.io.encoders`: the bytes a node publishes) as :meth:`write` does."""
+        channel_id = self._check(topic, type_name, t_ns)
+        self._add(topic, channel_id, int(t_ns), data)
+
+    def _check(self, topic: str, type_name: str, t_ns: int) -> int:
+        """The channel of ``topic``; raises LogWriteError for a closed log or a bad time."""
+        if self._closed:
+            raise LogWriteError(f"{self.path} is closed")
+        if isinstance(t_ns, bool) or not isinstance(t_ns, (int, np.integer)) or t_ns < 0:
+            raise LogWriteError(f"{topic}: t_ns must be an integer >= 0 (got {t_ns!r})")
+        channel_id = self._channel(topic, type_name)
+        if t_ns < self._last_ns.get(topic, 0):
+            raise LogWriteError(f"{topic}: time goes backwards ({t_ns} ns after "
+                                f"{self._last_ns[topic]} ns)")
+        return channel_id
+
+    def _add(self, topic: str, channel_id: int, t_ns: int, data: bytes) -> None:
         self._sequence[topic] += 1
         self._last_ns[topic] = t_ns
         try:
@@ -176,10 +189,11 @@ class LogWriter:
     def write_snapshot(self, snapshot: Snapshot, scene: Scene, frame_id: str = "world",
                        topics: Iterable[str] | None = None) -> None:
         """Log the messages of :func:`rod_sim.io.topics.snapshot_messages` at ``snapshot.t``,
-        on absolute topics (``/rod_states``, ...)."""
+        on absolute topics (``/rod_states``, ...), encoded from numpy by
+        :mod:`rod_sim.io.encoders` (the same bytes)."""
         t_ns = topic_msgs.time_ns(snapshot.t)
-        for name, msg in topic_msgs.snapshot_messages(snapshot, scene, frame_id, topics).items():
-            self.write("/" + name, topic_msgs.TOPIC_TYPES[name], t_ns, msg)
+        for name, data in encoders.snapshot_bytes(snapshot, scene, frame_id, topics).items():
+            self.write_cdr("/" + name, topic_msgs.TOPIC_TYPES[name], t_ns, data)
 
     @property
     def closed(self) -> bool:

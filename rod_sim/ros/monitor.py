@@ -130,3 +130,34 @@ class DiagnosticReport:
         }
         values.update(self.extra)
         return values
+
+
+def node_report(control, period, inputs, dropped: int, sim_time: float, period_ns: int,
+                integrator: str, recording_error: str | None, extra: dict[str, str]
+                ) -> DiagnosticReport:
+    """The report of a node's parts: its :class:`~rod_sim.ros.control.RunControl`,
+    :class:`~rod_sim.ros.period.PeriodRunner` and :class:`~rod_sim.ros.inputs.Inputs`, the
+    ``dropped`` periods, the simulated time [s], the control period [ns], and ``extra``
+    values."""
+    import time
+
+    wall = time.monotonic_ns()
+    meter, ledger = period.meter, period.ledger
+    mean_ms, max_ms = meter.step_cost_ms()
+    rtf_target = None if control.sync_mode else control.rtf
+    forces, torques = inputs.forces, inputs.torques
+    return DiagnosticReport(
+        mode=control.mode(), state=control.state(inputs.any_command()), sim_time=sim_time,
+        rtf_target=rtf_target, rtf_measured=meter.real_time_factor(wall),
+        wall_window=meter.window_s(wall), step_cost_mean=mean_ms, step_cost_max=max_ms,
+        step_budget=(period_ns / 1e6 / control.rtf) if rtf_target else None,
+        steps=meter.steps, dropped_periods=dropped, energy=ledger.energy,
+        energy_residual=ledger.residual,
+        commands_received=forces.received + torques.received,
+        commands_rejected=forces.rejected + torques.rejected,
+        last_rejection=inputs.rejection, command_active=forces.active or torques.active,
+        max_abs_alpha=period.max_alpha, max_abs_beta=period.max_beta,
+        model=period.model.name, integrator=integrator, error=control.error,
+        recording_error=recording_error,
+        validity=[f.message for f in period.validity.findings() if f.kind != "bending"],
+        extra={**extra, **inputs.counts()})

@@ -24,7 +24,11 @@ kept by :class:`rod_sim.core.simulator.Simulator`.
 from __future__ import annotations
 
 import math
+import time
+from collections import deque
 from dataclasses import dataclass
+
+import numpy as np
 
 from rod_sim.core.units import NS_PER_S
 
@@ -200,3 +204,72 @@ class RateMeter:
     @property
     def steps(self) -> int:
         return len(self._costs_ns)
+
+
+class CostEstimate:
+    """The wall cost of one period [ns] the pacer catches up with: the median of the last
+    ``ticks`` ticks' cost per period (stepping, publishing, recording); a tick that was itself
+    preempted by another process does not inflate it; when every tick is slow, the median is
+    slow too. ``value`` is None until a tick was measured."""
+
+    def __init__(self, ticks: int = 50):
+        self._costs: deque[float] = deque(maxlen=ticks)
+        self.value: float | None = None
+
+    def add(self, cost_ns: float) -> None:
+        self._costs.append(cost_ns)
+        self.value = float(np.median(self._costs))
+
+
+FAST_TICK_BUDGET_NS = 20_000_000
+"""[ns] wall time one tick may spend stepping when running as fast as possible."""
+
+
+class Pacing:
+    """The pace of a node outside lockstep, control period ``period`` [ns]: real time x
+    ``rtf`` (a :class:`RealTimePacer` and the measured cost of a period) or, for ``rtf`` 0, as
+    fast as possible (:data:`FAST_TICK_BUDGET_NS` of stepping per tick, so commands and
+    services are served between ticks). ``dropped`` counts the periods of backlog given up."""
+
+    def __init__(self, period: int, rtf: float):
+        self.period = period
+        self.cost = CostEstimate()
+        self.dropped = 0
+        self.set_rtf(rtf)
+
+    def set_rtf(self, rtf: float) -> None:
+        self.rtf = rtf
+        self.pacer = RealTimePacer(self.period, rtf) if rtf > 0 else None
+
+    def tick_period_s(self) -> float:
+        """[s] period of the pacing timer (0: as fast as possible)."""
+        return tick_period_s(self.period, self.rtf) if self.rtf > 0 else 0.0
+
+    def unanchor(self) -> None:
+        if self.pacer is not None:
+            self.pacer.unanchor()
+
+    def tick(self, sim_ns: int, step, running, budget_s: float, warn) -> None:
+        """One timer tick: ``step(wall_age)`` -> success for each period that is due (the
+        rest of a tick longer than ``budget_s`` waits for the next one); ``running()`` says
+        whether to go on; ``warn(text)`` reports dropped backlog."""
+        if self.pacer is None:
+            deadline = time.monotonic_ns() + FAST_TICK_BUDGET_NS
+            while running() and time.monotonic_ns() < deadline:
+                step(False)
+            return
+        decision = self.pacer.decide(time.monotonic_ns(), sim_ns, self.cost.value)
+        if decision.dropped:
+            self.dropped += decision.dropped
+            warn(f"cannot keep up with real time x{self.rtf:g}: dropped {decision.dropped} "
+                 f"period(s) of backlog ({self.dropped} in all; a period costs "
+                 f"{(self.cost.value or 0) / 1e6:.3g} ms of wall time)")
+        start = time.monotonic_ns()
+        deadline, stepped = start + budget_s * NS_PER_S, 0
+        for _ in range(decision.periods):
+            ok = step(True)
+            stepped += ok
+            if not ok or time.monotonic_ns() > deadline:
+                break
+        if stepped:
+            self.cost.add((time.monotonic_ns() - start) / stepped)

@@ -3,6 +3,8 @@ units, range, read-only), the settings read once at start and their checks, the 
 rejected values, and the run-time check of a parameter change."""
 from __future__ import annotations
 
+import argparse
+import textwrap
 from dataclasses import dataclass
 from typing import Any
 
@@ -88,6 +90,9 @@ PARAMETERS = (
                   "for display (RViz, Foxglove): published and recorded with the states of "
                   "every k-th control period, k = max(1, round(rate_hz / markers_rate_hz)), "
                   "counted from t = 0; 0 = every control period", range=(0.0, 10000.0)),
+    ParameterSpec("live_view_port", 0, "TCP port of the live view (a Foxglove WebSocket "
+                  "server on 127.0.0.1, foxglove-sdk: 3-D scene, frame transforms, joint states, "
+                  "plot series, pause/step/reset); 0 = off", range=(0, 65535)),
 )
 
 
@@ -111,6 +116,7 @@ class NodeSettings:
     start_paused: bool
     step_count: int
     max_period_cost: float
+    live_view_port: int = 0
 
     def check(self, full_name: str = NODE_NAME, params_files: tuple[str, ...] = ()) -> None:
         """Raise NodeConfigError for values the descriptors' ranges do not cover. The node's
@@ -173,3 +179,40 @@ def unknown_overrides(node) -> list[str]:
     """Overrides (-p, params files) given to ``node`` that name none of its parameters."""
     known = {spec.name for spec in PARAMETERS} | {"use_sim_time"}
     return sorted(set(getattr(node, "_parameter_overrides", {})) - known)
+
+
+def unknown_warning(unknown: list[str]) -> str:
+    """The warning about overrides that name no parameter of the node."""
+    return (f"unknown parameter(s) ignored: {', '.join(unknown)} (parameters of this node: "
+            f"{', '.join(spec.name for spec in PARAMETERS)})")
+
+
+def parameter_help(specs=PARAMETERS, width: int = 79) -> str:
+    """The parameters for ``--help``: one per line (``name  type, default: ...``), its
+    description wrapped and indented below it."""
+    kinds = {bool: "bool", float: "double", int: "integer", str: "string"}
+    lines = ["parameters (set with --ros-args -p NAME:=VALUE or --params-file FILE):"]
+    for spec in specs:
+        default = (str(spec.default).lower() if isinstance(spec.default, bool)
+                   else repr(spec.default))
+        run_time = "" if spec.read_only else ", settable at run time"
+        lines.append(f"  {spec.name} ({kinds[type(spec.default)]}, default {default}"
+                     f"{run_time})")
+        text = spec.description
+        if spec.range is not None:
+            text += f"; range {spec.range[0]:g} .. {spec.range[1]:g}"
+        if spec.constraints and spec.constraints not in text:
+            text += f"; {spec.constraints}"
+        lines += textwrap.wrap(text, width, initial_indent=" " * 6, subsequent_indent=" " * 6,
+                               break_on_hyphens=False)
+    return "\n".join(lines)
+
+
+def build_parser(prog: str = "sim_node") -> argparse.ArgumentParser:
+    """The node's command line (its own options: --help; the rest are ROS arguments)."""
+    return argparse.ArgumentParser(
+        prog=prog, formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="rod_sim ROS 2 node: a chain of elastic rods driven by nodal forces\n"
+        "(docs/interface.md section 3). Configure it with ROS arguments, e.g.\n"
+        "  --ros-args --params-file config/sim_node.params.yaml -p scene_file:=SCENE.yaml",
+        epilog=parameter_help())

@@ -108,3 +108,16 @@ def run_node(prog: str, make_node, args: list[str], config_errors) -> int:
             rclpy.try_shutdown()
     return 0
 
+
+
+def same_name_warning(node) -> str | None:
+    """The warning when other nodes on the graph have ``node``'s fully qualified name
+    (services and parameters would reach only one of them), else None."""
+    full = node.get_fully_qualified_name()
+    same = sum(1 for name, ns in node.get_node_names_and_namespaces()
+               if f"{ns.rstrip('/')}/{name}" == full)
+    if same <= 1:
+        return None
+    return (f"{same} nodes named {full} are on the graph (ROS_DOMAIN_ID "
+            f"{node.context.get_domain_id()}): services and parameters reach only one of them; "
+            "give this one another name (-r __node:=NAME) or namespace (-r __ns:=/NS)")

@@ -50,11 +50,12 @@ EVENTS_QOS = keep_last(100, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 """``hinge_events`` are rare and matter: kept for late subscribers (docs/hinges.md)."""
 
 
-SERVICE_QUEUE_DEPTH = 1000
+SERVICE_QUEUE_DEPTH = 10_000
 SERVICE_QOS = keep_last(SERVICE_QUEUE_DEPTH)
 """``~/pause``, ``~/step``, ``~/reset``: rclpy's default service QoS keeps 10 requests, so a
-burst of calls lost all but ~10 in the middleware, unanswered. 1000 outstanding requests per
-service are kept (and their responses); each is answered, or refused "busy"."""
+burst of calls lost all but ~10 in the middleware, unanswered; a depth of 1000 still lost the
+calls beyond 1000 per service in a flood of 4000 (issue 27 item 9). 10 000 outstanding
+requests per service are kept (and their responses); each is answered, or refused "busy"."""
 
 
 def clock_qos(reliability: str) -> QoSProfile:

@@ -2,6 +2,7 @@
 
     python -m rod_sim.ros.rate_bench --rate 1000 --duration 10
     python -m rod_sim.ros.rate_bench --rods 128 --rate 100 --duration 10 --json
+    python -m rod_sim.ros.rate_bench --lockstep 5000 --record --keep-log out/lockstep.mcap
 
 The node runs in its own process (``python -m rod_sim.ros.node``, real-time pace, the reduced
 model by default); this process subscribes to ``rod_states`` and time-stamps every message on
@@ -14,6 +15,14 @@ arrival with a monotonic clock. After a warm-up (JIT load, discovery) the window
   arrived (gaps in the header stamps: periods the node dropped or messages lost);
 - ``node_cpu_fraction``: CPU time of the node process per wall second (Linux /proc), the
   headroom left on its core.
+
+With ``--lockstep K`` the node runs in lockstep (``sync_mode``) instead and this process is
+its controller in another process: on each ``rod_states`` (taken as serialized bytes) it
+publishes the next ``nodal_forces`` command (a fixed function of the step number, so that two
+runs get the same inputs), K round trips (command -> period -> states) after the t = 0 state;
+it reports round trips per wall second. ``--keep-log`` keeps the node's log (``--record``);
+``--node-pythonpath`` runs the node from another source tree (e.g. to compare the logs of two
+versions for the same inputs).
 
 ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is LOCALHOST and ``ROS_DOMAIN_ID`` is ``--domain`` (default
 226) for both processes: nothing leaves the machine.
@@ -49,6 +58,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--domain", type=int, default=226,
                    help="ROS_DOMAIN_ID of both processes (FastDDS allows 0..232)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.add_argument("--live-view", action="store_true",
+                   help="give the node a live view (live_view_port) with a client connected "
+                        "that subscribes to every channel for the whole run")
+    p.add_argument("--lockstep", type=int, default=0, metavar="K",
+                   help="lockstep: K command/state round trips with this process as controller")
+    p.add_argument("--keep-log", type=Path, default=None,
+                   help="copy the node's log here (with --record)")
+    p.add_argument("--node-pythonpath", default=None,
+                   help="PYTHONPATH of the node process (default: this process's)")
     return p
 
 
@@ -109,6 +127,167 @@ def summarize(wall_ns: np.ndarray, stamp_ns: np.ndarray, rate_hz: float) -> dict
             "expected_period_ms": period_ns / 1e6}
 
 
+def free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class ViewerClient:
+    """A Foxglove-protocol WebSocket client in a thread: connects to ``port`` (retrying while
+    the node starts), subscribes to every channel and counts the frames it receives."""
+
+    def __init__(self, port: int):
+        import threading
+
+        self.port, self.frames, self._stop = port, 0, threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        import asyncio
+
+        asyncio.run(self._main())
+
+    async def _main(self) -> None:
+        import asyncio
+
+        import websockets
+
+        while not self._stop.is_set():
+            try:
+                async with websockets.connect(f"ws://127.0.0.1:{self.port}",
+                                              subprotocols=["foxglove.sdk.v1"]) as ws:
+                    while not self._stop.is_set():
+                        try:
+                            m = await asyncio.wait_for(ws.recv(), 0.2)
+                        except asyncio.TimeoutError:
+                            continue
+                        if isinstance(m, str):
+                            msg = json.loads(m)
+                            if msg["op"] == "advertise":
+                                await ws.send(json.dumps({"op": "subscribe", "subscriptions": [
+                                    {"id": c["id"], "channelId": c["id"]}
+                                    for c in msg["channels"]]}))
+                        else:
+                            self.frames += 1
+                    return
+            except OSError:
+                await asyncio.sleep(0.2)
+
+    def stop(self) -> int:
+        self._stop.set()
+        self._thread.join(5)
+        return self.frames
+
+
+def lockstep_force(k: int, n: int) -> np.ndarray:
+    """The command of round trip ``k`` (n, 2) [N]: small, smooth, the same in every run."""
+    j = np.arange(n)
+    out = np.zeros((n, 2))
+    out[:, 0] = 0.01 * np.sin(0.01 * k + j)
+    out[:, 1] = 0.01 * np.cos(0.013 * k - j)
+    return out
+
+
+def _node_process(args, params: dict) -> subprocess.Popen:
+    cmd = [sys.executable, *os.environ.get("ROD_SIM_BENCH_NODE", "-m rod_sim.ros.node").split(),
+           "--ros-args"]
+    for key, value in params.items():
+        cmd += ["-p", f"{key}:={ros_arg(value)}"]
+    env = dict(os.environ)
+    if args.node_pythonpath:
+        env["PYTHONPATH"] = args.node_pythonpath
+    return subprocess.Popen(cmd, cwd=args.node_pythonpath or REPO, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True, env=env)
+
+
+def _stop(node_proc: subprocess.Popen) -> None:
+    node_proc.terminate()
+    try:
+        node_proc.wait(timeout=30)
+    except subprocess.TimeoutExpired:
+        node_proc.kill()
+
+
+def measure_lockstep(args) -> dict:
+    """Round trips per second of a lockstep node with this process as its controller."""
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    os.environ["ROS_DOMAIN_ID"] = str(args.domain)
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Float64MultiArray
+
+    from rod_sim.io.encoders import force_array
+    from rod_sim.ros.qos import COMMAND_QOS, LOCKSTEP_STATE_QOS
+
+    with tempfile.TemporaryDirectory() as tmpdir:
+        tmp = Path(tmpdir)
+        scene = scene_file(args, tmp)
+        from rod_sim.io.scene_yaml import load_scene
+        n = load_scene(scene).n
+        period_ns = round(1e9 / args.rate)
+        log = tmp / "lockstep.mcap"
+        params = {"scene_file": str(scene), "model": args.model, "rate_hz": float(args.rate),
+                  "sync_mode": True, "publish_clock": False,
+                  "record_path": str(log) if args.record else ""}
+        node_proc = _node_process(args, params)
+        commands = [force_array(lockstep_force(k, n)) for k in range(args.lockstep)]
+        rclpy.init()
+        sent = [0]
+        times: list[int] = []
+        try:
+            node = rclpy.create_node("rate_bench_controller")
+            pub = node.create_publisher(Float64MultiArray, "nodal_forces", COMMAND_QOS)
+
+            def on_state(data: bytes) -> None:
+                sec, nanosec = np.frombuffer(data, dtype="<u4", count=2, offset=4)
+                k = sent[0]
+                if int(sec) * 1_000_000_000 + int(nanosec) != k * period_ns or k >= len(commands):
+                    return          # a repeated waiting state, or the last one
+                if k == 0 and pub.get_subscription_count() == 0:
+                    return          # the node's command subscription is not matched yet: the
+                                    # waiting state comes again in 0.5 s
+                times.append(time.perf_counter_ns())
+                sent[0] = k + 1
+                pub.publish(commands[k])
+
+            node.create_subscription(JointState, "rod_states", on_state, LOCKSTEP_STATE_QOS,
+                                     raw=True)
+            executor = SingleThreadedExecutor()
+            executor.add_node(node)
+            deadline = time.monotonic() + 120.0
+            while sent[0] < len(commands) and time.monotonic() < deadline:
+                if node_proc.poll() is not None:
+                    raise RuntimeError(f"node exited: {node_proc.stderr.read().strip()}")
+                executor.spin_once(timeout_sec=0.1)
+            done = sent[0]
+            # the last command's period: wait for its state (stamp K periods)
+            last = [False]
+            node.create_subscription(JointState, "rod_states", lambda d: last.__setitem__(
+                0, int.from_bytes(d[4:8], "little") * 1_000_000_000
+                + int.from_bytes(d[8:12], "little") == done * period_ns), LOCKSTEP_STATE_QOS,
+                raw=True)
+            while not last[0] and time.monotonic() < deadline:
+                executor.spin_once(timeout_sec=0.1)
+            end = time.perf_counter_ns()
+            executor.shutdown()
+            node.destroy_node()
+        finally:
+            rclpy.try_shutdown()
+            _stop(node_proc)
+        if args.keep_log is not None and args.record:
+            args.keep_log.parent.mkdir(parents=True, exist_ok=True)
+            args.keep_log.write_bytes(log.read_bytes())
+    span = (end - times[0]) / 1e9 if times else float("nan")
+    return {"n": n, "model": args.model, "rate_hz_set": args.rate, "record": args.record,
+            "round_trips": done, "round_trips_per_s": done / span if times else 0.0,
+            "complete": bool(last[0] and done == len(commands))}
+
+
 def measure(args) -> dict:
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     os.environ["ROS_DOMAIN_ID"] = str(args.domain)
@@ -124,11 +303,11 @@ def measure(args) -> dict:
         params = {"scene_file": str(scene), "model": args.model, "rate_hz": float(args.rate),
                   "real_time_factor": 1.0, "sync_mode": False, "publish_clock": True,
                   "record_path": str(tmp / "bench.mcap") if args.record else ""}
-        cmd = [sys.executable, "-m", "rod_sim.ros.node", "--ros-args"]
-        for key, value in params.items():
-            cmd += ["-p", f"{key}:={ros_arg(value)}"]
-        node_proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.DEVNULL,
-                                     stderr=subprocess.PIPE, text=True)
+        viewer = None
+        if args.live_view:
+            params["live_view_port"] = free_port()
+            viewer = ViewerClient(params["live_view_port"])
+        node_proc = _node_process(args, params)
         rclpy.init()
         wall, stamps = [], []
         try:
@@ -155,6 +334,8 @@ def measure(args) -> dict:
                 if first_kept is None and time.monotonic() >= start + args.warmup:
                     first_kept, cpu0 = len(wall), process_cpu_s(node_proc.pid)
             cpu1 = process_cpu_s(node_proc.pid)
+            if viewer is not None:
+                viewer_frames = viewer.stop()
             executor.shutdown()
             node.destroy_node()
         finally:
@@ -169,6 +350,8 @@ def measure(args) -> dict:
     from rod_sim.io.scene_yaml import load_scene
     if cpu0 is not None and cpu1 is not None:
         result["node_cpu_fraction"] = (cpu1 - cpu0) / args.duration
+    if args.live_view:
+        result["viewer_frames"] = viewer_frames
     result.update({"scene": Path(args.scene).name,
                    "n": args.rods if args.rods else load_scene(args.scene).n,
                    "model": args.model, "rate_hz_set": args.rate, "record": args.record,
@@ -178,6 +361,14 @@ def measure(args) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    if args.lockstep:
+        result = measure_lockstep(args)
+        print(json.dumps(result, indent=1) if args.json else
+              f"n = {result['n']} {result['model']}, lockstep at rate_hz {args.rate:g}"
+              f"{' + recording' if args.record else ''}: {result['round_trips']} round trips, "
+              f"{result['round_trips_per_s']:.0f} per second"
+              + ("" if result["complete"] else " (INCOMPLETE)"))
+        return 0 if result["complete"] else 1
     result = measure(args)
     if args.json:
         print(json.dumps(result, indent=1))
@@ -188,7 +379,9 @@ def main(argv: list[str] | None = None) -> int:
               f"RTF {result['rtf']:.3f}, inter-arrival median {ia['median']:.3f} ms, "
               f"p99 {ia['p99']:.3f} ms, max {ia['max']:.2f} ms, "
               f"{result['missing_periods']} missing periods of {result['messages']}, "
-              f"node CPU {100 * result.get('node_cpu_fraction', float('nan')):.0f}% of a core")
+              f"node CPU {100 * result.get('node_cpu_fraction', float('nan')):.0f}% of a core"
+              + (f", live view: {result['viewer_frames']} frames received"
+                 if args.live_view else ""))
     return 0
 
 

@@ -97,6 +97,16 @@ class NodeRecording:
             self._stopped(one_line(exc))
             self.close()
 
+    def record_cdr(self, topic: str, type_name: str, t_ns: int, data: bytes) -> None:
+        """Write the encoded message ``data`` (the bytes published) as :meth:`record` does."""
+        if self.writer is None:
+            return
+        try:
+            self.writer.write_cdr(topic, type_name, t_ns, data)
+        except (LogWriteError, OSError) as exc:
+            self._stopped(one_line(exc))
+            self.close()
+
     def close(self) -> None:
         """Close the log with its summary (idempotent)."""
         log, self.writer = self.writer, None
@@ -107,3 +117,14 @@ class NodeRecording:
             self._logger.info(f"log closed: {log.path}")
         except OSError as exc:
             self._logger.error(f"cannot close the log {log.path}: {one_line(exc)}")
+
+
+def node_log_metadata(scene_yaml: str, model: str, integrator: str, settings, mode: str,
+                      node: str) -> dict[str, str]:
+    """The ``rod_sim`` metadata record of a node's log (docs/interface.md section 4)."""
+    from rod_sim import __version__
+
+    return {"scene": scene_yaml, "model": model, "integrator": integrator,
+            "version": __version__, "rtol": repr(settings.rtol),
+            "rate_hz": repr(settings.rate_hz), "source": "rod_sim node", "mode": mode,
+            "node": node}

@@ -83,7 +83,7 @@ class Player(Node):
 
     def __init__(self, source: PlaybackSource, topics: Sequence[str], *, rate: float = 1.0,
                  clock_hz: float = 100.0, loop: bool = False, start_paused: bool = False,
-                 start_offset_s: float = 0.0, **node_kwargs):
+                 start_offset_s: float = 0.0, live_view=None, **node_kwargs):
         super().__init__(NODE_NAME, **node_kwargs)
         try:
             self.source = source
@@ -93,6 +93,8 @@ class Player(Node):
             self.loop = loop
             self.start_offset_ns = round(start_offset_s * NS_PER_S)
             self.paused = start_paused
+            self.live_view = live_view
+            """A :class:`~rod_sim.io.live_view.LiveView` shown what is replayed (or None)."""
             self._pubs = {}
             for topic in self.topics:
                 track = source.tracks[topic]
@@ -199,6 +201,8 @@ class Player(Node):
                     started_wall = time.monotonic_ns()
                 self._publish_clock(t_ns)
                 self._pubs[topic].publish(data)
+                if self.live_view is not None:
+                    self.live_view.forward(topic, t_ns, data)
                 stats.messages += 1
                 stats.last_ns = t_ns
             if started_wall is not None:

@@ -28,6 +28,17 @@ def non_negative_float(text: str) -> float:
     return value
 
 
+def port_number(text: str) -> int:
+    """argparse type: a TCP port 1..65535."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a port number: {text!r}") from None
+    if not 1 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"must be a port 1..65535 (got {text})")
+    return value
+
+
 def remap_rule(text: str) -> str:
     """argparse type: a ROS remapping rule FROM:=TO (both sides non-empty)."""
     source, sep, target = text.partition(":=")
@@ -88,6 +99,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--start-paused", action="store_true",
                         help="start paused; resume with the ~/pause service (std_srvs/SetBool "
                              "data: false) or ~/toggle_paused (std_srvs/Trigger)")
+    parser.add_argument("--live-view", type=port_number, default=0, metavar="PORT",
+                        help="also show the replayed markers, joint states and node poses in "
+                             "a live view: a Foxglove WebSocket server on 127.0.0.1:PORT "
+                             "(foxglove-sdk; connect the Foxglove app or Lichtblick)")
     parser.add_argument("--remap", action="append", type=remap_rule, default=[],
                         metavar="FROM:=TO",
                         help="publish topic FROM (as recorded, e.g. /rod_states) under TO "
@@ -156,6 +171,20 @@ def run(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _live_view(port: int):
+    """The live view on ``port`` (None for 0); UsageError when it cannot start."""
+    if not port:
+        return None
+    from ..io.live_view import LiveView, LiveViewError
+
+    try:
+        view = LiveView(port, name="rod-sim replay")
+    except LiveViewError as exc:
+        raise UsageError(str(exc)) from None
+    print(f"rod-sim replay: live view on ws://127.0.0.1:{view.port}", file=sys.stderr)
+    return view
+
+
 def _play(source, topics: list[str], args):
     import rclpy
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -164,6 +193,7 @@ def _play(source, topics: list[str], args):
     from ..ros.process import StopRequest
     from ..ros.replay import PlayStats, Player, wait_for_subscribers
 
+    view = _live_view(args.live_view)
     try:
         rclpy.init(args=["rod-sim replay", *ros_arguments(args)],
                    signal_handler_options=SignalHandlerOptions.NO)
@@ -176,7 +206,7 @@ def _play(source, topics: list[str], args):
         try:
             player = Player(source, topics, rate=args.rate, clock_hz=args.clock,
                             loop=args.loop, start_paused=args.start_paused,
-                            start_offset_s=args.start_offset)
+                            start_offset_s=args.start_offset, live_view=view)
             stats = player.stats
             executor = SingleThreadedExecutor()
             executor.add_node(player)
@@ -199,5 +229,7 @@ def _play(source, topics: list[str], args):
         finally:
             if player is not None:
                 player.destroy_node()
+            if view is not None:
+                view.close()
             rclpy.try_shutdown()
     return stats

@@ -52,6 +52,20 @@ def configure(parser) -> None:
                              "(default 1e-3)")
     parser.add_argument("--frame-id", default="world",
                         help="frame of the logged headers, poses and markers (default world)")
+    parser.add_argument("--live-view", type=_port, default=0, metavar="PORT",
+                        help="show the run live: a Foxglove WebSocket server on "
+                             "127.0.0.1:PORT (foxglove-sdk; connect the Foxglove app or "
+                             "Lichtblick), the samples paced at --real-time-factor")
+    parser.add_argument("--real-time-factor", type=_positive_float, default=1.0,
+                        metavar="F", help="with --live-view: simulated seconds per wall "
+                        "second at which the samples are shown (default 1)")
+
+
+def _port(text: str) -> int:
+    """argparse type: a TCP port 1..65535."""
+    from .replay import port_number
+
+    return port_number(text)
 
 
 def _sample_grid_ns(rate_hz: float, k: int) -> int:
@@ -97,12 +111,27 @@ def run(args) -> int:
     except OSError as err:
         raise UsageError(f"--out: cannot write {out}: {err.strerror or err}") from None
     logged = _LoggedRun(sim, scene, log, args.frame_id)
+    if args.live_view:
+        from ..io.live_view import LiveView, LiveViewError
+
+        try:
+            logged.live = LiveView(args.live_view, frame_id=args.frame_id,
+                                   name="rod-sim simulate")
+        except LiveViewError as exc:
+            log.close()
+            out.unlink(missing_ok=True)
+            raise UsageError(str(exc)) from None
+        logged.rtf = args.real_time_factor
+        print(f"rod-sim simulate: live view on ws://127.0.0.1:{logged.live.port}, "
+              f"real time x{args.real_time_factor:g}", file=sys.stderr)
     try:
         try:
             status = logged.integrate(args.t_end, args.rate, IntegrationError)
         finally:
             with signals_deferred():        # the summary is written whole, even on Ctrl-C
                 log.close()
+            if logged.live is not None:
+                logged.live.close()
     except OSError as err:
         print(f"rod-sim simulate: error: writing {out} failed at t = {logged.t_logged:g} s: "
               f"{err.strerror or err}; {_salvage(out)}", file=sys.stderr)
@@ -136,6 +165,10 @@ class _LoggedRun:
         self.logged_events = 0
         self.wall = 0.0
         self.t_logged = 0.0
+        self.live = None
+        """A :class:`~rod_sim.io.live_view.LiveView` shown each sample (or None)."""
+        self.rtf = 1.0
+        self._live_start: float | None = None
 
     def _write(self, t: float, y, mode=None) -> None:
         from ..core.validity import EnergyBalance, balance_sample
@@ -155,10 +188,35 @@ class _LoggedRun:
             self.balanced_events = k
             self.validity.update_energy(t, self.balance.residual, self.balance.scale)
         self._last = sample
+        from ..io import encoders, topics
+
+        t_ns = topics.time_ns(snap.t)
+        encoded = encoders.snapshot_bytes(snap, self.scene, self.frame_id)
         with signals_deferred():            # every record of a sample whole, or none
-            self.log.write_snapshot(snap, self.scene, frame_id=self.frame_id)
+            for name, data in encoded.items():
+                self.log.write_cdr("/" + name, topics.TOPIC_TYPES[name], t_ns, data)
             self.samples += 1
             self.t_logged = t
+        if self.live is not None:
+            self._show(t, t_ns, snap, encoded)
+
+    def _show(self, t: float, t_ns: int, snap, encoded) -> None:
+        """Pace the samples at ``rtf`` and show them in the live view."""
+        import numpy as np
+
+        now = time.perf_counter()
+        if self._live_start is None:
+            self._live_start = now - t / self.rtf
+        wait = self._live_start + t / self.rtf - now
+        if wait > 0:
+            time.sleep(wait)
+        if self.live.wanted():
+            b = self.balance
+            self.live.send(t_ns, encoded, snap.nodes, snap.phi, {
+                "energy": self._last.energy,
+                "energy_residual": b.residual if b is not None else 0.0, "rtf": self.rtf,
+                "max_abs_alpha": float(np.max(np.abs(snap.alpha), initial=0.0)),
+                "max_abs_beta": float(np.max(np.abs(snap.beta), initial=0.0))})
 
     def _write_traj(self, traj) -> None:
         """The samples of ``traj`` after its first (the previous call's last), then the hinge

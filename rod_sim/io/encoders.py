@@ -1,0 +1,313 @@
+"""Snapshot -> CDR bytes of the state topics (docs/interface.md section 3), straight from numpy.
+
+One function per topic, each ``encode(snapshot, scene, frame_id) -> bytes`` (plus the applied
+inputs, the clock and the string topics), giving exactly the bytes of
+``rod_sim.io.cdr.encoder(type)(rod_sim.io.topics.<builder>(...))`` -- the message dicts of
+:mod:`rod_sim.io.topics` define the content; this module only makes it cheap: each message's
+layout (names, frame, sizes, the markers' constant fields) is built once per chain size and
+frame by :mod:`rod_sim.io.cdr_layout`, and a sample fills its numbers with a few O(n) numpy
+assignments (no Python loop over rods or points). test/test_encoders.py compares every topic
+with the dict path and with mcap_ros2, byte for byte, and with rclpy's deserializer.
+
+:data:`SNAPSHOT_ENCODERS` maps the relative topic names of
+:data:`rod_sim.io.topics.SNAPSHOT_TOPICS` to their encoders: the one table the node, ``rod-sim
+simulate`` and the log writer share.
+"""
+from __future__ import annotations
+
+import functools
+from typing import Callable
+
+import numpy as np
+
+from rod_sim.core.scene import Scene
+from rod_sim.core.snapshot import Snapshot
+from rod_sim.io import cdr, topics
+from rod_sim.io.cdr_layout import Layout, LayoutWriter, stamp_bytes
+
+SnapshotEncoder = Callable[[Snapshot, Scene, str], bytes]
+
+_CACHE = 64
+"""Layouts kept per topic (chain sizes x frame ids)."""
+
+
+def _stamp(snapshot: Snapshot) -> np.ndarray:
+    t_ns = topics.time_ns(snapshot.t)
+    if t_ns >= 2 ** 31 * 1_000_000_000:
+        raise ValueError(f"time {snapshot.t!r} s does not fit a ROS stamp (int32 seconds)")
+    return stamp_bytes(t_ns)
+
+
+def _f64(values) -> np.ndarray:
+    return np.asarray(values, dtype="<f8").ravel()
+
+
+# ----- sensor_msgs/JointState -----
+
+@functools.lru_cache(maxsize=_CACHE)
+def _joint_state_layout(frame_id: str, names: tuple[str, ...], sizes: tuple[int, int, int]
+                        ) -> Layout:
+    w = LayoutWriter()
+    w.header(frame_id)
+    w.string_seq(names)
+    for field, k in zip(("position", "velocity", "effort"), sizes):
+        w.f64_seq(field, k)
+    return w.layout()
+
+
+def _joint_state(snapshot: Snapshot, frame_id: str, names: tuple[str, ...], *arrays) -> bytes:
+    arrays = [_f64(a) for a in arrays] + [_f64(())] * (3 - len(arrays))
+    layout = _joint_state_layout(frame_id, names, tuple(a.size for a in arrays))
+    return layout.fill(stamp=_stamp(snapshot), **{field: a for field, a in zip(
+        ("position", "velocity", "effort"), arrays) if a.size})
+
+
+@functools.lru_cache(maxsize=_CACHE)
+def chain_names(scene: Scene | None, n: int, prefix: str, first: int) -> tuple[str, ...]:
+    """Names of the n rods' (or hinges') entries in the flat order: ``prefix{first}`` ..
+    for a scene without ``chains:``, ``{chain}/{prefix}{k}`` per chain with them (SPEC section
+    8: ``left/hinge_0``, ``left/rod_1``)."""
+    if scene is None or not getattr(scene, "has_chains", False):
+        return topics._names(prefix, first, n)
+    return tuple(f"{c.name}/{prefix}{k}" for c in scene.chains
+                 for k in range(first, first + c.count))
+
+
+def joint_states(snapshot: Snapshot, scene: Scene | None = None, frame_id: str = "world"
+                 ) -> bytes:
+    """``joint_states`` (see :func:`rod_sim.io.topics.joint_states`)."""
+    return _joint_state(snapshot, frame_id, chain_names(scene, snapshot.n, "hinge_", 0),
+                        snapshot.hinge_angle, snapshot.hinge_rate, snapshot.hinge_moment)
+
+
+def rod_states(snapshot: Snapshot, scene: Scene | None = None, frame_id: str = "world") -> bytes:
+    """``rod_states`` (see :func:`rod_sim.io.topics.rod_states`)."""
+    return _joint_state(snapshot, frame_id, chain_names(scene, snapshot.n, "rod_", 1),
+                        snapshot.phi, snapshot.phi_rate)
+
+
+@functools.lru_cache(maxsize=_CACHE)
+def _bending_names(scene: Scene | None, n: int) -> tuple[str, ...]:
+    return (*chain_names(scene, n, "alpha_", 1), *chain_names(scene, n, "beta_", 1))
+
+
+def bending(snapshot: Snapshot, scene: Scene | None = None, frame_id: str = "world") -> bytes:
+    """``bending`` (see :func:`rod_sim.io.topics.bending`)."""
+    return _joint_state(snapshot, frame_id, _bending_names(scene, snapshot.n),
+                        np.concatenate([snapshot.alpha, snapshot.beta]))
+
+
+def _node_rods(scene: Scene | None, n: int, k: int) -> np.ndarray:
+    """For each of the k node rows of a snapshot (every chain's nodes 0..n_c), the rod whose
+    direction the node takes: the rod ending there, a chain's node 0 its rod 1."""
+    if scene is None or k == n + 1 or len(getattr(scene, "chains", ())) <= 1:
+        return np.concatenate([[0], np.arange(n)])[:k]
+    out = []
+    for c in scene.chains:
+        out.extend([c.start] + list(range(c.start, c.start + c.count)))
+    return np.asarray(out[:k])
+
+
+def _rod_starts(scene: Scene, nodes: np.ndarray) -> np.ndarray:
+    """Rows of the snapshot's nodes (n + nc, 2) where each rod starts (n,) (one chain: 0..n-1)."""
+    chain_of_rod = np.asarray(scene.chain_of_rod)
+    return np.arange(scene.n) + chain_of_rod
+
+
+# ----- geometry_msgs/PoseArray -----
+
+@functools.lru_cache(maxsize=_CACHE)
+def _pose_array_layout(frame_id: str, k: int) -> Layout:
+    w = LayoutWriter()
+    w.header(frame_id)
+    w.count(k)
+    if k:
+        w.slot("poses", 56 * k, 8)          # Pose = Point (x, y, z) + Quaternion (x, y, z, w)
+    return w.layout()
+
+
+def node_poses(snapshot: Snapshot, scene: Scene | None = None, frame_id: str = "world") -> bytes:
+    """``node_poses`` (see :func:`rod_sim.io.topics.node_poses`)."""
+    nodes = np.asarray(snapshot.nodes, dtype=float)
+    phi = np.asarray(snapshot.phi, dtype=float)
+    if len(nodes) == len(phi) + 1:
+        half = 0.5 * np.concatenate([phi[:1], phi])[:len(nodes)]
+    else:                                   # several chains: each one's nodes 0..n_c
+        half = 0.5 * phi[_node_rods(scene, len(phi), len(nodes))]
+    poses = np.zeros((len(nodes), 7))
+    poses[:, 0:2] = nodes[:, 0:2]
+    poses[:, 5] = np.sin(half)
+    poses[:, 6] = np.cos(half)
+    layout = _pose_array_layout(frame_id, len(nodes))
+    return layout.fill(stamp=_stamp(snapshot), **({"poses": poses} if len(nodes) else {}))
+
+
+# ----- visualization_msgs/MarkerArray -----
+
+def _marker(w: LayoutWriter, frame_id: str, ns: str, marker_id: int, marker_type: int,
+            width: float, color: dict, points_slot: str, k: int) -> None:
+    """One marker (fields of :func:`rod_sim.io.topics._marker`) with ``k`` points filled by
+    ``points_slot`` (x, y, z per point)."""
+    w.header(frame_id)
+    w.string(ns)
+    w.prim("i", marker_id, marker_type, topics.MARKER_ADD)
+    w.prim("d", 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)                   # pose
+    w.prim("d", width, width, width)                                 # scale
+    w.prim("f", color["r"], color["g"], color["b"], color["a"])
+    w.prim("i", 0)                                                   # lifetime.sec
+    w.prim("I", 0)                                                   # lifetime.nanosec
+    w.prim("?", False)                                               # frame_locked
+    w.count(k)
+    if k:
+        w.slot(points_slot, 24 * k, 8)
+    w.count(0)                                                       # colors
+    w.string("")                                                     # texture_resource
+    w.stamp()                                                        # texture.header
+    w.string("")
+    w.string("")                                                     # texture.format
+    w.count(0)                                                       # texture.data
+    w.count(0)                                                       # uv_coordinates
+    w.string("")                                                     # text
+    w.string("")                                                     # mesh_resource
+    w.string("")                                                     # mesh_file.filename
+    w.count(0)                                                       # mesh_file.data
+    w.prim("?", False)                                               # mesh_use_embedded_materials
+
+
+@functools.lru_cache(maxsize=8)
+def _markers_layout(scene: Scene, frame_id: str, points_per_rod: int) -> Layout:
+    """The markers of :func:`rod_sim.io.topics.markers` for ``scene``. Each marker's header
+    stamp is a ``stamp`` piece; its texture's header stamp is zero and so a ``zero`` piece."""
+    n = scene.n
+    w = LayoutWriter()
+    w.count(n + 1 if n <= topics.MARKER_MAX_STRIPS else 2)
+    if n > topics.MARKER_MAX_STRIPS:
+        width, diameter = topics.marker_sizes(scene)
+        _marker(w, frame_id, "rods", 0, topics.MARKER_LINE_STRIP, width, topics.ROD_COLOR,
+                "chain", n + 1)
+    else:
+        width, diameter, _ = topics._marker_geometry(scene, points_per_rod)
+        for k in range(n):
+            _marker(w, frame_id, "rods", k + 1, topics.MARKER_LINE_STRIP, width,
+                    topics.ROD_COLOR, "rods", points_per_rod)
+    _marker(w, frame_id, "nodes", 0, topics.MARKER_SPHERE_LIST, diameter, topics.NODE_COLOR,
+            "nodes", n)
+    # the texture headers' stamps were reserved as stamp pieces too: every other piece
+    pieces = w.slots.pop("stamp")
+    w.slots["stamp"], w.slots["zero"] = pieces[0::2], pieces[1::2]
+    return w.layout()
+
+
+def _xyz(points: np.ndarray) -> np.ndarray:
+    """(..., 2) [m] -> (..., 3) with z = 0."""
+    out = np.zeros(points.shape[:-1] + (3,))
+    out[..., :2] = points
+    return out
+
+
+def markers(snapshot: Snapshot, scene: Scene, frame_id: str = "world",
+            points_per_rod: int = 11) -> bytes:
+    """``markers`` (see :func:`rod_sim.io.topics.markers`)."""
+    from rod_sim.core.kinematics import rod_points
+
+    if snapshot.n != scene.n:
+        raise ValueError(f"snapshot has {snapshot.n} rods but the scene {scene.name!r} has "
+                         f"{scene.n}")
+    layout = _markers_layout(scene, frame_id, points_per_rod)
+    nodes = np.asarray(snapshot.nodes, dtype=float)
+    stamps = np.tile(_stamp(snapshot), scene.n + 1 if scene.n <= topics.MARKER_MAX_STRIPS else 2)
+    values = {"stamp": stamps, "zero": np.zeros(stamps.size, dtype="<u4")}
+    several = len(nodes) != scene.n + 1          # several chains: each one's nodes 0..n_c
+    if scene.n > topics.MARKER_MAX_STRIPS:
+        values["chain"] = _xyz(nodes[:scene.n + 1])
+    elif scene.n:
+        table = topics._marker_geometry(scene, points_per_rod)[2]
+        starts = nodes[_rod_starts(scene, nodes)] if several else None
+        values["rods"] = _xyz(rod_points(np.asarray(scene.length, dtype=float),
+                                         np.asarray(snapshot.phi, dtype=float),
+                                         np.asarray(snapshot.alpha, dtype=float),
+                                         np.asarray(snapshot.beta, dtype=float),
+                                         points_per_rod, table, starts))
+    if scene.n:
+        values["nodes"] = _xyz(nodes[_rod_starts(scene, nodes) + 1] if several else nodes[1:])
+    return layout.fill(**{k: v for k, v in values.items() if k in layout.slots})
+
+
+# ----- std_msgs/Float64MultiArray: applied forces and torques -----
+
+@functools.lru_cache(maxsize=_CACHE)
+def _multi_array_layout(dims: tuple[tuple[str, int, int], ...], k: int) -> Layout:
+    w = LayoutWriter()
+    w.count(len(dims))
+    for label, size, stride in dims:
+        w.string(label)
+        w.prim("I", size, stride)
+    w.prim("I", 0)                      # data_offset
+    w.f64_seq("data", k)
+    return w.layout()
+
+
+def force_array(forces: np.ndarray) -> bytes:
+    """``applied_forces`` of (n, 2) forces [N] (see :func:`rod_sim.io.topics.force_array`)."""
+    f = _f64(np.asarray(forces, dtype=float).reshape(-1, 2))
+    n = f.size // 2
+    layout = _multi_array_layout(((topics.FORCE_LAYOUT_LABELS[0], n, 2 * n),
+                                  (topics.FORCE_LAYOUT_LABELS[1], 2, 2)), f.size)
+    return layout.fill(**({"data": f} if f.size else {}))
+
+
+def torque_array(torques) -> bytes:
+    """``applied_torques`` of (n,) torques [N m] (see :func:`rod_sim.io.topics.torque_array`)."""
+    t = _f64(torques)
+    layout = _multi_array_layout(((topics.TORQUE_LAYOUT_LABEL, t.size, t.size),), t.size)
+    return layout.fill(**({"data": t} if t.size else {}))
+
+
+def applied_forces(snapshot: Snapshot, scene: Scene | None = None, frame_id: str = "world"
+                   ) -> bytes:
+    return force_array(snapshot.forces)
+
+
+# ----- rosgraph_msgs/Clock, std_msgs/String -----
+
+def clock_ns(t_ns: int) -> bytes:
+    """``rosgraph_msgs/Clock`` at ``t_ns`` [ns]."""
+    return cdr.HEADER + stamp_bytes(t_ns).tobytes()
+
+
+def clock(snapshot: Snapshot, scene: Scene | None = None, frame_id: str = "world") -> bytes:
+    return cdr.HEADER + _stamp(snapshot).tobytes()
+
+
+def string(text: str) -> bytes:
+    """``std_msgs/String`` (``robot_description``, ``scene``)."""
+    return cdr.encoder("std_msgs/msg/String")({"data": text})
+
+
+SNAPSHOT_ENCODERS: dict[str, SnapshotEncoder] = {
+    "joint_states": joint_states,
+    "rod_states": rod_states,
+    "bending": bending,
+    "node_poses": node_poses,
+    "markers": markers,
+    "applied_forces": applied_forces,
+    "clock": clock,
+}
+"""Relative topic name -> ``encode(snapshot, scene, frame_id) -> bytes`` (types in
+:data:`rod_sim.io.topics.TOPIC_TYPES`)."""
+
+
+def snapshot_bytes(snapshot: Snapshot, scene: Scene, frame_id: str = "world",
+                   names=None) -> dict[str, bytes]:
+    """CDR bytes of ``snapshot`` keyed by relative topic name, as
+    :func:`rod_sim.io.topics.snapshot_messages` (same ``names`` default and errors) encoded."""
+    if snapshot.n != scene.n:
+        raise ValueError(f"snapshot has {snapshot.n} rods but the scene {scene.name!r} has "
+                         f"{scene.n}")
+    wanted = topics.DEFAULT_TOPICS if names is None else tuple(names)
+    unknown = [t for t in wanted if t not in SNAPSHOT_ENCODERS]
+    if unknown:
+        raise ValueError(f"cannot build topic(s) {', '.join(unknown)} from a snapshot "
+                         f"(choose from {', '.join(topics.SNAPSHOT_TOPICS)})")
+    return {name: SNAPSHOT_ENCODERS[name](snapshot, scene, frame_id) for name in wanted}
+

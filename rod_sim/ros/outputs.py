@@ -1,0 +1,224 @@
+"""The rod_sim node's output topics: one table, one encoding per message, every sink the same bytes.
+
+Each output topic is one :class:`Output` entry of :data:`OUTPUTS`: its relative name, ROS
+type, QoS (a name of :data:`QOS`), the parameter whose rate [Hz] divides the control rate (None:
+every period) and, for the topics a state determines, its encoder ``encode(snapshot, scene,
+frame_id) -> bytes`` (:mod:`rod_sim.io.encoders`: CDR straight from numpy). :class:`Outputs`
+encodes each due message **once** and hands the same bytes to every sink: the DDS publisher
+(rclpy publishes serialized messages as they are: ``Publisher.publish(bytes)`` calls
+``publish_raw``, no Python message object is built) and the MCAP log; snapshot taps (the live
+view) get the snapshot itself. Adding a topic is one entry here and its encoder.
+
+Nothing here needs a ROS graph: publishers are anything with ``publish(bytes)``
+(test/test_node_outputs.py uses lists).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Callable, Iterable, Mapping
+
+import numpy as np
+
+from rod_sim.core.scene import Scene
+from rod_sim.core.snapshot import Snapshot
+from rod_sim.io import cdr, encoders, topics
+from rod_sim.io.hinge_events import HINGE_EVENTS_TOPIC, HINGE_EVENTS_TYPE, event_message, \
+    event_time_ns
+
+
+@dataclass(frozen=True)
+class Output:
+    """One output topic. ``qos``: 'state', 'applied', 'latched', 'diagnostics' or 'events'
+    (see :mod:`rod_sim.ros.qos`); ``rate_parameter``: the node parameter [Hz] whose rate sets
+    the divider k = max(1, round(rate_hz / rate)) (every k-th period counted from t = 0; a rate
+    of 0: every period); ``encode``: the snapshot encoder of a state topic (None for topics
+    written from other data)."""
+
+    name: str
+    type_name: str
+    qos: str
+    encode: encoders.SnapshotEncoder | None = None
+    rate_parameter: str | None = None
+
+    @property
+    def is_state(self) -> bool:
+        return self.encode is not None
+
+
+def _state(name: str, rate_parameter: str | None = None) -> Output:
+    return Output(name, topics.TOPIC_TYPES[name], "state", encoders.SNAPSHOT_ENCODERS[name],
+                  rate_parameter)
+
+
+OUTPUTS: tuple[Output, ...] = (
+    _state("joint_states"),
+    _state("rod_states"),
+    _state("bending"),
+    _state("node_poses"),
+    _state("markers", "markers_rate_hz"),
+    Output("applied_forces", topics.TOPIC_TYPES["applied_forces"], "applied"),
+    Output("applied_torques", topics.TOPIC_TYPES["applied_torques"], "applied"),
+    Output("robot_description", topics.TOPIC_TYPES["robot_description"], "latched"),
+    Output("scene", topics.TOPIC_TYPES["scene"], "latched"),
+    Output("diagnostics", topics.TOPIC_TYPES["diagnostics"], "diagnostics"),
+    Output(HINGE_EVENTS_TOPIC, HINGE_EVENTS_TYPE, "events"),
+)
+"""Every output topic of the node but ``/clock`` (docs/interface.md section 3)."""
+
+BY_NAME = {o.name: o for o in OUTPUTS}
+STATE_TOPICS = tuple(o.name for o in OUTPUTS if o.is_state)
+"""Published at the end of every control period (markers: every k-th)."""
+
+LOG_DEPTHS = {"applied": 1, "latched": 1, "events": 100}
+"""History depth offered per QoS name in the log's ``offered_qos_profiles`` (transient local;
+the state topics: the mode's state depth; diagnostics: the writer's default, volatile)."""
+
+
+def has_hinge_events(scene: Scene) -> bool:
+    """Whether the scene has latches or stops, the only sources of ``hinge_events`` (its
+    publisher exists only then; events are recorded in any case)."""
+    def given(values, default_test) -> bool:
+        return values is not None and bool(np.any(default_test(np.asarray(values, float))))
+    return (given(scene.latch_angle, lambda v: ~np.isnan(v))
+            or given(scene.stop_lower, np.isfinite) or given(scene.stop_upper, np.isfinite))
+
+
+def divider(rate_hz: float, topic_rate_hz: float) -> int:
+    """Control periods per message of a topic at ``topic_rate_hz`` (0: every period)."""
+    return max(1, round(rate_hz / topic_rate_hz)) if topic_rate_hz > 0 else 1
+
+
+def log_depths(sync_mode: bool) -> dict[str, int]:
+    """Relative topic -> history depth of the transient-local topics, as offered in a log."""
+    from rod_sim.ros.qos import LOCKSTEP_STATE_DEPTH, STATE_DEPTH
+
+    depths = {**LOG_DEPTHS, "state": LOCKSTEP_STATE_DEPTH if sync_mode else STATE_DEPTH}
+    return {o.name: depths[o.qos] for o in OUTPUTS if o.qos in depths}
+
+
+def create_publishers(node, names: Mapping[str, str], scene: Scene, sync_mode: bool) -> dict:
+    """A publisher on ``node`` for each output of :data:`OUTPUTS` under its resolved name
+    (``hinge_events`` only for a scene with latches or stops), with the QoS of its entry."""
+    from rod_sim.ros import qos as profiles
+    from rod_sim.ros.conversions import message_class
+
+    qos = {"state": profiles.LOCKSTEP_STATE_QOS if sync_mode else profiles.STATE_QOS,
+           "applied": profiles.APPLIED_QOS, "latched": profiles.LATCHED_QOS,
+           "diagnostics": profiles.DIAGNOSTICS_QOS, "events": profiles.EVENTS_QOS}
+    return {o.name: node.create_publisher(message_class(o.type_name), names[o.name], qos[o.qos])
+            for o in OUTPUTS if o.qos != "events" or has_hinge_events(scene)}
+
+
+class Outputs:
+    """Encodes and sends the outputs of a node. ``names``: relative -> resolved topic names;
+    ``publishers``: relative name -> publisher (``publish(bytes)``; a topic without one is
+    only recorded); ``recording``: a :class:`~rod_sim.ros.recording.NodeRecording`;
+    ``dividers``: relative name -> period divider (default 1); ``period_ns`` [ns]: the control
+    period, on whose grid the dividers count."""
+
+    def __init__(self, scene: Scene, names: Mapping[str, str], publishers: Mapping,
+                 recording, period_ns: int, frame_id: str,
+                 dividers: Mapping[str, int] | None = None):
+        self.scene = scene
+        self.names = dict(names)
+        self.publishers = dict(publishers)
+        self.recording = recording
+        self.period_ns = int(period_ns)
+        self.frame_id = frame_id
+        self.dividers = dict(dividers or {})
+        self.taps: list[Callable[[Snapshot, int, dict], None]] = []
+        """Called with every published state: ``tap(snapshot, t_ns, encoded)``, ``encoded``
+        the bytes of the topics sent (e.g. the live view)."""
+        self._applied_last: dict[str, np.ndarray] = {}
+
+    def encode(self, name: str, snapshot: Snapshot) -> bytes:
+        """The CDR bytes of state topic ``name`` for ``snapshot``."""
+        return BY_NAME[name].encode(snapshot, self.scene, self.frame_id)
+
+    def due(self, name: str, t_ns: int) -> bool:
+        """Whether the state at ``t_ns`` (on the control-period grid) carries topic ``name``."""
+        return (t_ns // self.period_ns) % self.dividers.get(name, 1) == 0
+
+    def send(self, name: str, t_ns: int, data: bytes, *, record: bool = True,
+             publish: bool = True) -> None:
+        """The encoded message ``data`` of topic ``name``: recorded at ``t_ns`` [ns] and
+        published, the same bytes."""
+        if record:
+            self.recording.record_cdr(self.names[name], BY_NAME[name].type_name, t_ns, data)
+        pub = self.publishers.get(name)
+        if publish and pub is not None:
+            pub.publish(data)
+
+    def state(self, snapshot: Snapshot, t_ns: int, *, record: bool = True,
+              names: Iterable[str] = STATE_TOPICS) -> None:
+        """Every state topic due at ``t_ns`` [ns], each encoded once from ``snapshot``:
+        recorded (if ``record``) and published (always: the transient-local store then holds
+        the latest state for a subscriber that joins later); then the taps get the snapshot
+        and the same bytes."""
+        encoded = {}
+        for name in names:
+            if self.due(name, t_ns):
+                encoded[name] = BY_NAME[name].encode(snapshot, self.scene, self.frame_id)
+                self.send(name, t_ns, encoded[name], record=record)
+        for tap in self.taps:
+            tap(snapshot, t_ns, encoded)
+
+    def applied(self, t_ns: int, forces: np.ndarray, torques: np.ndarray) -> None:
+        """The applied forces (n, 2) [N] and hinge torques (n,) [N m] from ``t_ns`` on: each
+        recorded every period, published when it changes (and the first time)."""
+        for name, values, encode in (("applied_forces", forces, encoders.force_array),
+                                     ("applied_torques", torques, encoders.torque_array)):
+            last = self._applied_last.get(name)
+            changed = last is None or not np.array_equal(values, last)
+            if changed:
+                self._applied_last[name] = np.array(values, dtype=float)
+            self.send(name, t_ns, encode(values), publish=changed)
+
+    def forget_applied(self) -> None:
+        """After a reset: the next applied inputs are published whatever they are."""
+        self._applied_last = {}
+
+    def message(self, name: str, t_ns: int, data: Mapping, *, record: bool = True) -> None:
+        """A message dict (descriptions, diagnostics, events) encoded once by
+        :mod:`rod_sim.io.cdr`, recorded and published."""
+        self.send(name, t_ns, cdr.encoder(BY_NAME[name].type_name)(data), record=record)
+
+    def descriptions(self, t_ns: int, *, record: bool = True, which=("robot_description",
+                                                                      "scene")) -> None:
+        """``robot_description`` (URDF, root link = ``frame_id``) and ``scene`` (YAML) at
+        ``t_ns``: published (transient local) and recorded."""
+        from rod_sim.io.scene_yaml import scene_to_yaml
+        from rod_sim.io.urdf import scene_urdf
+
+        texts = {"robot_description": lambda: scene_urdf(self.scene, self.frame_id),
+                 "scene": lambda: scene_to_yaml(self.scene)}
+        for name in which:
+            self.message(name, t_ns, {"data": texts[name]()}, record=record)
+
+    def events(self, events) -> None:
+        """Hinge events (objects with ``to_dict``), each stamped at its simulated time."""
+        for event in events:
+            d = event.to_dict()
+            self.message(HINGE_EVENTS_TOPIC, event_time_ns(d), event_message(d))
+
+
+class SimClock:
+    """``/clock`` through ``publisher`` (None: not published): the simulated time of every
+    period before that period's outputs, and while nothing advances the frozen time again every
+    ``idle_s`` [s] of wall time; sent only while someone listens. Not recorded."""
+
+    def __init__(self, publisher, idle_s: float):
+        self.publisher = publisher
+        self.idle_ns = int(idle_s * 1e9)
+        self._wall_ns = 0
+
+    def publish(self, t_ns: int) -> None:
+        if self.publisher is not None and self.publisher.get_subscription_count() > 0:
+            self.publisher.publish(encoders.clock_ns(t_ns))
+            self._wall_ns = time.monotonic_ns()
+
+    def idle(self, t_ns: int) -> None:
+        """A timer's call: publish ``t_ns`` again if no period published for ``idle_s``."""
+        if time.monotonic_ns() - self._wall_ns >= self.idle_ns:
+            self.publish(t_ns)
