@@ -6,8 +6,8 @@ trial [0, T] and compared, at 100 Hz samples, with a full-model reference at rto
 (itself checked against rtol 1e-10: if the two differ by more than a tenth of the tolerance
 the reference is not converged and the command fails). The error is max over rods and samples
 of |phi - phi_ref| [rad] (docs/bench.md); on a free base (SPEC section 8) the base's angle psi
-counts as one more angle (|psi - psi_ref|; a prescribed base's angle is exact). Among the candidates whose error is at most
-:data:`MARGIN` x tolerance, the cheapest fidelity wins (rigid, then reduced, then full), and
+counts as one more angle (|psi - psi_ref|; a prescribed base's angle is exact). Among the
+candidates whose error is at most :data:`MARGIN` x tolerance, the cheapest fidelity wins (rigid, then reduced, then full), and
 within it the setting with the fewest right-hand side evaluations; the speed-up (wall time,
 minimum of the repeats) is against the full model at the default settings. Exit 0 with a recommendation, 1 when none meets the
 tolerance. The advice holds for the trial's loads and duration only.
