@@ -34,7 +34,7 @@ setup(
         "test": ["pytest", "pytest-timeout", "rosbags", "sympy", "yourdfpy", "websockets",
                  "foxglove-sdk"],
         "plot": ["matplotlib"],
-        "peer": ["mujoco", "pin", "bsk"],       # bench: MuJoCo, Pinocchio; tests: Basilisk (pins matplotlib<=3.10.9)
+        "peer": ["mujoco", "pin", "bsk"],       # bench + tests; bsk pins matplotlib<=3.10.9
         "sweep": ["dask[distributed]", "pyarrow", "tqdm"],      # rod-sim sweep on a cluster
     },
     zip_safe=True,

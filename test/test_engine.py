@@ -31,6 +31,10 @@ DEPLOYMENT = CONFIG / "deployment.yaml"
 SHIPPED = [("deployment.yaml", 2.0, 100), ("paper_example.yaml", 0.5, 100),
            ("small_chain.yaml", 0.5, 100), ("bench/paper_stiff.yaml", 0.05, 1000),
            ("bench/chain_n32.yaml", 0.01, 1000), ("bench/chain_n128.yaml", 0.002, 5000)]
+# scenes on a spacecraft base (SPEC section 8; simulate does not log their base yet): (scene file,
+# t_end [s]) simulated in every model, long enough for every chain and the base to move
+SPACECRAFT = [("two_wing_deployment.yaml", 0.2), ("spin_up_beam.yaml", 0.5),
+              ("tether_pair.yaml", 0.005)]
 
 
 def _compare(capsys, log, *extra):
@@ -48,11 +52,59 @@ def _full_log(tmp_path, scene_file, t_end, rate):
     return log
 
 
-def test_every_shipped_config_compares_with_its_own_full_log(tmp_path, capsys):
-    # shipped configs that are scenes (not params files or sweep specs)
+def test_every_shipped_config_is_listed():
+    # shipped configs that are scenes (not params files or sweep specs): one chain from the
+    # top-level rods, or chains on a base
     shipped = sorted(str(p.relative_to(CONFIG)) for p in CONFIG.rglob("*.yaml")
-                     if "rods" in (yaml.safe_load(p.read_text()) or {}))
-    assert shipped == sorted(s for s, _, _ in SHIPPED)
+                     if {"rods", "chains"} & set(yaml.safe_load(p.read_text()) or {}))
+    assert shipped == sorted([s for s, _, _ in SHIPPED] + [s for s, _ in SPACECRAFT])
+
+
+@pytest.mark.parametrize("model", ["rigid", "reduced", "full"])
+@pytest.mark.parametrize("scene_file,t_end", SPACECRAFT)
+def test_every_spacecraft_scene_runs_in_every_model(scene_file, t_end, model):
+    sc = load_scene(CONFIG / scene_file)
+    m = make_model(model, sc)
+    traj = Simulator(m, make_integrator("dop853-jit", rtol=1e-6, atol=1e-6)).run(t_end, 100.0)
+    assert traj.t[-1] == pytest.approx(t_end) and np.all(np.isfinite(traj.y))
+    first, last = m.base_state(traj.t[0], traj.y[0]), m.base_state(traj.t[-1], traj.y[-1])
+    assert np.all(np.isfinite([last.x, last.y, last.psi, last.psi_rate]))
+    nodes = m.node_positions(traj.t[-1], traj.y[-1])
+    assert nodes.shape == (sc.n + len(sc.chains), 2) and np.all(np.isfinite(nodes))
+    # something moves: the wings unfold and turn the bus, the beam spins up, the tethers turn
+    assert np.max(np.abs(traj.y[-1, :sc.n] - traj.y[0, :sc.n])) > 1e-6
+    if sc.base.mode != "fixed":
+        assert abs(last.psi - first.psi) > 1e-9
+
+
+def test_advise_counts_a_free_bases_angle(capsys):
+    # rod-sim advise on the two-wing deployment: a candidate's error is the larger of its rod
+    # angles' and its bus angle's distance from the full model's reference
+    wings = CONFIG / "two_wing_deployment.yaml"
+    assert cli.main(["advise", str(wings), "--tolerance", "1e-3", "--t-end", "0.2",
+                     "--repeats", "1", "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    trial = next(r for r in res["trials"] if r["model"] == "rigid" and r["rtol"] == 1e-4)
+    sc = load_scene(wings)
+    runs = {}
+    for name, rtol in (("rigid", 1e-4), ("full", 1e-11)):
+        m = make_model(name, sc)
+        traj = Simulator(m, make_integrator(rtol=rtol)).run(0.2, 100.0)
+        runs[name] = (traj.phi, traj.y[:, m.base_index + 2])
+    phi_err = np.max(np.abs(runs["rigid"][0] - runs["full"][0]))
+    psi_err = np.max(np.abs(runs["rigid"][1] - runs["full"][1]))
+    assert psi_err > 1e-9                                   # the bus turns differently
+    assert trial["max_phi_error"] == pytest.approx(max(phi_err, psi_err), rel=1e-6)
+    assert res["recommendation"] is not None
+    # here the rods' error is the larger; the angles advise compares end with the bus's psi
+    from rod_sim.tools import advise
+    angles, _, _ = advise._run(sc, "rigid", 1e-4, 0.2)
+    assert angles.shape == (21, sc.n + 1)
+    assert np.array_equal(angles[:, :-1], runs["rigid"][0])
+    assert np.array_equal(angles[:, -1], runs["rigid"][1])
+
+
+def test_every_shipped_config_compares_with_its_own_full_log(tmp_path, capsys):
     for scene_file, t_end, rate in SHIPPED:
         log = _full_log(tmp_path, scene_file, t_end, rate)
         code, rep = _compare(capsys, log)

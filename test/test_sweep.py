@@ -201,6 +201,52 @@ def test_path_into_a_per_rod_scalar_spells_it_out():
     assert parse_path("a.b[2][0].c") == ("a", "b", 2, 0, "c")
 
 
+def test_path_into_a_chain_spells_out_with_the_chains_count():
+    scene = {"rods": {"count": 9}, "chains": [
+        {"name": "a", "rods": {"count": 2, "length": 1.0}, "hinges": {"stiffness": 5.0}},
+        {"name": "b", "rods": {"count": 3, "length": 2.0}}]}
+    apply_path(scene, parse_path("chains[0].hinges.stiffness[1]"), 7.0)
+    apply_path(scene, parse_path("chains[1].rods.length[2]"), 2.5)
+    assert scene["chains"][0]["hinges"]["stiffness"] == [5.0, 7.0]
+    assert scene["chains"][1]["rods"]["length"] == [2.0, 2.0, 2.5]
+    path = "chains[1].nodes.mass[0]"                       # not set: one line naming it
+    with pytest.raises(SweepSpecError, match=r"^parameters.chains\[1\].nodes.mass\[0\]: "):
+        apply_path(scene, parse_path(path), 1.0, path)
+
+
+def test_sweep_over_a_spacecraft_scene(tmp_path):
+    # chain and base parameters of the two-wing deployment; the right wing's tip, computed here
+    # from the logged state by hand (base pose + attach point + rod chords), is what the
+    # row's max_tip_displacement reports (the right wing is the last chain)
+    shutil.copy(ROOT / "config" / "two_wing_deployment.yaml", tmp_path / "wings.yaml")
+    spec = {**TINY, "scene": "wings.yaml", "models": ["rigid"], "rtol": 1e-9, "t_end": 0.5,
+            "rate": 20, "parameters": {"chains[1].hinges.stiffness[2]": [5.0, 50.0],
+                                       "base.inertia": [900.0]}}
+    out = tmp_path / "wings.csv"
+    assert sweep(write_spec(tmp_path, spec), "--out", out, "--workers", 0) == 0
+    rows = read_table(out)
+    assert [r["status"] for r in rows] == ["ok", "ok"]
+    assert rows[0]["max_tip_displacement"] != rows[1]["max_tip_displacement"]
+    sc = load_scene(tmp_path / "wings.yaml")
+    sc = sc.with_changes(hinge_stiffness=np.r_[sc.hinge_stiffness[:7], 50.0,
+                                               sc.hinge_stiffness[8:]])
+    model = make_model("rigid", sc)
+    traj = Simulator(model, make_integrator(rtol=1e-9)).run(0.5, 20)
+    i, n = model.base_index, sc.n
+    x, y, psi = traj.y[:, i], traj.y[:, i + 1], traj.y[:, i + 2]
+    ax, ay = -1.0, 0.0                               # the right wing's attach point
+    phi = traj.y[:, 5:n]
+    tip = np.stack([x + np.cos(psi) * ax - np.sin(psi) * ay + np.cos(phi) @ sc.length[5:],
+                    y + np.sin(psi) * ax + np.cos(psi) * ay + np.sin(phi) @ sc.length[5:]], 1)
+    left = traj.y[:, :5]
+    ltip = np.stack([x + np.cos(psi) + np.cos(left) @ sc.length[:5],
+                     y + np.sin(psi) + np.sin(left) @ sc.length[:5]], 1)
+    expect = max(np.max(np.linalg.norm(tip - tip[0], axis=1)),
+                 np.max(np.linalg.norm(ltip - ltip[0], axis=1)))
+    assert abs(rows[1]["max_tip_displacement"] - expect) < 1e-9
+    assert rows[1]["tip_phi_final"] == pytest.approx(phi[-1, -1], abs=1e-12)
+
+
 MC = {**TINY, "draws": 400, "seed": 11,
       "parameters": {"hinges.stiffness": {"uniform": {"low": 20.0, "high": 60.0}},
                      "hinges.damping": {"lognormal": {"median": 0.5, "sigma": 0.3}},

@@ -5,8 +5,9 @@ Every candidate (rigid, reduced, full model; dop853-jit at a few tolerances) is 
 trial [0, T] and compared, at 100 Hz samples, with a full-model reference at rtol 1e-11
 (itself checked against rtol 1e-10: if the two differ by more than a tenth of the tolerance
 the reference is not converged and the command fails). The error is max over rods and samples
-of |phi - phi_ref| [rad] (docs/bench.md). Among the candidates whose error is at most
-:data:`MARGIN` x tolerance, the cheapest fidelity wins (rigid, then reduced, then full), and
+of |phi - phi_ref| [rad] (docs/bench.md); on a free base (SPEC section 8) the base's angle psi
+counts as one more angle (|psi - psi_ref|; a prescribed base's angle is exact). Among the
+candidates whose error is at most :data:`MARGIN` x tolerance, the cheapest fidelity wins (rigid, then reduced, then full), and
 within it the setting with the fewest right-hand side evaluations; the speed-up (wall time,
 minimum of the repeats) is against the full model at the default settings. Exit 0 with a recommendation, 1 when none meets the
 tolerance. The advice holds for the trial's loads and duration only.
@@ -48,7 +49,8 @@ def configure(parser) -> None:
 
 
 def _run(scene, model_name: str, rtol: float, t_end: float, repeats: int = 1):
-    """(phi (N, n), best wall time [s], nfev) of one model/tolerance over [0, t_end]."""
+    """(angles (N, n) or on a free base (N, n + 1): phi and then psi [rad], best wall time [s],
+    nfev) of one model/tolerance over [0, t_end]."""
     from ..core.integrators import make_integrator
     from ..core.models import make_model
     from ..core.simulator import Simulator
@@ -62,6 +64,8 @@ def _run(scene, model_name: str, rtol: float, t_end: float, repeats: int = 1):
         traj = sim.run(t_end, RATE_HZ)
         best = min(best, time.perf_counter() - start)
         phi, nfev = traj.phi, sim.stats.nfev
+        if model.nb:                                 # a free base: its angle psi too
+            phi = np.column_stack([phi, traj.y[:, model.base_index + 2]])
     return phi, best, nfev
 
 

@@ -211,12 +211,16 @@ def apply_path(scene: dict, segments: tuple, value: Any, path: str = "") -> None
     """Set the entry at ``segments`` of scene data ``scene`` (in place) to ``value``.
 
     A per-rod entry given as a scalar (``hinges.stiffness: 100``) is spelled out to one value
-    per rod (``rods.count``) before one of its elements is set. Missing mappings are created
+    per rod (``rods.count`` of the scene, or of the chain for a path into ``chains[c]``, e.g.
+    ``chains[1].rods.length[2]``) before one of its elements is set. Missing mappings are created
     (e.g. ``initial`` for ``initial.phi``); unknown keys are left to the scene validation.
     """
     key = f"parameters.{path or '.'.join(map(str, segments))}"
     node: Any = scene
+    owner: Any = scene          # the innermost mapping passed that holds rods: (scene or chain)
     for i, seg in enumerate(segments):
+        if isinstance(node, dict) and isinstance(node.get("rods"), dict):
+            owner = node
         last = i == len(segments) - 1
         nxt = None if last else segments[i + 1]
         if isinstance(seg, str):
@@ -232,9 +236,12 @@ def apply_path(scene: dict, segments: tuple, value: Any, path: str = "") -> None
                                               f"cannot be indexed")
                 node[seg] = {}
             if isinstance(nxt, int) and _is_number(node[seg]):
-                count = scene.get("rods", {}).get("count") if isinstance(scene.get("rods"), dict) else None
+                count = owner.get("rods", {}).get("count") if isinstance(owner, dict) and \
+                    isinstance(owner.get("rods"), dict) else None
                 if not isinstance(count, int) or count < 1:
-                    raise SweepSpecError(key, "rods.count is needed to spell out a per-rod value")
+                    where = "" if owner is scene else " of the chain"
+                    raise SweepSpecError(key, f"rods.count{where} is needed to spell out a "
+                                              f"per-rod value")
                 node[seg] = [node[seg]] * count
             node = node[seg]
         else:

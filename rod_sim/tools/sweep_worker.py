@@ -26,8 +26,9 @@ OUTPUTS = {
     "rtf": "real-time factor: t_end / wall_s",
     "nfev": "right-hand side evaluations",
     "max_abs_phi": "max over samples and rods of |phi_k| [rad]",
-    "tip_phi_final": "phi_n of the tip rod at t_end [rad]",
-    "max_tip_displacement": "max over samples of |r_n(t) - r_n(0)|, r_n the tip node [m]",
+    "tip_phi_final": "phi_n of the tip rod (the last chain's) at t_end [rad]",
+    "max_tip_displacement": "max over samples (and chains) of |r_n(t) - r_n(0)|, r_n the tip "
+                            "node (of each chain, in Oxy) [m]",
     "max_abs_alpha": "max over samples and rods of |alpha_k| [rad]",
     "max_abs_beta": "max over samples and rods of |beta_k| [rad]",
     "energy_final": "kinetic + hinge + bending energy at t_end [J]",
@@ -57,8 +58,14 @@ def metrics(model, t: np.ndarray, y: np.ndarray, modes=None, events=()) -> dict:
     """Summary outputs of a trajectory: ``t`` (N,) [s], ``y`` (N, state_size), the latches
     ``modes`` (N, n) fired at each sample and the run's hinge ``events``."""
     phi = model.phi(y)                                   # (N, n)
-    l = model.params.l
-    tip = np.stack([np.cos(phi) @ l, np.sin(phi) @ l], axis=1)        # (N, 2)
+    scene = model.scene
+    if scene.has_chains or scene.has_base:
+        # every chain's tip node in Oxy (the base may move): (N, chains, 2)
+        ends = scene.chain_starts[1:] + np.arange(len(scene.chains))
+        tip = np.stack([model.node_positions(ti, yi)[ends] for ti, yi in zip(t, y)])
+    else:
+        l = model.params.l
+        tip = np.stack([np.cos(phi) @ l, np.sin(phi) @ l], axis=1)[:, None]    # (N, 1, 2)
     alpha = np.empty_like(phi)
     beta = np.empty_like(phi)
     for i, balance, (a, b) in balance_run(model, t, y, None, modes, events):
@@ -66,7 +73,7 @@ def metrics(model, t: np.ndarray, y: np.ndarray, modes=None, events=()) -> dict:
     return {
         "max_abs_phi": float(np.max(np.abs(phi))),
         "tip_phi_final": float(phi[-1, -1]),
-        "max_tip_displacement": float(np.max(np.linalg.norm(tip - tip[0], axis=1))),
+        "max_tip_displacement": float(np.max(np.linalg.norm(tip - tip[0], axis=-1))),
         "max_abs_alpha": float(np.max(np.abs(alpha))),
         "max_abs_beta": float(np.max(np.abs(beta))),
         "energy_final": float(balance.energy),

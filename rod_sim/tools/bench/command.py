@@ -37,6 +37,10 @@ def configure(parser) -> None:
     parser.add_argument("--no-long", action="store_true",
                         help="skip the long chains (n = 8 ... 4096 beside Pinocchio, start-up, "
                              "chain n = 256/1024, stiff tether n = 512; ~10 min)")
+    parser.add_argument("--spacecraft", action="store_true",
+                        help="only the spacecraft bench (free vs fixed base rhs, two-wing "
+                             "deployment RTF, radau-jit O(n) on a free base, Basilisk peer; "
+                             "~10 min; rod_sim.tools.bench.spacecraft)")
     parser.add_argument("--out", default=None,
                         help="directory for bench.json, results.md and the PNG plots")
 
@@ -49,6 +53,16 @@ def run(args) -> int:
     out_dir = Path(args.out) if args.out else None
     if out_dir is not None and out_dir.exists() and not out_dir.is_dir():
         raise UsageError(f"--out: {out_dir} is not a directory")
+    if args.spacecraft:
+        from . import spacecraft
+
+        res = spacecraft.run_all(log=lambda s: print(s, file=sys.stderr, flush=True))
+        if out_dir is not None:
+            out_dir.mkdir(parents=True, exist_ok=True)
+            (out_dir / "spacecraft.json").write_text(json.dumps(res, indent=1, default=float))
+        print(json.dumps(res, indent=1, default=float) if args.json
+              else spacecraft.format_text(res))
+        return EXIT_OK
     scenes = tuple(args.scene) if args.scene else (QUICK_SCENES if args.quick else tuple(SCENES))
     cap = args.cap if args.cap is not None else (10.0 if args.quick else 45.0)
     cfg = BenchConfig(quick=args.quick, repeats=args.repeats, cap_s=cap, scenes=scenes,
