@@ -107,7 +107,7 @@ def test_a_signal_at_a_random_moment_ends_the_command_cleanly(inputs, tmp_path, 
         sent = time.monotonic()
         proc.send_signal(sig)
         try:
-            _, err = proc.communicate(timeout=30)
+            printed, err = proc.communicate(timeout=30)
         except subprocess.TimeoutExpired:
             proc.kill()
             pytest.fail(f"{what}: still running 30 s after the signal")
@@ -116,6 +116,12 @@ def test_a_signal_at_a_random_moment_ends_the_command_cleanly(inputs, tmp_path, 
         if proc.returncode in (0, 1) and (not lines or "interrupted" not in lines[-1]):
             # it ended just as the signal came (its own last line, no traceback)
             assert "Traceback" not in err and took < 0.1, (what, proc.returncode, err)
+        elif proc.returncode == -sig and "Traceback" not in err and took < 0.1 and (
+                printed.strip() if output is None else output.exists()):
+            # the command had returned: the signal came in the interpreter's last teardown,
+            # after Python restored the default dispositions (seen once for table1 in a full
+            # run: killed by SIGTERM 0 s after it, its table already printed)
+            pass
         else:
             assert proc.returncode == 128 + sig, (what, proc.returncode, err)
             assert "Traceback" not in err, (what, err)
