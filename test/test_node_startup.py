@@ -5,7 +5,7 @@ calibration here) and the validity monitor solved the chain's bending mode by La
 10 000 rods). Now the start-up is bounded work (budget.measure: every call bounded, ~1 s in
 all; the mode of a chain above 4096 rods from its rods), says what it is doing after 2 s, and
 SIGINT / SIGTERM at any moment of it end the process within 1 s: status 130 / 143, one line.
-ROS_DOMAIN_ID 146 (LOCALHOST)."""
+its own ROS_DOMAIN_ID (test/ros_domains.py, LOCALHOST)."""
 from __future__ import annotations
 
 import os
@@ -21,11 +21,12 @@ import pytest
 pytest.importorskip("rclpy")
 
 from procs import terminal_signals  # noqa: E402
+from ros_domains import next_domain  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(600)]
 
 REPO = Path(__file__).resolve().parents[1]
-DOMAIN = 146
+DOMAIN = next_domain()
 LAUNCH = "import sys; from rod_sim.tools.cli import main; sys.exit(main())"   # as bin/rod-sim
 
 

@@ -23,6 +23,7 @@ import yaml
 from mcap.reader import make_reader
 
 from procs import terminal_signals
+from ros_domains import next_domain  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "config" / "paper_example.yaml"
@@ -88,7 +89,7 @@ def whole(path: Path) -> bool:
                                   "deployment-figure", "repair", "bench", "ctl"])
 def test_a_signal_at_a_random_moment_ends_the_command_cleanly(inputs, tmp_path, name):
     rng = random.Random(f"{SEED}-{name}")
-    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID="148")
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(next_domain()))
     for trial in range(TRIALS):
         out = tmp_path / str(trial)
         out.mkdir()
