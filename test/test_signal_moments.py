@@ -89,7 +89,8 @@ def whole(path: Path) -> bool:
                                   "deployment-figure", "repair", "bench", "ctl"])
 def test_a_signal_at_a_random_moment_ends_the_command_cleanly(inputs, tmp_path, name):
     rng = random.Random(f"{SEED}-{name}")
-    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(next_domain()))
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+               ROS_DOMAIN_ID=str(next_domain()))
     for trial in range(TRIALS):
         out = tmp_path / str(trial)
         out.mkdir()
