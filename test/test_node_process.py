@@ -139,7 +139,7 @@ def test_sigterm_closes_the_log_with_its_summary(node_process, tmp_path):
     log = tmp_path / "sigterm.mcap"
     node = node_process(DOMAIN_SIGTERM, scene_file=PAPER, record_path=log)
     node.wait_for_output("recording to")
-    time.sleep(1.5)
+    ros_graph.wait_for_states(DOMAIN_SIGTERM, 60, node)
     assert node.stop(signal.SIGTERM) == 0
     assert "log closed" in node.stderr
     with LogReader(log) as reader:
