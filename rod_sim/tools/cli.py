@@ -96,10 +96,14 @@ def main(argv: list[str] | None = None) -> int:
         status = _main(argv)
     except KeyboardInterrupt as err:
         status = _interrupted(err)
-    except SystemError as err:
+    except (SystemError, ImportError) as err:
         # a signal handler's exception raised inside a compiled (numba) call comes back as
-        # "SystemError: ... returned a result with an exception set", caused by it
+        # "SystemError: ... returned a result with an exception set", and inside a C
+        # extension's initialization (numpy's, during an import) as "ImportError:
+        # initialization failed", each caused by it
         stop = _interruption(err)
+        if stop is None and isinstance(err, ImportError) and signals.received() is not None:
+            stop = Terminated() if signals.received() == signal.SIGTERM else KeyboardInterrupt()
         if stop is None:
             raise
         status = _interrupted(stop)

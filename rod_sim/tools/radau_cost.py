@@ -74,7 +74,7 @@ def measure(scene, model_name="full", rtol=3e-6, t_end=2.0) -> dict:
         traj = sim.run(t_end, 100.0)
         cpus.append(time.process_time() - started)
     y = traj.y[len(traj.t) // 2].copy()
-    held = np.zeros((model.n, 2))
+    held = model._held(None)
     args = (model.kernel, y, model.chain, model.extra, model.loads, held)
     n = y.size
     work = radau.chain_radau_workspace(model)

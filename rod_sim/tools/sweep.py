@@ -19,7 +19,7 @@ from pathlib import Path
 
 from ..core.quote import quote
 from .common import EXIT_OK, UsageError, new_output_path
-from .signals import done, exit_status, received
+from .signals import done, exit_status, received, signals_deferred
 
 HELP = "batch runs over parameter grids or Monte-Carlo draws (local pool or Dask cluster)"
 EXIT_INTERRUPTED = 130
@@ -69,7 +69,10 @@ def _progress(total: int, desc: str):
         from tqdm import tqdm
     except ImportError:                                  # the progress bar is optional
         return None
-    return tqdm(total=total, desc=desc, unit="run", file=sys.stderr, disable=None)
+    # made whole or not at all: a signal inside tqdm's constructor left a half-built bar
+    # whose finalizer then printed "AttributeError: 'tqdm' object has no attribute 'disable'"
+    with signals_deferred():
+        return tqdm(total=total, desc=desc, unit="run", file=sys.stderr, disable=None)
 
 
 def run_serial(tasks: list[dict], on_row=None) -> dict:
