@@ -747,7 +747,6 @@ def chain_solve(kind, ch, ex, W):
                 return False
             _sweep_fwd(kind, ch, ex, W, seg[ci], seg[ci + 1], 0.0, 0.0, 0.0, 0.0)
         return True
-    full = kind == KIND_FULL
     bk = ex.bk
     cps = bk[BK_COS]
     sps = bk[BK_SIN]
@@ -759,14 +758,7 @@ def chain_solve(kind, ch, ex, W):
         for ci in range(nc):
             if not _sweep_back(kind, ch, ex, W, seg[ci], seg[ci + 1]):
                 return False
-            rax = cps * ch.attach[ci, 0] - sps * ch.attach[ci, 1]
-            ray = sps * ch.attach[ci, 0] + cps * ch.attach[ci, 1]
-            a0x = ax - ap * ray - w2 * rax
-            a0y = ay + ap * rax - w2 * ray
-            if full:
-                _sweep_fwd(kind, ch, ex, W, seg[ci], seg[ci + 1], a0y, -a0x, ap, 0.0)
-            else:
-                _sweep_fwd(kind, ch, ex, W, seg[ci], seg[ci + 1], a0y, -a0x, 0.0, ap)
+            _forward_from_base(kind, ch, ex, W, ci, cps, sps, w2, ax, ay, ap)
         return True
     return _free_base_solve(kind, ch, ex, W, cps, sps, w2)
 
@@ -867,15 +859,25 @@ def _free_base_solve(kind, ch, ex, W, cps, sps, w2):
     bk[BK_APSI] = ap
     bk[BK_ATH] = bk[BK_FTH] / b[B_WHEEL] - ap if b[B_WHEEL] > 0.0 else 0.0 * ap
     for ci in range(nc):
-        rax = cps * ch.attach[ci, 0] - sps * ch.attach[ci, 1]
-        ray = sps * ch.attach[ci, 0] + cps * ch.attach[ci, 1]
-        a0x = ax - ap * ray - w2 * rax
-        a0y = ay + ap * rax - w2 * ray
-        if full:
-            _sweep_fwd(kind, ch, ex, W, seg[ci], seg[ci + 1], a0y, -a0x, ap, 0.0)
-        else:
-            _sweep_fwd(kind, ch, ex, W, seg[ci], seg[ci + 1], a0y, -a0x, 0.0, ap)
+        _forward_from_base(kind, ch, ex, W, ci, cps, sps, w2, ax, ay, ap)
     return True
+
+
+@njit(inline="always")
+def _forward_from_base(kind, ch, ex, W, ci, cps, sps, w2, ax, ay, ap):
+    """Chain ci forward from its node 0, whose acceleration follows from the base's (x_B'',
+    y_B'', psi'') = (ax, ay, ap), its rate squared w2 and the cos, sin of its angle:
+    a_0 = a_B + psi'' J R a - psi'^2 R a, the root interface u = (J^T a_0, psi'' in the
+    model's rotation slot)."""
+    seg = ch.seg
+    rax = cps * ch.attach[ci, 0] - sps * ch.attach[ci, 1]
+    ray = sps * ch.attach[ci, 0] + cps * ch.attach[ci, 1]
+    a0x = ax - ap * ray - w2 * rax
+    a0y = ay + ap * rax - w2 * ray
+    if kind == KIND_FULL:
+        _sweep_fwd(kind, ch, ex, W, seg[ci], seg[ci + 1], a0y, -a0x, ap, 0.0)
+    else:
+        _sweep_fwd(kind, ch, ex, W, seg[ci], seg[ci + 1], a0y, -a0x, 0.0, ap)
 
 
 @njit(inline="always")
@@ -1078,7 +1080,7 @@ def inertia_columns(full, chain, W, V, VA, VB, FP, FA, FB, vb, fb, cps, sps):
         fb[0] = mB * vcx
         fb[1] = mB * vcy
         fb[2] = b[B_INERTIA] * vb[2] + mB * (ecx * vcx + ecy * vcy)
-        fb[3] = 0.0 * vb[0]
+        fb[3] = 0.0
         if nb > 3:
             fb[3] = b[B_WHEEL] * (vb[2] + vb[3])
             fb[2] += fb[3]

@@ -488,7 +488,6 @@ class ChainModel:
                                   f[2 * n:3 * n], x[:n], x[n:2 * n], x[2 * n:], fb, xb, psi):
             raise np.linalg.LinAlgError("singular mass matrix in the velocity projection")
         if self.nb:
-            xb[3] = xb[3] + 0.0
             x_all = np.concatenate([x[:self.dof_per_rod * n], xb[:self.nb]])
             out[d:] = x_all
         else:
