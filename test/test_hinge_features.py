@@ -398,7 +398,7 @@ def test_node_records_hinge_events(tmp_path, monkeypatch):
             Parameter("record_path", value=str(log)), Parameter("rate_hz", value=50.0)])
         for _ in range(400):                       # 8 s of simulated time, no commands
             assert node._step_period(np.zeros((5, 2)))
-        node._log.close()
+        node._recording.writer.close()
         node.destroy_node()
     finally:
         rclpy.try_shutdown(context=ctx)

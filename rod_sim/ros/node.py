@@ -190,13 +190,6 @@ class RodSimNode(Node):
         """Subscriptions matched to our publisher of the output ``topic`` (relative name)."""
         return self._pubs[topic].get_subscription_count()
 
-    # names the tests written before the split into parts use (kept so they pass unchanged)
-    _ledger = property(lambda self: self.period.ledger)
-    _validity = property(lambda self: self.period.validity)
-    _log = property(lambda self: self._recording.writer)
-    _latest = property(lambda self: self.inputs.forces.latest)
-    _last_rejection = property(lambda self: self.inputs.forces.last_rejection)
-    _command_active = property(lambda self: self.inputs.forces.active)
 
     def _on_command_bytes(self, data: bytes, intake: CommandIntake | None = None) -> None:
         """A serialized command: checked, recorded, validated, held (lockstep: queued)."""
