@@ -317,7 +317,7 @@ def measure(args) -> dict:
     with tempfile.TemporaryDirectory() as tmpdir:
         tmp = Path(tmpdir)
         scene = scene_file(args, tmp)
-        scene_name, n = scene.name, load_scene(scene).n
+        scene_name, n = scene.stem, load_scene(scene).n
         params = {"scene_file": str(scene), "model": args.model, "rate_hz": float(args.rate),
                   "real_time_factor": 1.0, "sync_mode": False, "publish_clock": True,
                   "record_path": str(tmp / "bench.mcap") if args.record else ""}
