@@ -139,13 +139,15 @@ def load_frequency(scene) -> float:
     return f
 
 
-def force_jump_slopes(scene, y_phi, phi_rate, before, after) -> np.ndarray:
+def force_jump_slopes(scene, y_phi, phi_rate, before, after, y=None) -> np.ndarray:
     """|jump| of the quasi-static end slopes (2n,) [rad] when the held inputs jump from
     ``before`` to ``after`` (each (n, 2) nodal forces [N], or (n, 3) with the hinge motor
-    moments T [N m]) at the rod angles/rates given: the amplitude of the bending vibration
-    that such a jump starts (and the reduced model does not carry)."""
+    moments T [N m]) at the rod angles/rates given (or at the reduced model's whole state
+    ``y``, which a free base needs: its pose and rates are part of it): the amplitude of the
+    bending vibration that such a jump starts (and the reduced model does not carry)."""
     model = _reduced_cache(scene)
-    y = np.concatenate([np.asarray(y_phi, float), np.asarray(phi_rate, float)])
+    if y is None:
+        y = np.concatenate([np.asarray(y_phi, float), np.asarray(phi_rate, float)])
     a0, b0 = model.bending(0.0, y, before)
     a1, b1 = model.bending(0.0, y, after)
     return np.abs(np.concatenate([a1 - a0, b1 - b0]))
@@ -235,7 +237,7 @@ class ValidityMonitor:
         if (self.model.name == "reduced" and self._held is not None
                 and not np.array_equal(held, self._held)):
             jump = force_jump_slopes(self.scene, self.model.phi(y), self.model.phi_rate(y),
-                                     self._held, held)
+                                     self._held, held, y=np.asarray(y, float))
             k = int(np.argmax(jump))
             if jump[k] > JUMP_SLOPE_WARN_RAD:
                 self._add(Finding("force_jump", float(t), k % n + 1, float(jump[k]),

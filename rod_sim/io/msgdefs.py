@@ -133,6 +133,7 @@ TYPE_NAMES = (
     "diagnostic_msgs/msg/DiagnosticArray",
     "rosgraph_msgs/msg/Clock",
     "std_msgs/msg/String",
+    "geometry_msgs/msg/WrenchStamped",
 )
 """The message types rod_sim writes, keys of :data:`SCHEMAS` and :data:`TYPE_HASHES`."""
 
@@ -236,6 +237,18 @@ MSG_FILES: dict[str, str] = {
         'float64 x\n'
         'float64 y\n'
         'float64 z\n'
+    ),
+    'geometry_msgs/Wrench': (
+        '# This represents force in free space, separated into its linear and angular parts.\n'
+        '\n'
+        'Vector3  force\n'
+        'Vector3  torque\n'
+    ),
+    'geometry_msgs/WrenchStamped': (
+        '# A wrench with reference coordinate frame and timestamp\n'
+        '\n'
+        'std_msgs/Header header\n'
+        'Wrench wrench\n'
     ),
     'rosgraph_msgs/Clock': (
         '# This message communicates the current time.\n'
@@ -505,6 +518,7 @@ TYPE_HASHES: dict[str, str] = {
     'diagnostic_msgs/msg/DiagnosticArray': 'RIHS01_5a8a36efb05fb25070fa0fb3810290c0e6cd4862b54a8fb975a1ee8dc55a333e',
     'rosgraph_msgs/msg/Clock': 'RIHS01_692f7a66e93a3c83e71765d033b60349ba68023a8c689a79e48078bcb5c58564',
     'std_msgs/msg/String': 'RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18',
+    'geometry_msgs/msg/WrenchStamped': 'RIHS01_8dc3deaf06b2ab281f9f9a742a8961c328ca7cec16e3fd6586d3a5c83fa78f77',
 }
 # GENERATED-SCHEMAS-END
 

@@ -30,9 +30,10 @@ from rod_sim.ros.pacing import RateMeter
 
 
 def full_inputs(held, n: int) -> np.ndarray:
-    """(n, 3) [X, Y, T] from (n, 3), or from (n, 2) / 2n forces (zero torques)."""
+    """(n, 3) [X, Y, T] from (n, 3), or from (n, 2) / 2n forces (zero torques); (n + 2, 3)
+    (with the base's and the wheel's rows) as it is."""
     held = np.asarray(held, dtype=float)
-    if held.shape == (n, 3):
+    if held.shape in ((n, 3), (n + 2, 3)):
         return held
     full = np.zeros((n, 3))
     full[:, :2] = held.reshape(n, 2)
@@ -87,13 +88,13 @@ class PeriodRunner:
         self.max_beta = max(self.max_beta, float(np.max(np.abs(snap.beta), initial=0.0)))
 
     def run(self, held, at_start: Callable[[int], None] | None = None) -> Snapshot | None:
-        """One period holding ``held`` ((n, 3) [X, Y, T] or (n, 2) forces) plus the scene's
+        """One period holding ``held`` ((n, 3) [X, Y, T], (n + 2, 3) with the base's and the
+        wheel's rows, or (n, 2) forces) plus the scene's
         scripted loads; ``at_start(t_ns)`` is called once the inputs are set. Returns the
         snapshot at the period's end, or None (``error`` set, state unchanged) on failure."""
         sim = self.sim
         held = full_inputs(held, sim.model.n)
-        sim.set_forces(held[:, :2])
-        sim.set_hinge_torques(held[:, 2])
+        sim.set_held(held)
         if at_start is not None:
             at_start(sim.t_ns)
         last = self._balance_end
@@ -116,7 +117,7 @@ class PeriodRunner:
                                     (snap.alpha, snap.beta))
         self.ledger.add(start_sample, end_sample, sim.events[self.events_seen:])
         self._balance_end = (sim.t_ns, held.copy(), end_sample)
-        self.validity.update(sim.t, sim.y, held, snap.alpha, snap.beta)
+        self.validity.update(sim.t, sim.y, held[:sim.model.n], snap.alpha, snap.beta)
         self.validity.update_energy(sim.t, self.ledger.residual, self.ledger.scale,
                                     self.ledger.unresolved)
         return snap

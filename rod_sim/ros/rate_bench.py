@@ -3,6 +3,7 @@
     python -m rod_sim.ros.rate_bench --rate 1000 --duration 10
     python -m rod_sim.ros.rate_bench --rods 128 --rate 100 --duration 10 --json
     python -m rod_sim.ros.rate_bench --lockstep 5000 --record --keep-log out/lockstep.mcap
+    python -m rod_sim.ros.rate_bench --spacecraft --rate 100 --record
 
 The node runs in its own process (``python -m rod_sim.ros.node``, real-time pace, the reduced
 model by default); this process subscribes to ``rod_states`` and time-stamps every message on
@@ -23,6 +24,10 @@ runs get the same inputs), K round trips (command -> period -> states) after the
 it reports round trips per wall second. ``--keep-log`` keeps the node's log (``--record``);
 ``--node-pythonpath`` runs the node from another source tree (e.g. to compare the logs of two
 versions for the same inputs).
+
+``--spacecraft`` runs two chains of ``--rods`` rods each (default 512) on a free base instead
+(:func:`rod_sim.tools.bench.spacecraft.two_chain_scene`: the base turning, the chains bent and
+moving), the case of issue 28: 2 x 512 rods at 100 Hz with recording.
 
 ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is LOCALHOST and ``ROS_DOMAIN_ID`` is ``--domain`` (default
 226) for both processes: nothing leaves the machine.
@@ -50,6 +55,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scene", default=str(DEFAULT_SCENE), help="scene YAML (default: the paper's example)")
     p.add_argument("--rods", type=int, default=None,
                    help="override the number of rods (same per-rod properties and loads)")
+    p.add_argument("--spacecraft", action="store_true",
+                   help="two chains of --rods rods each (default 512) on a free base")
     p.add_argument("--model", default="reduced", choices=("reduced", "full", "rigid"))
     p.add_argument("--rate", type=float, default=1000.0, help="node rate_hz [Hz]")
     p.add_argument("--duration", type=float, default=10.0, help="measured wall window [s]")
@@ -71,11 +78,20 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def scene_file(args, tmp: Path) -> Path:
-    """The scene to run: ``--scene`` itself, or a copy with ``--rods`` rods."""
-    if args.rods is None:
-        return Path(args.scene)
+    """The scene to run: ``--scene`` itself, or a copy with ``--rods`` rods, or with
+    ``--spacecraft`` two chains of ``--rods`` (512) rods on a free base."""
     from rod_sim.io.scene_yaml import load_scene, scene_to_yaml
     from rod_sim.core.scene import Scene
+
+    if args.spacecraft:
+        from rod_sim.tools.bench.spacecraft import two_chain_scene
+
+        scene = two_chain_scene(args.rods or 512)
+        path = tmp / f"{scene.name}.yaml"
+        path.write_text(scene_to_yaml(scene))
+        return path
+    if args.rods is None:
+        return Path(args.scene)
 
     data = load_scene(args.scene).to_dict()
     n_old = data["rods"]["count"]
@@ -295,11 +311,13 @@ def measure(args) -> dict:
     from rclpy.executors import SingleThreadedExecutor
     from sensor_msgs.msg import JointState
 
+    from rod_sim.io.scene_yaml import load_scene
     from rod_sim.ros.qos import keep_last
 
     with tempfile.TemporaryDirectory() as tmpdir:
         tmp = Path(tmpdir)
         scene = scene_file(args, tmp)
+        scene_name, n = scene.stem, load_scene(scene).n
         params = {"scene_file": str(scene), "model": args.model, "rate_hz": float(args.rate),
                   "real_time_factor": 1.0, "sync_mode": False, "publish_clock": True,
                   "record_path": str(tmp / "bench.mcap") if args.record else ""}
@@ -347,13 +365,12 @@ def measure(args) -> dict:
                 node_proc.kill()
         result = summarize(np.array(wall[first_kept:], dtype=np.int64),
                            np.array(stamps[first_kept:], dtype=np.int64), args.rate)
-    from rod_sim.io.scene_yaml import load_scene
     if cpu0 is not None and cpu1 is not None:
         result["node_cpu_fraction"] = (cpu1 - cpu0) / args.duration
     if args.live_view:
         result["viewer_frames"] = viewer_frames
-    result.update({"scene": Path(args.scene).name,
-                   "n": args.rods if args.rods else load_scene(args.scene).n,
+    result.update({"scene": Path(args.scene).name if not args.spacecraft else scene_name,
+                   "n": n,
                    "model": args.model, "rate_hz_set": args.rate, "record": args.record,
                    "window_s": args.duration})
     return result
