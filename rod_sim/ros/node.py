@@ -1,6 +1,7 @@
 """The rod_sim ROS 2 node (docs/interface.md section 3): chains of elastic rods driven by nodal
-forces and hinge torques, on a base driven by a wrench and a reaction wheel; ``sim_node`` / ``rod-sim node`` / ``python -m rod_sim.ros.node
---ros-args -p scene_file:=config/paper_example.yaml [-p sync_mode:=true]``.
+forces and hinge torques, on a base driven by a wrench and a reaction wheel; ``sim_node`` /
+``rod-sim node`` / ``python -m rod_sim.ros.node --ros-args -p
+scene_file:=config/paper_example.yaml [-p sync_mode:=true]``.
 
 This module is wiring: ROS entities whose callbacks call parts with one job each, none needing
 a ROS graph: parameters (settings), simulation (scene, model, simulator, work budget), inputs
@@ -29,7 +30,7 @@ from rod_sim.io import topics
 from rod_sim.io.log_writer import LogWriter
 from rod_sim.io.scene_yaml import scene_to_yaml
 from rod_sim.ros import simulation
-from rod_sim.ros.applied_base import APPLIED_BASE_TOPIC, APPLIED_BASE_TYPE, AppliedBase
+from rod_sim.ros.applied_base import base_values
 from rod_sim.ros.command_layout import CommandLayout
 from rod_sim.ros.commands import FORCES, MESSAGE_TYPES, TORQUES, WRENCH, CommandIntake
 from rod_sim.ros.control import NextTurn, RunControl
@@ -44,7 +45,7 @@ from rod_sim.ros.pacing import Pacing
 from rod_sim.ros.parameters import (NODE_NAME, PARAMETERS, build_parser, declare_settings,
                                     unknown_overrides, unknown_warning, validate_change)
 from rod_sim.ros.process import params_files, parse_cli, run_node, same_name_warning
-from rod_sim.ros.qos import APPLIED_QOS, COMMAND_QOS, SERVICE_QOS, SERVICE_QUEUE_DEPTH, clock_qos
+from rod_sim.ros.qos import COMMAND_QOS, SERVICE_QOS, SERVICE_QUEUE_DEPTH, clock_qos
 from rod_sim.ros.recording import NodeRecording, create_log, node_log_metadata, offered_qos
 
 __all__ = ["RodSimNode", "NodeConfigError", "main", "PARAMETERS", "SERVICE_QUEUE_DEPTH",
@@ -94,7 +95,7 @@ class RodSimNode(Node):
             self._pacing = Pacing(self.period_ns, s.real_time_factor)
             self._topic_names = {o.name: self.resolve_topic_name(o.name) for o in OUTPUTS}
             self._topic_names.update({t: self.resolve_topic_name(t)
-                                      for t in (FORCES, TORQUES, WRENCH, APPLIED_BASE_TOPIC)})
+                                      for t in (FORCES, TORQUES, WRENCH)})
             self._topic_names["diagnostics"] = self.resolve_topic_name(DIAGNOSTICS_TOPIC)
             self._recording.start(Path(s.record_path) if s.record_path else None)
             self._create_interfaces()
@@ -133,10 +134,6 @@ class RodSimNode(Node):
             self.create_subscription(intake.message_class, self._topic_names[topic],
                                      functools.partial(self._on_command_bytes, intake=intake),
                                      COMMAND_QOS, raw=True)
-        self._applied_base = None if not self.inputs.layout.free_base else AppliedBase(
-            self.create_publisher(message_class(APPLIED_BASE_TYPE),
-                                  self._topic_names[APPLIED_BASE_TOPIC], APPLIED_QOS),
-            self._recording, self._topic_names[APPLIED_BASE_TOPIC])
         self.create_service(Trigger, "~/reset", self._on_reset, qos_profile=SERVICE_QOS)
         # its own reentrant group: between the slices of a long ~/step the other callbacks
         # run (single-threaded executor: they interleave only where _on_step awaits)
@@ -266,9 +263,8 @@ class RodSimNode(Node):
     def _publish_applied(self, t_ns: int) -> None:
         n, held = self.scene.n, self.sim.held
         loads = self.model.loads_at(t_ns / NS_PER_S, held)
-        self._outputs.applied(t_ns, loads[:n, :2].copy(), held[:n, 2].copy())
-        if self._applied_base is not None:
-            self._applied_base.send(t_ns, loads)
+        self._outputs.applied(t_ns, loads[:n, :2].copy(), held[:n, 2].copy(),
+                              base_values(loads) if self.inputs.layout.free_base else None)
 
     def _publish_state(self, snap) -> None:
         self.period.note_state(snap)
@@ -311,8 +307,6 @@ class RodSimNode(Node):
         self.period.reset()
         self.inputs.clear()
         self._outputs.forget_applied()
-        if self._applied_base is not None:
-            self._applied_base.forget()
         self._pacing.unanchor()
         note = self._recording.roll()
         self._outputs.descriptions(self.sim.t_ns)
@@ -349,9 +343,7 @@ class RodSimNode(Node):
         return create_log(path, node_log_metadata(
             scene_to_yaml(self.scene), self.model.name, self.sim.integrator.describe(),
             self.settings, self.control.mode(), self.get_fully_qualified_name()),
-            offered_qos(self._topic_names, {
-                **log_depths(self.settings.sync_mode),
-                **({APPLIED_BASE_TOPIC: 1} if self.inputs.layout.free_base else {})}))
+            offered_qos(self._topic_names, log_depths(self.settings.sync_mode, self.scene)))
 
     def destroy_node(self) -> None:
         """Close the log (with its summary) and the live view, then destroy the node."""
