@@ -20,7 +20,7 @@ from typing import Callable, NamedTuple, Protocol
 import numpy as np
 
 from . import erk, hinges, kernels, radau
-from .kinematics import node_positions
+from .kinematics import chain_node_positions, node_positions
 from .matrices import ChainParams
 from .scene import LOAD_AXES, Scene
 from .snapshot import Snapshot
@@ -600,16 +600,7 @@ class ChainModel:
                 not self.chain.attach.any():
             return node_positions(p.l, phi)
         st = self.base_state(t, y)
-        c, s = np.cos(st.psi), np.sin(st.psi)
-        out = np.empty((self.n + len(self.seg) - 1, 2))
-        for ci in range(len(self.seg) - 1):
-            a, b = self.seg[ci], self.seg[ci + 1]
-            ax, ay = self.chain.attach[ci]
-            nodes = node_positions(p.l[a:b], phi[a:b])
-            nodes[:, 0] += st.x + c * ax - s * ay
-            nodes[:, 1] += st.y + s * ax + c * ay
-            out[a + ci:b + ci + 1] = nodes
-        return out
+        return chain_node_positions(p.l, phi, self.seg, self.chain.attach, st.x, st.y, st.psi)
 
     def energies(self, t: float, y: np.ndarray, held=None, bending=None, mode=None) -> Energies:
         """Kinetic, hinge (springs about their rest angles + stop contacts), bending and

@@ -234,7 +234,7 @@ class LogStream:
             names = list(msg.name)
             if self.n is None:
                 n = len(names)
-                if n == 0 or not _rod_names(names):
+                if n == 0 or not valid_rod_names(names):
                     raise LogFormatError(f"{STATE_TOPIC} names {names[:4]}... are not "
                                          "rod_1..rod_n (or <chain>/rod_1.. per chain)")
                 self.n, self.rod_names = n, names
@@ -303,7 +303,7 @@ class LogStream:
         return any(TORQUES_TOPIC.lstrip("/") in names for names in self.topics)
 
 
-def _rod_names(names: list[str]) -> bool:
+def valid_rod_names(names: list[str]) -> bool:
     """Whether ``names`` are rod_1..rod_n, or per chain ``<chain>/rod_1..`` (chains one after
     the other, each once)."""
     seen, prefix, k = set(), None, 0

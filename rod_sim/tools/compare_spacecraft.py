@@ -23,6 +23,15 @@ def length_scale(scene) -> float:
     return float(max(lengths[sl].sum() for sl in scene.chain_slices()))
 
 
+def hinge_angles(roots: np.ndarray, phi: np.ndarray, psi: np.ndarray) -> np.ndarray:
+    """(N, n) rigid hinge angles (the ``joint_states`` positions) of rod angles ``phi`` (N, n)
+    [rad] on a base at angle ``psi`` (N,) [rad]; ``roots`` (n,) bool: each chain's first rod
+    (``Scene.chain_root``), whose hinge 0 measures phi_1 - psi."""
+    prev = np.concatenate([np.zeros((phi.shape[0], 1)), phi[:, :-1]], axis=1)
+    prev[:, roots] = psi[:, None]
+    return phi - prev
+
+
 def _wrap(a: np.ndarray) -> np.ndarray:
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
@@ -53,10 +62,7 @@ class SpacecraftCheck:
         return out
 
     def hinge_angles(self, phi: np.ndarray, psi: np.ndarray) -> np.ndarray:
-        """(N, n) hinge angles of rod angles ``phi`` (N, n) on a base at angle ``psi`` (N,)."""
-        prev = np.concatenate([np.zeros((phi.shape[0], 1)), phi[:, :-1]], axis=1)
-        prev[:, self.roots] = psi[:, None]
-        return phi - prev
+        return hinge_angles(self.roots, phi, psi)
 
     def add(self, ts: np.ndarray, phi_log: np.ndarray, y_ref: np.ndarray,
             base_log: np.ndarray) -> None:
