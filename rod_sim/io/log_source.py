@@ -10,6 +10,8 @@ What is read (n rods; times in integer ns of simulated time), under any one name
 - ``bending``: alpha, beta (n,) [rad] (optional topic);
 - ``node_poses``: node positions (n+1, 2) [m] (optional topic; a spacecraft scene: every
   chain's nodes and the base's origin, (n + chains + 1, 2));
+- ``applied_base``: [Fx, Fy, M, T_w] on a free base (scripted + held), from its log time on
+  (optional topic, node logs);
 - ``base_odometry``: the base frame's origin and angle (x, y [m], psi [rad] in (-2 pi, 2 pi])
   (optional topic, moving bases);
 - ``applied_forces``: forces (n, 2) [N] = scripted loads + held command, valid from the
@@ -49,10 +51,12 @@ POSES_TOPIC = "/node_poses"
 APPLIED_TOPIC = "/applied_forces"
 TORQUES_TOPIC = "/applied_torques"
 BASE_TOPIC = "/base_odometry"
+APPLIED_BASE_TOPIC = "/applied_base"
 SCENE_TOPIC = "/scene"
 """Latched std_msgs/String with the scene as YAML (not part of :data:`TOPICS`: read once)."""
-TOPICS = (STATE_TOPIC, BENDING_TOPIC, POSES_TOPIC, APPLIED_TOPIC, TORQUES_TOPIC, BASE_TOPIC)
-HOLD_TOPICS = (APPLIED_TOPIC, TORQUES_TOPIC)
+TOPICS = (STATE_TOPIC, BENDING_TOPIC, POSES_TOPIC, APPLIED_TOPIC, TORQUES_TOPIC, BASE_TOPIC,
+          APPLIED_BASE_TOPIC)
+HOLD_TOPICS = (APPLIED_TOPIC, TORQUES_TOPIC, APPLIED_BASE_TOPIC)
 """Topics without a header whose messages hold from their log time on (the last one at a
 repeated time is used)."""
 
@@ -71,6 +75,7 @@ class Group:
     applied: np.ndarray | None = None
     torques: np.ndarray | None = None
     base: np.ndarray | None = None
+    applied_base: np.ndarray | None = None
 
 
 def _stamp_ns(msg: Any) -> int:
@@ -219,7 +224,7 @@ class LogStream:
             torques = self.torque_array(t_ns, torques)
         return Group(t_ns, state=values.get(STATE_TOPIC), bending=values.get(BENDING_TOPIC),
                      nodes=values.get(POSES_TOPIC), applied=applied, torques=torques,
-                     base=values.get(BASE_TOPIC))
+                     base=values.get(BASE_TOPIC), applied_base=values.get(APPLIED_BASE_TOPIC))
 
     def _decode(self, topic: str, log_ns: int, msg: Any):
         """The arrays of one message, checked against the first state message's n."""
@@ -246,6 +251,12 @@ class LogStream:
                 raise LogFormatError(f"{STATE_TOPIC} at t = {t} s has {len(names)} names, "
                                      f"{pos.size} positions, {vel.size} velocities (expected {n})")
             return pos, vel
+        if topic == APPLIED_BASE_TOPIC:
+            data = np.asarray(msg.data, dtype=float).reshape(-1)
+            if data.size != 4 or not np.all(np.isfinite(data)):
+                raise LogFormatError(f"{APPLIED_BASE_TOPIC} at t = {t} s is not 4 finite values "
+                                     "[Fx, Fy, M, T_w]")
+            return data
         if topic == TORQUES_TOPIC:
             data = np.asarray(msg.data, dtype=float)     # checked once n is known
             return data if self.n is None else self.torque_array(log_ns, data)

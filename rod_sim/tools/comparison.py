@@ -196,7 +196,10 @@ class _Comparison:
         y0 = self.model.initial_state()
         self.refs = References(self.model, rtol, check_rtol, y0)
         self.chaos = ChaosTracker(self.model, rtol, y0)
-        self.inputs = HeldInputs(log, n, self.model.forces)
+        self.inputs = HeldInputs(
+            log, n, self.model.forces,
+            (lambda t: scene.scripted_load_table(t)[n:n + 2])
+            if scene.base.mode == "free" else None)
         self.timeline = SampleTimeline(rate_hz)
         rods = list(range(1, n + 1))
         self.spacecraft = SpacecraftCheck(scene, self.model, tolerance) \
@@ -234,6 +237,8 @@ class _Comparison:
             self.inputs.applied.append((g.t_ns, g.applied))
         if g.torques is not None:
             self.inputs.torque_msgs.append((g.t_ns, g.torques))
+        if g.applied_base is not None:
+            self.inputs.base_msgs.append((g.t_ns, g.applied_base))
         if g.state is not None and self.states and (
                 len(self.states) >= WINDOW_SAMPLES
                 or g.t_ns - self.states[0][0] >= WINDOW_S * NS_PER_S):
