@@ -246,35 +246,23 @@ def test_plain_simulate_log_has_no_spacecraft_topics(tmp_path):
 
 def tampered(src: Path, dst: Path, dx: float) -> None:
     """A copy of ``src`` whose base_odometry is shifted by ``dx`` [m] from t = 0.5 s on."""
-    from mcap.reader import make_reader
-    from mcap.writer import Writer
-    from rclpy.serialization import deserialize_message, serialize_message
-    from nav_msgs.msg import Odometry
+    import dataclasses
 
-    with open(src, "rb") as f:
-        reader = make_reader(f)
-        items = list(reader.iter_messages(log_time_order=False))
-        metas = list(reader.iter_metadata())
-    with open(dst, "wb") as f:
-        w = Writer(f)
-        w.start(profile="ros2", library="test")
-        for m in metas:
-            w.add_metadata(m.name, dict(m.metadata))
-        sids, cids = {}, {}
+    from nav_msgs.msg import Odometry
+    from rclpy.serialization import deserialize_message, serialize_message
+    from test_compare import rewrite
+
+    def shift(items):
+        out = []
         for schema, channel, msg in items:
-            if schema.id not in sids:
-                sids[schema.id] = w.register_schema(schema.name, schema.encoding, schema.data)
-            if channel.id not in cids:
-                cids[channel.id] = w.register_channel(channel.topic, channel.message_encoding,
-                                                      sids[schema.id], dict(channel.metadata))
-            data = msg.data
             if channel.topic == "/base_odometry" and msg.log_time >= 500_000_000:
-                odo = deserialize_message(data, Odometry)
+                odo = deserialize_message(msg.data, Odometry)
                 odo.pose.pose.position.x += dx
-                data = serialize_message(odo)
-            w.add_message(channel_id=cids[channel.id], log_time=msg.log_time,
-                          publish_time=msg.publish_time, sequence=msg.sequence, data=data)
-        w.finish()
+                msg = dataclasses.replace(msg, data=serialize_message(odo))
+            out.append((schema, channel, msg))
+        return out
+
+    rewrite(src, dst, shift)
 
 
 @pytest.mark.slow
