@@ -160,4 +160,4 @@ def node_report(control, period, inputs, dropped: int, sim_time: float, period_n
         model=period.model.name, integrator=integrator, error=control.error,
         recording_error=recording_error,
         validity=[f.message for f in period.validity.findings() if f.kind != "bending"],
-        extra={**extra, **inputs.counts()})
+        extra={**extra, **inputs.counts(), **period.spacecraft_values()})

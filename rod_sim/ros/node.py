@@ -53,7 +53,7 @@ __all__ = ["RodSimNode", "NodeConfigError", "main", "PARAMETERS", "SERVICE_QUEUE
 COMMAND_TYPE = "std_msgs/msg/Float64MultiArray"
 DIAGNOSTICS_TOPIC = "/diagnostics"
 """Absolute, where diagnostic_aggregator listens (as diagnostic_updater publishes)."""
-DIAGNOSTICS_STATUS_NAME = "rod_sim: simulation"
+DIAGNOSTICS_STATUS_NAME = topics.DIAGNOSTICS_STATUS_NAME
 DIAGNOSTICS_PERIOD_S = 1.0   # [s] wall period of diagnostics
 IDLE_CLOCK_PERIOD_S = 0.1    # [s] wall period of /clock while no period advances
 WAITING_LOG_PERIOD_S = 3.0   # [s] wall period of the "waiting for ..." line at t = 0

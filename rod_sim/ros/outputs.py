@@ -53,9 +53,10 @@ class Output:
         return self.encode is not None
 
 
-def _state(name: str, rate_parameter: str | None = None) -> Output:
+def _state(name: str, rate_parameter: str | None = None,
+           applies: Callable[[Scene], bool] | None = None) -> Output:
     return Output(name, topics.TOPIC_TYPES[name], "state", encoders.SNAPSHOT_ENCODERS[name],
-                  rate_parameter)
+                  rate_parameter, applies)
 
 
 OUTPUTS: tuple[Output, ...] = (
@@ -63,6 +64,7 @@ OUTPUTS: tuple[Output, ...] = (
     _state("rod_states"),
     _state("bending"),
     _state("node_poses"),
+    _state("base_odometry", applies=lambda scene: scene.moving_base),
     _state("markers", "markers_rate_hz"),
     Output("applied_forces", topics.TOPIC_TYPES["applied_forces"], "applied"),
     Output("applied_torques", topics.TOPIC_TYPES["applied_torques"], "applied"),
@@ -171,7 +173,7 @@ class Outputs:
         and the same bytes."""
         encoded = {}
         for name in names:
-            if self.due(name, t_ns):
+            if self.due(name, t_ns) and BY_NAME[name].exists_for(self.scene):
                 encoded[name] = BY_NAME[name].encode(snapshot, self.scene, self.frame_id)
                 self.send(name, t_ns, encoded[name], record=record)
         for tap in self.taps:

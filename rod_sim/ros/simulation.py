@@ -95,7 +95,8 @@ def _warm_up(simulation: Simulation, settings) -> None:
     model.energies(snap.t, scratch.y, scratch.held)
     model.powers(snap.t, scratch.y, scratch.held)
     for name in STATE_TOPICS:
-        BY_NAME[name].encode(snap, simulation.scene, settings.frame_id)
+        if BY_NAME[name].exists_for(simulation.scene):
+            BY_NAME[name].encode(snap, simulation.scene, settings.frame_id)
 
 
 def start_line(node: str, simulation: Simulation, mode: str, command_topics, log_path,
