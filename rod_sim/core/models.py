@@ -19,7 +19,10 @@ from typing import Callable, NamedTuple, Protocol
 
 import numpy as np
 
-from . import erk, hinges, kernels, radau
+from .scipy_tables import light_dop853_tables
+
+with light_dop853_tables():     # erk's tables without scipy.integrate's import
+    from . import erk, hinges, kernels, radau
 from .kinematics import node_positions
 from .matrices import ChainParams
 from .scene import LOAD_AXES, Scene
