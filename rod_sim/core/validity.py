@@ -139,13 +139,16 @@ def load_frequency(scene) -> float:
     return f
 
 
-def force_jump_slopes(scene, y_phi, phi_rate, before, after) -> np.ndarray:
+def force_jump_slopes(scene, y_phi, phi_rate, before, after, y=None) -> np.ndarray:
     """|jump| of the quasi-static end slopes (2n,) [rad] when the held inputs jump from
     ``before`` to ``after`` (each (n, 2) nodal forces [N], or (n, 3) with the hinge motor
     moments T [N m]) at the rod angles/rates given: the amplitude of the bending vibration
-    that such a jump starts (and the reduced model does not carry)."""
+    that such a jump starts (and the reduced model does not carry). ``y``: the reduced
+    model's whole state there, which a scene with a free base needs (its pose and twist);
+    default [phi, phi_rate]."""
     model = _reduced_cache(scene)
-    y = np.concatenate([np.asarray(y_phi, float), np.asarray(phi_rate, float)])
+    if y is None:
+        y = np.concatenate([np.asarray(y_phi, float), np.asarray(phi_rate, float)])
     a0, b0 = model.bending(0.0, y, before)
     a1, b1 = model.bending(0.0, y, after)
     return np.abs(np.concatenate([a1 - a0, b1 - b0]))
@@ -235,7 +238,7 @@ class ValidityMonitor:
         if (self.model.name == "reduced" and self._held is not None
                 and not np.array_equal(held, self._held)):
             jump = force_jump_slopes(self.scene, self.model.phi(y), self.model.phi_rate(y),
-                                     self._held, held)
+                                     self._held, held, y)
             k = int(np.argmax(jump))
             if jump[k] > JUMP_SLOPE_WARN_RAD:
                 self._add(Finding("force_jump", float(t), k % n + 1, float(jump[k]),
@@ -408,16 +411,20 @@ class BalanceSample:
     remainder: float = 0.0
 
 
-def balance_sample(model, t: float, y, held=None, mode=None, bending=None) -> BalanceSample:
+def balance_sample(model, t: float, y, held=None, mode=None, bending=None,
+                   f=None) -> BalanceSample:
     """The :class:`BalanceSample` of state ``y`` at ``t`` [s] with held inputs ``held`` and the
-    latched hinges ``mode`` locked (``bending`` = (alpha, beta) if known). One right-hand side
+    latched hinges ``mode`` locked (``bending`` = (alpha, beta) and ``f`` = the right-hand
+    side dy/dt there, if known: ``model.rhs_bending`` gives both at once). One right-hand side
     and a few O(n) power evaluations; the rates are central differences of
     :data:`RATE_STEP` along the right-hand side (one-sided at a load breakpoint)."""
     y = np.asarray(y, dtype=float)
+    if f is None:
+        f, known = model.rhs_bending(t, y, held, mode)
+        bending = known if bending is None else bending
     energy, power = balance_terms(model, t, y, held, mode, bending)
     before = power + load_jump_power(model, t, y, held)
     h = RATE_STEP
-    f = model.rhs(t, y, held, mode)
     up, down = y + h * f, y - h * f
     p_up = net_power(model, t + h, up, held, mode)
     p_down = net_power(model, t - h, down, held, mode)
