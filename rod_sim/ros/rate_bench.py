@@ -20,7 +20,8 @@ With ``--lockstep K`` the node runs in lockstep (``sync_mode``) instead and this
 its controller in another process: on each ``rod_states`` (taken as serialized bytes) it
 publishes the next ``nodal_forces`` command (a fixed function of the step number, so that two
 runs get the same inputs), K round trips (command -> period -> states) after the t = 0 state;
-it reports round trips per wall second. ``--keep-log`` keeps the node's log (``--record``);
+it reports round trips per wall second and the node process's CPU time per round trip (the
+figure a loaded machine disturbs least). ``--keep-log`` keeps the node's log (``--record``);
 ``--node-pythonpath`` runs the node from another source tree (e.g. to compare the logs of two
 versions for the same inputs).
 
@@ -239,6 +240,7 @@ def measure_lockstep(args) -> dict:
         rclpy.init()
         sent = [0]
         times: list[int] = []
+        cpu0: list[float | None] = [None]
         try:
             node = rclpy.create_node("rate_bench_controller")
             pub = node.create_publisher(Float64MultiArray, "nodal_forces", COMMAND_QOS)
@@ -252,6 +254,8 @@ def measure_lockstep(args) -> dict:
                     return          # the node's command subscription is not matched yet: the
                                     # waiting state comes again in 0.5 s
                 times.append(time.perf_counter_ns())
+                if k == 0:
+                    cpu0[0] = process_cpu_s(node_proc.pid)
                 sent[0] = k + 1
                 pub.publish(commands[k])
 
@@ -274,6 +278,7 @@ def measure_lockstep(args) -> dict:
             while not last[0] and time.monotonic() < deadline:
                 executor.spin_once(timeout_sec=0.1)
             end = time.perf_counter_ns()
+            cpu1 = process_cpu_s(node_proc.pid)
             executor.shutdown()
             node.destroy_node()
         finally:
@@ -283,8 +288,10 @@ def measure_lockstep(args) -> dict:
             args.keep_log.parent.mkdir(parents=True, exist_ok=True)
             args.keep_log.write_bytes(log.read_bytes())
     span = (end - times[0]) / 1e9 if times else float("nan")
+    cpu = (cpu1 - cpu0[0]) if cpu0[0] is not None and cpu1 is not None else float("nan")
     return {"n": n, "model": args.model, "rate_hz_set": args.rate, "record": args.record,
             "round_trips": done, "round_trips_per_s": done / span if times else 0.0,
+            "node_cpu_ms_per_round_trip": 1e3 * cpu / done if done else float("nan"),
             "complete": bool(last[0] and done == len(commands))}
 
 
@@ -366,7 +373,8 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(result, indent=1) if args.json else
               f"n = {result['n']} {result['model']}, lockstep at rate_hz {args.rate:g}"
               f"{' + recording' if args.record else ''}: {result['round_trips']} round trips, "
-              f"{result['round_trips_per_s']:.0f} per second"
+              f"{result['round_trips_per_s']:.0f} per second, node CPU "
+              f"{result['node_cpu_ms_per_round_trip']:.3f} ms per round trip"
               + ("" if result["complete"] else " (INCOMPLETE)"))
         return 0 if result["complete"] else 1
     result = measure(args)
