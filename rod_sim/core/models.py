@@ -543,6 +543,8 @@ class ChainModel:
 
     def contact_moments(self, y: np.ndarray, mode=None) -> np.ndarray:
         """Stop contact moments (n,) [N m] on theta (zero on locked hinges)."""
+        if not self.has_stops:
+            return np.zeros(self.n)
         s = self.scene
         m = hinges.contact_moments(self.hinge_angles(y), self.hinge_rates(y),
                                    s.stop_lower, s.stop_upper, s.stop_stiffness, s.stop_damping)
@@ -638,9 +640,11 @@ class ChainModel:
         delta, _ = self.hinge_deflection(t, y, held, bending=(alpha, beta))
         p, s = self.params, self.scene
         hinge = 0.5 * float(np.sum(p.kappa * (delta - s.hinge_rest_angle) ** 2))
-        pen = hinges.contact_penetration(self.hinge_angles(y, t), s.stop_lower, s.stop_upper)
-        pen[self.plan(mode).locked] = 0.0
-        hinge += 0.5 * float(np.sum(s.stop_stiffness * pen**2))
+        if self.has_stops:      # the stop contacts' elastic energy (no stop: none)
+            pen = hinges.contact_penetration(self.hinge_angles(y, t), s.stop_lower,
+                                             s.stop_upper)
+            pen[self.plan(mode).locked] = 0.0
+            hinge += 0.5 * float(np.sum(s.stop_stiffness * pen**2))
         bend = float(np.sum(2.0 * p.EI / p.l * (alpha**2 + beta**2 + alpha * beta)))
         return Energies(self.kinetic_energy(t, y, held), hinge, bend,
                         self.gravity_energy(t, y, (alpha, beta)))
