@@ -38,7 +38,7 @@ from rod_sim.ros.inputs import Inputs
 from rod_sim.ros.live import NodeLiveView
 from rod_sim.ros.monitor import DiagnosticReport, node_report
 from rod_sim.ros.outputs import (OUTPUTS, Outputs, SimClock, create_publishers, divider,
-                                 has_hinge_events, log_depths)
+                                 has_hinge_events, log_depths, quiet_events)
 from rod_sim.ros.pacing import Pacing
 from rod_sim.ros.parameters import (NODE_NAME, PARAMETERS, build_parser, declare_settings,
                                     unknown_overrides, unknown_warning, validate_change)
@@ -114,8 +114,8 @@ class RodSimNode(Node):
                                 {o.name: divider(s.rate_hz, getattr(s, o.rate_parameter))
                                  for o in OUTPUTS if o.rate_parameter})
         self._sim_clock = SimClock(self.create_publisher(
-            message_class(topics.TOPIC_TYPES["clock"]), "/clock", clock_qos(s.clock_reliability))
-            if s.publish_clock else None, IDLE_CLOCK_PERIOD_S)
+            message_class(topics.TOPIC_TYPES["clock"]), "/clock", clock_qos(s.clock_reliability),
+            event_callbacks=quiet_events()) if s.publish_clock else None, IDLE_CLOCK_PERIOD_S)
         for topic, intake in self.inputs.intakes.items():   # raw: length checked first
             self.create_subscription(Float64MultiArray, self._topic_names[topic],
                                      functools.partial(self._on_command_bytes, intake=intake),
