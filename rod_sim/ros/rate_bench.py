@@ -25,6 +25,16 @@ figure a loaded machine disturbs least). ``--keep-log`` keeps the node's log (``
 ``--node-pythonpath`` runs the node from another source tree (e.g. to compare the logs of two
 versions for the same inputs).
 
+With ``--period-cost K`` no ROS graph is started: this process builds the node's simulation
+from the same settings (:mod:`rod_sim.ros.simulation`) and runs K control periods through the
+node's own parts (``PeriodRunner.run``, the output table's encoders, the recording with
+``--record``), the held inputs changing every period (``lockstep_force``, as a lockstep
+controller sends them) or, with ``--held-constant``, zero; it reports CPU time per period
+[ms] (the minimum of three rounds of K/3): the integration alone (``Simulator.advance``), the
+period (integration, snapshot, energy ledger, validity) and the period with its outputs (what
+the node does per period besides the executor and DDS). CPU time is what a loaded machine
+disturbs least.
+
 ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is LOCALHOST and ``ROS_DOMAIN_ID`` is ``--domain`` (default
 226) for both processes: nothing leaves the machine.
 """
@@ -32,6 +42,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import subprocess
 import sys
@@ -68,6 +79,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="copy the node's log here (with --record)")
     p.add_argument("--node-pythonpath", default=None,
                    help="PYTHONPATH of the node process (default: this process's)")
+    p.add_argument("--period-cost", type=int, default=0, metavar="K",
+                   help="no ROS: CPU per control period of the node's parts over K periods")
+    p.add_argument("--held-constant", action="store_true",
+                   help="with --period-cost: zero held inputs instead of a new command each "
+                        "period")
     return p
 
 
@@ -366,8 +382,82 @@ def measure(args) -> dict:
     return result
 
 
+def measure_period_cost(args) -> dict:
+    """CPU [ms] per control period of the node's parts, without ROS (``--period-cost``)."""
+    import logging
+
+    from rod_sim.io.scene_yaml import scene_to_yaml
+    from rod_sim.ros import simulation
+    from rod_sim.ros.outputs import OUTPUTS, Outputs, divider, log_depths
+    from rod_sim.ros.parameters import PARAMETERS, NodeSettings
+    from rod_sim.ros.recording import NodeRecording, create_log, node_log_metadata, offered_qos
+
+    with tempfile.TemporaryDirectory() as tmpdir:
+        tmp = Path(tmpdir)
+        values = {spec.name: spec.default for spec in PARAMETERS}
+        values.update(scene_file=str(scene_file(args, tmp)), model=args.model,
+                      rate_hz=float(args.rate),
+                      record_path=str(tmp / "cost.mcap") if args.record else "")
+        settings = NodeSettings(**values)
+        built = simulation.build(settings, "/rod_sim", ())
+        period = simulation.start(built, settings)
+        sim, model, n = built.sim, built.model, built.scene.n
+        names = {o.name: "/" + o.name for o in OUTPUTS}
+        recording = NodeRecording(lambda path: create_log(path, node_log_metadata(
+            scene_to_yaml(built.scene), model.name, sim.integrator.describe(), settings,
+            "lockstep", "/rod_sim"), offered_qos(names, log_depths(True))),
+            logging.getLogger("rate_bench"))
+        recording.start(Path(settings.record_path) if settings.record_path else None)
+        outputs = Outputs(built.scene, names, {}, recording, built.period_ns, "world",
+                          {o.name: divider(settings.rate_hz, getattr(settings, o.rate_parameter))
+                           for o in OUTPUTS if o.rate_parameter})
+        k_all = max(3, args.period_cost)
+        commands = [np.zeros((n, 2)) if args.held_constant else lockstep_force(k, n)
+                    for k in range(k_all + 10)]
+
+        def applied(t_ns: int) -> None:
+            outputs.applied(t_ns, model.forces(t_ns / 1e9, sim.held), sim.held[:, 2].copy())
+
+        def with_outputs(k: int) -> None:
+            snap = period.run(commands[k], applied)
+            period.note_state(snap)
+            outputs.state(snap, sim.t_ns)
+
+        def bare(k: int) -> None:
+            period.run(commands[k])
+
+        def integration(k: int) -> None:
+            sim.advance(built.period_ns / 1e9)
+
+        for k in range(10):
+            with_outputs(k)
+        per_round = k_all // 3
+        best = {}
+        for _ in range(3):
+            for name, step in (("integration", integration), ("period", bare),
+                               ("period_with_outputs", with_outputs)):
+                start = time.process_time()
+                for k in range(per_round):
+                    step(10 + k)
+                cost = (time.process_time() - start) / per_round * 1e3
+                best[name] = min(best.get(name, math.inf), cost)
+        recording.close()
+    return {"n": n, "model": args.model, "rate_hz_set": args.rate, "record": args.record,
+            "held": "constant" if args.held_constant else "changing every period",
+            "periods": per_round, **{f"{k}_ms": v for k, v in best.items()}}
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    if args.period_cost:
+        result = measure_period_cost(args)
+        print(json.dumps(result, indent=1) if args.json else
+              f"n = {result['n']} {result['model']}, {args.rate:g} Hz, held {result['held']}"
+              f"{', recording' if args.record else ''}: CPU per period: integration "
+              f"{result['integration_ms']:.3f} ms, period {result['period_ms']:.3f} ms, with "
+              f"outputs {result['period_with_outputs_ms']:.3f} ms (min of 3 x "
+              f"{result['periods']})")
+        return 0
     if args.lockstep:
         result = measure_lockstep(args)
         print(json.dumps(result, indent=1) if args.json else
