@@ -17,6 +17,7 @@ from rosbags.typesys import Stores, get_typestore
 from rod_sim.core.integrators import make_integrator
 from rod_sim.core.models import make_model
 from rod_sim.core.simulator import Simulator
+from rod_sim.core.snapshot import Snapshot
 from rod_sim.io import cdr, msgdefs, topics
 from rod_sim.io.hinge_events import event_message
 from rod_sim.io.scene_yaml import load_scene
@@ -70,6 +71,15 @@ def real_messages() -> list[tuple[str, dict]]:
     out.append(("std_msgs/msg/Float64MultiArray",  # a nodal_forces command as the node logs it
                 {"layout": {"dim": [], "data_offset": 0}, "data": [0.5, -1.0] * scene.n}))
     out.append(("std_msgs/msg/Float64MultiArray", topics.force_array(np.ones((scene.n, 2)))))
+    out.append(("nav_msgs/msg/Odometry", topics.base_odometry(  # a free base's odometry
+        Snapshot(t=1.5, phi=np.zeros(1), phi_rate=np.zeros(1), alpha=np.zeros(1),
+                 beta=np.zeros(1), hinge_angle=np.zeros(1), hinge_rate=np.zeros(1),
+                 hinge_moment=np.zeros(1), nodes=np.zeros((2, 2)), forces=np.zeros((1, 2)),
+                 base=np.array([0.5, -0.25, 2.0, 0.1, 0.2, -0.3])), "world")))
+    out.append(("geometry_msgs/msg/WrenchStamped",   # a base_wrench command as logged
+                {"header": {"stamp": {"sec": 1, "nanosec": 5}, "frame_id": "base"},
+                 "wrench": {"force": {"x": 1.0, "y": -2.0, "z": 0.0},
+                            "torque": {"x": 0.0, "y": 0.0, "z": 0.5}}}))
     out.append(("std_msgs/msg/String", event_message(
         {"t": 0.125, "event": "latch", "hinge": 2, "angle": 0.1, "rate": -0.5,
          "kinetic_energy_loss": 1e-4})))
@@ -151,9 +161,10 @@ def _random_value(rng: random.Random, ftype: str):
 def _random_message(rng: random.Random, table, tname: str, p_missing: float):
     msg = {}
     for f in table[tname]:
-        if rng.random() < p_missing and f.name != "values":
-            continue  # absent: the default (DiagnosticStatus.values: see the test below)
-        n = rng.choice([0, 1, 2, 3, 5]) if f.array else None
+        if rng.random() < p_missing and f.name != "values" and f.array != "fixed":
+            continue  # absent: the default (DiagnosticStatus.values: see the test below; a
+            # missing fixed-size array the fast path leaves to the reference encoder)
+        n = f.size if f.array == "fixed" else rng.choice([0, 1, 2, 3, 5]) if f.array else None
         if f.is_struct:
             msg[f.name] = (_random_message(rng, table, f.type, p_missing) if n is None else
                            [_random_message(rng, table, f.type, p_missing) for _ in range(n)])

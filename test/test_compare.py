@@ -589,11 +589,20 @@ def test_one_sample_is_not_a_comparison(tmp_path, small, capsys):
     assert_clean_error(capsys, path, match="only 1 /rod_states sample")
 
 
-def test_help_states_the_default_tolerance():
+def test_help_and_verdict_use_the_documented_default_tolerance(tmp_path, small, capsys):
+    """docs/interface.md states the default tolerance (the oracle); --help says it and a
+    comparison without --tolerance applies it."""
+    import re
     from rod_sim.tools.cli import build_parser
+    doc = " ".join((ROOT / "docs" / "interface.md").read_text().split())
+    documented = float(re.search(r"exceeds the tolerance \(default ([0-9.e-]+) rad\)", doc)[1])
     sub = next(a for a in build_parser()._actions if a.dest == "command")
-    help_text = sub.choices["compare"].format_help()
-    assert f"default {DEFAULT_TOLERANCE:g}" in " ".join(help_text.split())
+    help_text = " ".join(sub.choices["compare"].format_help().split())
+    assert f"default {documented:g}" in help_text, help_text
+    path = tmp_path / "d.mcap"
+    node_like_log(path, small, "full", periods=3)
+    cli.main(["compare", str(path), "--json"])
+    assert json.loads(capsys.readouterr().out)["tolerance"] == documented
 
 
 def test_validity_warnings_name_slopes_beyond_small_bending_and_fast_loads():

@@ -49,7 +49,7 @@ def test_node_and_simulate_report_the_same_energy_residual(harness, tmp_path, mo
     assert node.sim.t == pytest.approx(3.0)
     assert sum(e.kind == "latch" for e in node.sim.events) == 3
     balance, validity = simulate_balance(model, 3.0, 100.0, tmp_path)
-    ledger = node._ledger
+    ledger = node.period.ledger
     assert ledger.impacts == pytest.approx(balance.impacts, rel=1e-6)
     assert ledger.scale == pytest.approx(balance.scale, rel=1e-6)
     # at 100 Hz: full 0.16 J (its bending vibration, 55 Hz, is beyond the samples' Nyquist
@@ -57,5 +57,5 @@ def test_node_and_simulate_report_the_same_energy_residual(harness, tmp_path, mo
     bound = 0.2 if model == "full" else 1e-3
     assert abs(ledger.residual) < bound and abs(balance.residual) < bound
     assert ledger.residual == pytest.approx(balance.residual, abs=1e-2 * bound)
-    assert not [f for f in node._validity.findings() if f.kind == "energy"]
+    assert not [f for f in node.period.validity.findings() if f.kind == "energy"]
     assert not [f for f in validity.findings() if f.kind == "energy"]

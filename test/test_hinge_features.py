@@ -277,6 +277,30 @@ def test_latch_event_time_matches_bisection():
     np.testing.assert_allclose(theta[after], 0.25, atol=1e-9)   # stays locked
 
 
+@pytest.mark.parametrize("model", ["reduced", "rigid"])
+def test_a_latch_fires_from_either_side(model):
+    """The mirror image of a run (angles, rates and loads negated) is a run: a latch at -0.25
+    reached from above fires at the same time as the latch at +0.25 reached from below, and
+    each hinge stays at its latch angle."""
+    data = copy.deepcopy(BASE)
+    data["hinges"].update(latch=[None, 0.25, None], damping=0.05)
+    up = Scene.from_dict(data)
+    data["hinges"]["latch"] = [None, -0.25, None]
+    data["initial"]["phi"] = [-0.3, -0.3, -0.9]
+    data["loads"][0]["amplitude"] = -20.0
+    down = Scene.from_dict(data)
+    times = []
+    for sc, angle in ((up, 0.25), (down, -0.25)):
+        traj, sim = run(sc, model, 1.0, rate=100.0)
+        latches = [e for e in sim.events if e.kind == "latch"]
+        assert [e.hinge for e in latches] == [1], (angle, sim.events)
+        theta = traj.phi[:, 1] - traj.phi[:, 0]
+        assert np.all(np.sign(theta[traj.t < latches[0].t] - angle) != np.sign(angle))
+        np.testing.assert_allclose(theta[traj.t > latches[0].t], angle, atol=1e-9)
+        times.append(latches[0].t)
+    assert abs(times[0] - times[1]) < 1e-9, times
+
+
 @pytest.mark.parametrize("model", ["rigid", "full"])
 def test_latch_kinetic_energy_loss_is_the_impulsive_projection(model):
     sc = scene(hinges__latch=[None, 0.25, None]) if model == "rigid" else \
@@ -374,7 +398,7 @@ def test_node_records_hinge_events(tmp_path, monkeypatch):
             Parameter("record_path", value=str(log)), Parameter("rate_hz", value=50.0)])
         for _ in range(400):                       # 8 s of simulated time, no commands
             assert node._step_period(np.zeros((5, 2)))
-        node._log.close()
+        node._recording.writer.close()
         node.destroy_node()
     finally:
         rclpy.try_shutdown(context=ctx)

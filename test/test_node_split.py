@@ -111,8 +111,9 @@ def test_outputs_send_one_encoding_to_every_sink():
                   "world", {"markers": divider(100.0, 25.0)})
     out.taps.append(lambda s, t, enc: taps.append(enc))
     out.state(snap, 20_000_000)                  # period 2: markers every 4th -> not due
+    # a plain chain: every state topic but markers (not due) and base_odometry (moving bases)
     assert [item[0] for item in log.items] == [f"/ns/{n}" for n in STATE_TOPICS
-                                               if n != "markers"]
+                                               if n not in ("markers", "base_odometry")]
     for topic, type_name, t_ns, data in log.items:
         name = topic.rsplit("/", 1)[1]
         assert pubs[name].items == [data] and taps[0][name] is data
@@ -120,7 +121,8 @@ def test_outputs_send_one_encoding_to_every_sink():
         assert type_name == topics.TOPIC_TYPES[name] and t_ns == 20_000_000
     assert not pubs["markers"].items
     out.state(snap, 40_000_000, record=False)      # period 4: markers due; not recorded
-    assert pubs["markers"].items and len(log.items) == len(STATE_TOPICS) - 1
+    assert pubs["markers"].items and len(log.items) == len(STATE_TOPICS) - 2
+    assert not pubs["base_odometry"].items
     forces = np.ones((3, 2))
     out.applied(0, forces, np.zeros(3))
     out.applied(10_000_000, forces.copy(), np.zeros(3))   # unchanged: recorded only

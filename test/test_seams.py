@@ -38,10 +38,13 @@ def test_every_registered_model_implements_the_whole_protocol(name):
     for m in members:
         attr = getattr(type(model), m, None)
         if callable(attr) and m not in ("kernel",):
-            proto = inspect.signature(getattr(Model, m))
-            mine = inspect.signature(attr)
-            assert list(proto.parameters)[:len(mine.parameters)] == \
-                list(mine.parameters)[:len(proto.parameters)], (m, proto, mine)
+            proto = list(inspect.signature(getattr(Model, m)).parameters.values())
+            mine = list(inspect.signature(attr).parameters.values())
+            # the protocol's parameters, same names, kinds and order; extra ones only optional
+            assert [(q.name, q.kind) for q in mine[:len(proto)]] == \
+                [(q.name, q.kind) for q in proto], (name, m, proto, mine)
+            assert all(q.default is not q.empty or q.kind in (q.VAR_POSITIONAL, q.VAR_KEYWORD)
+                       for q in mine[len(proto):]), (name, m, mine)
     assert model.compiled.dop853 is not model.compiled.radau
 
 

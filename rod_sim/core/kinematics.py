@@ -15,6 +15,24 @@ def node_positions(length: np.ndarray, phi: np.ndarray) -> np.ndarray:
     return out
 
 
+def chain_node_positions(length: np.ndarray, phi: np.ndarray, seg, attach, x: float,
+                         y: float, psi: float) -> np.ndarray:
+    """Every chain's nodes 0..n_c in scene order (n + nc, 2) [m] on a base frame at (x, y)
+    [m] turned by psi [rad]: chain c (rods seg[c] .. seg[c+1] - 1) starts at its attach point
+    (nc, 2) [m] of the base frame, then eq. (3) with the absolute angles phi."""
+    c, s = np.cos(psi), np.sin(psi)
+    seg = np.asarray(seg)
+    out = np.empty((len(phi) + len(seg) - 1, 2))
+    for ci in range(len(seg) - 1):
+        a, b = int(seg[ci]), int(seg[ci + 1])
+        ax, ay = attach[ci]
+        nodes = node_positions(length[a:b], phi[a:b])
+        nodes[:, 0] += x + c * ax - s * ay
+        nodes[:, 1] += y + s * ax + c * ay
+        out[a + ci:b + ci + 1] = nodes
+    return out
+
+
 def shape_functions(s: np.ndarray, length: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """sigma(s) and tau(s) of eq. (1) [m per rad of end slope]; ``s`` in [0, l]."""
     sigma = s * (length - s) ** 2 / length**2

@@ -23,7 +23,7 @@ from .scipy_tables import light_dop853_tables
 
 with light_dop853_tables():     # erk's tables without scipy.integrate's import
     from . import erk, hinges, kernels, radau
-from .kinematics import node_positions
+from .kinematics import chain_node_positions, node_positions
 from .matrices import ChainParams
 from .scene import LOAD_AXES, Scene
 from .snapshot import Snapshot
@@ -621,16 +621,7 @@ class ChainModel:
                 not self.chain.attach.any():
             return node_positions(p.l, phi)
         st = self.base_state(t, y)
-        c, s = np.cos(st.psi), np.sin(st.psi)
-        out = np.empty((self.n + len(self.seg) - 1, 2))
-        for ci in range(len(self.seg) - 1):
-            a, b = self.seg[ci], self.seg[ci + 1]
-            ax, ay = self.chain.attach[ci]
-            nodes = node_positions(p.l[a:b], phi[a:b])
-            nodes[:, 0] += st.x + c * ax - s * ay
-            nodes[:, 1] += st.y + s * ax + c * ay
-            out[a + ci:b + ci + 1] = nodes
-        return out
+        return chain_node_positions(p.l, phi, self.seg, self.chain.attach, st.x, st.y, st.psi)
 
     def energies(self, t: float, y: np.ndarray, held=None, bending=None, mode=None) -> Energies:
         """Kinetic, hinge (springs about their rest angles + stop contacts), bending and
@@ -770,11 +761,48 @@ class ChainModel:
         p = self.params
         moment = (p.kappa * (delta - self.scene.hinge_rest_angle) + p.nu * ddelta
                   - self.contact_moments(y, mode))
+        extra = self._spacecraft_fields(t, y, held, mode, (alpha, beta)) \
+            if self.is_spacecraft else {}
         return Snapshot(
             t=float(t), phi=phi, phi_rate=dphi, alpha=np.asarray(alpha, float),
             beta=np.asarray(beta, float),
             hinge_angle=self.hinge_angles(y, t), hinge_rate=self.hinge_rates(y, t),
-            hinge_moment=moment, nodes=self.node_positions(t, y), forces=self.forces(t, held))
+            hinge_moment=moment, nodes=self.node_positions(t, y), forces=self.forces(t, held),
+            **extra)
+
+    @property
+    def is_spacecraft(self) -> bool:
+        """A scene with a ``base:``, ``chains:`` or ``gravity:`` (its snapshots carry the base,
+        the momentum and the energy terms; a plain chain's snapshot is what it always was)."""
+        return self.scene.is_spacecraft
+
+    def base_energies(self, t: float, y: np.ndarray) -> tuple[float, float]:
+        """(kinetic energy of a free base: m_B |v_C|^2 / 2 + J_B psi'^2 / 2, of its wheel:
+        J_W (psi' + theta_w')^2 / 2) [J]; zeros for a fixed or prescribed base."""
+        if not self.nb:
+            return 0.0, 0.0
+        b = self.chain.base
+        st = self.base_state(t, y)
+        off = self._base_com(st) - np.array([st.x, st.y])
+        vc = (st.x_rate - st.psi_rate * off[1], st.y_rate + st.psi_rate * off[0])
+        base = 0.5 * float(b[kernels.B_MASS]) * (vc[0] ** 2 + vc[1] ** 2) \
+            + 0.5 * float(b[kernels.B_INERTIA]) * st.psi_rate ** 2
+        wheel = 0.5 * float(b[kernels.B_WHEEL]) * (st.psi_rate + st.wheel_rate) ** 2
+        return base, wheel
+
+    def _spacecraft_fields(self, t, y, held, mode, bending) -> dict:
+        """The :class:`Snapshot` fields of a spacecraft scene (see its docstring), O(n)."""
+        st = self.base_state(t, y)
+        mom = self.momentum(t, y, held)
+        e = self.energies(t, y, held, bending=bending, mode=mode)
+        base_ke, wheel_ke = self.base_energies(t, y)
+        return {"base": np.array([st.x, st.y, st.psi, st.x_rate, st.y_rate, st.psi_rate]),
+                "wheel_rate": float(st.wheel_rate),
+                "momentum": np.array([mom.linear[0], mom.linear[1], mom.angular_origin,
+                                      mom.angular_com, mom.com[0], mom.com[1]]),
+                "energy_terms": {"kinetic": e.kinetic, "hinge": e.hinge, "bending": e.bending,
+                                 "gravity": e.gravity, "base_kinetic": base_ke,
+                                 "wheel_kinetic": wheel_ke, "total": e.total}}
 
 
 class RigidModel(ChainModel):

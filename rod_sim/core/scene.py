@@ -276,6 +276,18 @@ class Scene:
         return self.base_given or not self.base.is_default
 
     @property
+    def is_spacecraft(self) -> bool:
+        """True with a ``base:``, ``chains:`` or ``gravity:`` (docs/spacecraft.md): the outputs
+        then carry the base, the momentum and the energy ledger; a plain chain's outputs are
+        what they always were."""
+        return self.has_base or self.has_chains or self.gravity is not None
+
+    @property
+    def moving_base(self) -> bool:
+        """True for a free or prescribed base (``base_odometry`` and the base's joints)."""
+        return self.base.mode != "fixed"
+
+    @property
     def chain_starts(self) -> np.ndarray:
         """int64 (number of chains + 1,): [start_0, start_1, ..., n]; chain c owns the rods
         chain_starts[c] .. chain_starts[c + 1] - 1 (read-only)."""

@@ -84,6 +84,7 @@ class Simulator:
         self.y = self.model.initial_state()
         self.contact = self.model.contact_state(self.y)     # stop contacts (+1, -1, 0)
         self.held = np.zeros((self.model.n, 3))     # X, Y [N] at nodes 1..n; T [N m], hinges
+        # (set_held: (n + 2, 3) with the base's and the wheel's rows)
         self.carry.restart()
 
     @property
@@ -98,8 +99,22 @@ class Simulator:
         if not np.all(np.isfinite(f)):
             raise ValueError("forces: non-finite value")
         held = self.held.copy()
-        held[:, :2] = f
+        held[:self.model.n, :2] = f
         self.held = held
+
+    def set_held(self, held) -> None:
+        """Hold every input from now on: (n, 3) [X, Y [N], T [N m]] per node and hinge, or
+        (n + 2, 3) with the kernels' base row n (Fx, Fy [N] in Oxy at the base's centre of
+        mass, moment [N m]) and wheel row n + 1 (motor torque in column 2 [N m]); a free base
+        is moved by them, other bases ignore those rows."""
+        n = self.model.n
+        h = np.array(held, dtype=float)
+        if h.shape not in ((n, 3), (n + 2, 3)):
+            raise ValueError(f"held inputs: expected shape ({n}, 3) or ({n + 2}, 3), got "
+                             f"{h.shape}")
+        if not np.all(np.isfinite(h)):
+            raise ValueError("held inputs: non-finite value")
+        self.held = h
 
     def set_hinge_torques(self, torques) -> None:
         """Hold motor moments T_h (n,) [N m] at hinges 0..n-1 from now on (the held nodal
@@ -109,7 +124,7 @@ class Simulator:
         if not np.all(np.isfinite(t)):
             raise ValueError("torques: non-finite value")
         held = self.held.copy()
-        held[:, 2] = t
+        held[:self.model.n, 2] = t
         self.held = held
 
     def advance(self, dt: float) -> None:

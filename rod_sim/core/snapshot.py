@@ -19,6 +19,15 @@ class Snapshot:
     slopes in the hinge's relative rotation (paper eq. (2));
     nodes (n+1, 2): node positions (x_k, y_k) [m], node 0 at the origin;
     forces (n, 2): applied nodal forces (X_k, Y_k) at nodes 1..n [N].
+
+    On a spacecraft scene (a ``base:``, ``chains:`` or ``gravity:``; docs/spacecraft.md) also,
+    else None: ``base`` (6,) the base frame's origin and angle in Oxy (x, y [m], psi [rad]) and
+    their rates (x_rate, y_rate [m/s], psi_rate [rad/s], in Oxy); ``wheel_rate`` [rad/s] the
+    wheel's spin relative to the base (0 without a wheel); ``momentum`` (6,) = linear momentum
+    (p_x, p_y) [kg m/s], angular momentum about the origin of Oxy and about the system's
+    centre of mass [kg m^2/s], centre of mass (x, y) [m] (with a fixed or prescribed base: of
+    the chains only); ``energy_terms``: the energy ledger's terms [J] by name
+    (:data:`ENERGY_TERMS`).
     """
 
     t: float
@@ -31,7 +40,19 @@ class Snapshot:
     hinge_moment: np.ndarray
     nodes: np.ndarray
     forces: np.ndarray
+    base: np.ndarray | None = None
+    wheel_rate: float | None = None
+    momentum: np.ndarray | None = None
+    energy_terms: dict | None = None
 
     @property
     def n(self) -> int:
         return len(self.phi)
+
+
+ENERGY_TERMS = ("kinetic", "hinge", "bending", "gravity", "base_kinetic", "wheel_kinetic",
+                "total")
+"""Keys of :attr:`Snapshot.energy_terms` [J]: the model's kinetic energy (chains, a free base
+and its wheel), hinge springs and stop contacts, bending, the potential of gravity, the free
+base's own kinetic energy (translation of its centre of mass and rotation, wheel excluded) and
+the wheel's (J_W (psi' + theta_w')^2 / 2; both parts of ``kinetic``), and the total."""

@@ -142,10 +142,9 @@ def load_frequency(scene) -> float:
 def force_jump_slopes(scene, y_phi, phi_rate, before, after, y=None) -> np.ndarray:
     """|jump| of the quasi-static end slopes (2n,) [rad] when the held inputs jump from
     ``before`` to ``after`` (each (n, 2) nodal forces [N], or (n, 3) with the hinge motor
-    moments T [N m]) at the rod angles/rates given: the amplitude of the bending vibration
-    that such a jump starts (and the reduced model does not carry). ``y``: the reduced
-    model's whole state there, which a scene with a free base needs (its pose and twist);
-    default [phi, phi_rate]."""
+    moments T [N m]) at the rod angles/rates given (or at the reduced model's whole state
+    ``y``, which a free base needs: its pose and rates are part of it): the amplitude of the
+    bending vibration that such a jump starts (and the reduced model does not carry)."""
     model = _reduced_cache(scene)
     if y is None:
         y = np.concatenate([np.asarray(y_phi, float), np.asarray(phi_rate, float)])
@@ -238,7 +237,7 @@ class ValidityMonitor:
         if (self.model.name == "reduced" and self._held is not None
                 and not np.array_equal(held, self._held)):
             jump = force_jump_slopes(self.scene, self.model.phi(y), self.model.phi_rate(y),
-                                     self._held, held, y)
+                                     self._held, held, y=np.asarray(y, float))
             k = int(np.argmax(jump))
             if jump[k] > JUMP_SLOPE_WARN_RAD:
                 self._add(Finding("force_jump", float(t), k % n + 1, float(jump[k]),

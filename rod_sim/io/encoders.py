@@ -16,6 +16,7 @@ simulate`` and the log writer share.
 from __future__ import annotations
 
 import functools
+import math
 from typing import Callable
 
 import numpy as np
@@ -73,9 +74,31 @@ def chain_names(scene: Scene | None, n: int, prefix: str, first: int) -> tuple[s
                  for k in range(first, first + c.count))
 
 
+BASE_JOINTS = ("base_x", "base_y", "base_psi")
+"""``joint_states`` entries of a moving (free or prescribed) base, after the hinges: the
+base frame's origin x, y [m] and angle psi [rad] in Oxy, their rates, effort 0 -- the joints
+of the URDF's base (:mod:`rod_sim.io.urdf`)."""
+
+
+@functools.lru_cache(maxsize=_CACHE)
+def _joint_names(scene: Scene | None, n: int, base: bool) -> tuple[str, ...]:
+    return chain_names(scene, n, "hinge_", 0) + (BASE_JOINTS if base else ())
+
+
+def _moving_base(snapshot: Snapshot, scene: Scene | None) -> bool:
+    return snapshot.base is not None and scene is not None and scene.moving_base
+
+
 def joint_states(snapshot: Snapshot, scene: Scene | None = None, frame_id: str = "world"
                  ) -> bytes:
-    """``joint_states`` (see :func:`rod_sim.io.topics.joint_states`)."""
+    """``joint_states`` (see :func:`rod_sim.io.topics.joint_states`); on a moving base the
+    hinges are followed by :data:`BASE_JOINTS`."""
+    if _moving_base(snapshot, scene):
+        b = snapshot.base
+        return _joint_state(snapshot, frame_id, _joint_names(scene, snapshot.n, True),
+                            np.concatenate([snapshot.hinge_angle, b[0:3]]),
+                            np.concatenate([snapshot.hinge_rate, b[3:6]]),
+                            np.concatenate([snapshot.hinge_moment, np.zeros(3)]))
     return _joint_state(snapshot, frame_id, chain_names(scene, snapshot.n, "hinge_", 0),
                         snapshot.hinge_angle, snapshot.hinge_rate, snapshot.hinge_moment)
 
@@ -127,13 +150,18 @@ def _pose_array_layout(frame_id: str, k: int) -> Layout:
 
 
 def node_poses(snapshot: Snapshot, scene: Scene | None = None, frame_id: str = "world") -> bytes:
-    """``node_poses`` (see :func:`rod_sim.io.topics.node_poses`)."""
+    """``node_poses`` (see :func:`rod_sim.io.topics.node_poses`): every chain's nodes 0..n_c in
+    scene order, each oriented as the rod ending there (node 0: rod 1), and on a spacecraft
+    scene (``snapshot.base``) then the base frame's origin, oriented by psi."""
     nodes = np.asarray(snapshot.nodes, dtype=float)
     phi = np.asarray(snapshot.phi, dtype=float)
     if len(nodes) == len(phi) + 1:
         half = 0.5 * np.concatenate([phi[:1], phi])[:len(nodes)]
     else:                                   # several chains: each one's nodes 0..n_c
         half = 0.5 * phi[_node_rods(scene, len(phi), len(nodes))]
+    if snapshot.base is not None:
+        nodes = np.concatenate([nodes, np.asarray(snapshot.base[None, 0:2], dtype=float)])
+        half = np.append(half, 0.5 * float(snapshot.base[2]))
     poses = np.zeros((len(nodes), 7))
     poses[:, 0:2] = nodes[:, 0:2]
     poses[:, 5] = np.sin(half)
@@ -142,17 +170,60 @@ def node_poses(snapshot: Snapshot, scene: Scene | None = None, frame_id: str = "
     return layout.fill(stamp=_stamp(snapshot), **({"poses": poses} if len(nodes) else {}))
 
 
+# ----- nav_msgs/Odometry -----
+
+BASE_FRAME = "base"
+"""``child_frame_id`` of ``base_odometry``: the base frame (the URDF's ``base`` link)."""
+
+
+@functools.lru_cache(maxsize=_CACHE)
+def _odometry_layout(frame_id: str) -> Layout:
+    w = LayoutWriter()
+    w.header(frame_id)
+    w.string(BASE_FRAME)
+    w.slot("pose", 56, 8)                   # Point + Quaternion
+    w.slot("pose_covariance", 36 * 8, 8)
+    w.slot("twist", 48, 8)                  # Vector3 linear + Vector3 angular
+    w.slot("twist_covariance", 36 * 8, 8)
+    return w.layout()
+
+
+_ZERO_COVARIANCE = np.zeros(36)
+
+
+def base_odometry(snapshot: Snapshot, scene: Scene | None = None, frame_id: str = "world"
+                  ) -> bytes:
+    """``base_odometry`` (nav_msgs/Odometry, see :func:`rod_sim.io.topics.base_odometry`): the
+    pose of the base frame's origin in ``frame_id`` (z = 0, yaw psi) and its twist in the base
+    frame (``child_frame_id`` ``base``): linear R(psi)^T (x', y') [m/s], angular z psi'
+    [rad/s]; covariances zero (the simulated state is exact)."""
+    if snapshot.base is None:
+        raise ValueError("base_odometry needs a snapshot of a spacecraft scene (with a base)")
+    x, y, psi, vx, vy, w = (float(v) for v in snapshot.base)
+    c, s = math.cos(psi), math.sin(psi)
+    pose = np.array([x, y, 0.0, 0.0, 0.0, math.sin(0.5 * psi), math.cos(0.5 * psi)])
+    twist = np.array([c * vx + s * vy, -s * vx + c * vy, 0.0, 0.0, 0.0, w])
+    return _odometry_layout(frame_id).fill(
+        stamp=_stamp(snapshot), pose=pose, pose_covariance=_ZERO_COVARIANCE, twist=twist,
+        twist_covariance=_ZERO_COVARIANCE)
+
+
 # ----- visualization_msgs/MarkerArray -----
 
 def _marker(w: LayoutWriter, frame_id: str, ns: str, marker_id: int, marker_type: int,
-            width: float, color: dict, points_slot: str, k: int) -> None:
+            width: float, color: dict, points_slot: str, k: int, pose_slot: str | None = None,
+            scale: tuple[float, float, float] | None = None) -> None:
     """One marker (fields of :func:`rod_sim.io.topics._marker`) with ``k`` points filled by
-    ``points_slot`` (x, y, z per point)."""
+    ``points_slot`` (x, y, z per point); its pose filled by ``pose_slot`` if given (else the
+    identity), its scale ``scale`` if given (else ``width`` on every axis)."""
     w.header(frame_id)
     w.string(ns)
     w.prim("i", marker_id, marker_type, topics.MARKER_ADD)
-    w.prim("d", 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)                   # pose
-    w.prim("d", width, width, width)                                 # scale
+    if pose_slot is None:
+        w.prim("d", 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)               # pose
+    else:
+        w.slot(pose_slot, 56, 8)
+    w.prim("d", *(scale or (width, width, width)))                   # scale
     w.prim("f", color["r"], color["g"], color["b"], color["a"])
     w.prim("i", 0)                                                   # lifetime.sec
     w.prim("I", 0)                                                   # lifetime.nanosec
@@ -205,14 +276,98 @@ def _xyz(points: np.ndarray) -> np.ndarray:
     return out
 
 
+CHAIN_COLORS = ({"r": 0.25, "g": 0.5, "b": 1.0, "a": 1.0}, {"r": 0.85, "g": 0.2, "b": 0.2, "a": 1.0},
+                {"r": 0.2, "g": 0.7, "b": 0.3, "a": 1.0}, {"r": 0.6, "g": 0.3, "b": 0.8, "a": 1.0},
+                {"r": 0.9, "g": 0.6, "b": 0.1, "a": 1.0}, {"r": 0.1, "g": 0.7, "b": 0.8, "a": 1.0})
+"""Rod colours of a spacecraft scene's chains: chain c gets CHAIN_COLORS[c % 6] (the first is
+the plain chain's :data:`rod_sim.io.topics.ROD_COLOR`)."""
+BASE_COLOR = {"r": 0.6, "g": 0.6, "b": 0.6, "a": 0.8}
+MARKER_CUBE = 1
+
+
+def base_box(scene: Scene) -> float:
+    """[m] side of the square drawn for the base: a uniform square plate of the base's mass and
+    inertia (a = sqrt(6 J_B / m_B)) when both are given, at least the span of the attach points
+    about the centre of mass and 4 rod line widths."""
+    b = scene.base
+    attach = np.array([c.attach for c in scene.chains], dtype=float).reshape(-1, 2)
+    span = 2.0 * float(np.max(np.abs(attach - np.asarray(b.centre_of_mass, float)),
+                              initial=0.0))
+    side = max(span, 4.0 * topics.marker_sizes(scene)[0])
+    if math.isfinite(b.mass) and math.isfinite(b.inertia):
+        side = max(side, math.sqrt(6.0 * b.inertia / b.mass))
+    return side
+
+
+@functools.lru_cache(maxsize=8)
+def _spacecraft_markers_layout(scene: Scene, frame_id: str, points_per_rod: int) -> Layout:
+    """The markers of a spacecraft scene: each chain's rods in its colour (one bent strip per
+    rod, ns ``rods`` id k + 1 in the flat rod order; more than MARKER_MAX_STRIPS rods in all:
+    one strip per chain through its nodes, ns ``rods`` id c), the node masses (ns ``nodes``)
+    and the base as a box (ns ``base``, a CUBE at its centre of mass turned by psi)."""
+    n, chains = scene.n, scene.chains
+    per_rod = n <= topics.MARKER_MAX_STRIPS
+    w = LayoutWriter()
+    w.count((n if per_rod else len(chains)) + 2)
+    if per_rod:
+        width, diameter, _ = topics._marker_geometry(scene, points_per_rod)
+        for k, c in enumerate(scene.chain_of_rod.tolist()):
+            _marker(w, frame_id, "rods", k + 1, topics.MARKER_LINE_STRIP, width,
+                    CHAIN_COLORS[c % len(CHAIN_COLORS)], "rods", points_per_rod)
+    else:
+        width, diameter = topics.marker_sizes(scene)
+        for c, chain in enumerate(chains):
+            _marker(w, frame_id, "rods", c, topics.MARKER_LINE_STRIP, width,
+                    CHAIN_COLORS[c % len(CHAIN_COLORS)], "rods", chain.count + 1)
+    _marker(w, frame_id, "nodes", 0, topics.MARKER_SPHERE_LIST, diameter, topics.NODE_COLOR,
+            "nodes", n)
+    side = base_box(scene)
+    _marker(w, frame_id, "base", 0, MARKER_CUBE, side, BASE_COLOR, "none", 0,
+            pose_slot="base_pose", scale=(side, side, 0.2 * side))
+    pieces = w.slots.pop("stamp")
+    w.slots["stamp"], w.slots["zero"] = pieces[0::2], pieces[1::2]
+    return w.layout()
+
+
+def _spacecraft_markers(snapshot: Snapshot, scene: Scene, frame_id: str,
+                        points_per_rod: int) -> bytes:
+    from rod_sim.core.kinematics import rod_points
+
+    layout = _spacecraft_markers_layout(scene, frame_id, points_per_rod)
+    nodes = np.asarray(snapshot.nodes, dtype=float)
+    k = (scene.n if scene.n <= topics.MARKER_MAX_STRIPS else len(scene.chains)) + 2
+    stamps = np.tile(_stamp(snapshot), k)
+    starts = _rod_starts(scene, nodes)
+    if scene.n <= topics.MARKER_MAX_STRIPS:
+        table = topics._marker_geometry(scene, points_per_rod)[2]
+        rods = rod_points(np.asarray(scene.length, dtype=float),
+                          np.asarray(snapshot.phi, dtype=float),
+                          np.asarray(snapshot.alpha, dtype=float),
+                          np.asarray(snapshot.beta, dtype=float), points_per_rod, table,
+                          nodes[starts])
+    else:
+        rods = nodes
+    x, y, psi = (float(v) for v in snapshot.base[:3])
+    cx, cy = scene.base.centre_of_mass
+    c, s = math.cos(psi), math.sin(psi)
+    pose = np.array([x + c * cx - s * cy, y + s * cx + c * cy, 0.0, 0.0, 0.0,
+                     math.sin(0.5 * psi), math.cos(0.5 * psi)])
+    values = {"stamp": stamps, "zero": np.zeros(stamps.size, dtype="<u4"), "rods": _xyz(rods),
+              "nodes": _xyz(nodes[starts + 1]), "base_pose": pose}
+    return layout.fill(**{k: v for k, v in values.items() if k in layout.slots})
+
+
 def markers(snapshot: Snapshot, scene: Scene, frame_id: str = "world",
             points_per_rod: int = 11) -> bytes:
-    """``markers`` (see :func:`rod_sim.io.topics.markers`)."""
+    """``markers`` (see :func:`rod_sim.io.topics.markers`; a spacecraft scene:
+    :func:`_spacecraft_markers_layout`)."""
     from rod_sim.core.kinematics import rod_points
 
     if snapshot.n != scene.n:
         raise ValueError(f"snapshot has {snapshot.n} rods but the scene {scene.name!r} has "
                          f"{scene.n}")
+    if snapshot.base is not None:
+        return _spacecraft_markers(snapshot, scene, frame_id, points_per_rod)
     layout = _markers_layout(scene, frame_id, points_per_rod)
     nodes = np.asarray(snapshot.nodes, dtype=float)
     stamps = np.tile(_stamp(snapshot), scene.n + 1 if scene.n <= topics.MARKER_MAX_STRIPS else 2)
@@ -289,6 +444,7 @@ SNAPSHOT_ENCODERS: dict[str, SnapshotEncoder] = {
     "rod_states": rod_states,
     "bending": bending,
     "node_poses": node_poses,
+    "base_odometry": base_odometry,
     "markers": markers,
     "applied_forces": applied_forces,
     "clock": clock,
@@ -308,6 +464,6 @@ def snapshot_bytes(snapshot: Snapshot, scene: Scene, frame_id: str = "world",
     unknown = [t for t in wanted if t not in SNAPSHOT_ENCODERS]
     if unknown:
         raise ValueError(f"cannot build topic(s) {', '.join(unknown)} from a snapshot "
-                         f"(choose from {', '.join(topics.SNAPSHOT_TOPICS)})")
+                         f"(choose from {', '.join(topics.SNAPSHOT_TOPICS + topics.BASE_TOPICS)})")
     return {name: SNAPSHOT_ENCODERS[name](snapshot, scene, frame_id) for name in wanted}
 

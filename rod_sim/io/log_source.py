@@ -8,7 +8,12 @@ What is read (n rods; times in integer ns of simulated time), under any one name
 
 - ``rod_states``: phi (n,) [rad], phi_rate (n,) [rad/s];
 - ``bending``: alpha, beta (n,) [rad] (optional topic);
-- ``node_poses``: node positions (n+1, 2) [m] (optional topic);
+- ``node_poses``: node positions (n+1, 2) [m] (optional topic; a spacecraft scene: every
+  chain's nodes and the base's origin, (n + chains + 1, 2));
+- ``applied_base``: [Fx, Fy, M, T_w] on a free base (scripted + held), from its log time on
+  (optional topic, node logs);
+- ``base_odometry``: the base frame's origin and angle (x, y [m], psi [rad] in (-2 pi, 2 pi])
+  (optional topic, moving bases);
 - ``applied_forces``: forces (n, 2) [N] = scripted loads + held command, valid from the
   message time on (a zero-order hold of the command part);
 - ``applied_torques``: hinge motor moments (n,) [N m] = the held ``hinge_torques`` command,
@@ -45,10 +50,13 @@ BENDING_TOPIC = "/bending"
 POSES_TOPIC = "/node_poses"
 APPLIED_TOPIC = "/applied_forces"
 TORQUES_TOPIC = "/applied_torques"
+BASE_TOPIC = "/base_odometry"
+APPLIED_BASE_TOPIC = "/applied_base"
 SCENE_TOPIC = "/scene"
 """Latched std_msgs/String with the scene as YAML (not part of :data:`TOPICS`: read once)."""
-TOPICS = (STATE_TOPIC, BENDING_TOPIC, POSES_TOPIC, APPLIED_TOPIC, TORQUES_TOPIC)
-HOLD_TOPICS = (APPLIED_TOPIC, TORQUES_TOPIC)
+TOPICS = (STATE_TOPIC, BENDING_TOPIC, POSES_TOPIC, APPLIED_TOPIC, TORQUES_TOPIC, BASE_TOPIC,
+          APPLIED_BASE_TOPIC)
+HOLD_TOPICS = (APPLIED_TOPIC, TORQUES_TOPIC, APPLIED_BASE_TOPIC)
 """Topics without a header whose messages hold from their log time on (the last one at a
 repeated time is used)."""
 
@@ -57,8 +65,8 @@ repeated time is used)."""
 class Group:
     """The messages of one log time ``t_ns`` [ns], at most one per topic (duplicates resolved):
     ``state`` (phi (n,), phi_rate (n,)), ``bending`` (alpha (n,), beta (n,)), ``nodes``
-    (n+1, 2), ``applied`` (n, 2), ``torques`` (n,); None where the topic has no message at
-    this time."""
+    (n+1, 2) or more rows, ``applied`` (n, 2), ``torques`` (n,), ``base`` (x, y, psi) (3,);
+    None where the topic has no message at this time."""
 
     t_ns: int
     state: tuple[np.ndarray, np.ndarray] | None = None
@@ -66,6 +74,8 @@ class Group:
     nodes: np.ndarray | None = None
     applied: np.ndarray | None = None
     torques: np.ndarray | None = None
+    base: np.ndarray | None = None
+    applied_base: np.ndarray | None = None
 
 
 def _stamp_ns(msg: Any) -> int:
@@ -90,6 +100,8 @@ class LogStream:
     topics: list[dict[str, str]]
     complete: bool
     n: int | None = None
+    rod_names: list[str] | None = None
+    """The ``rod_states`` names (``rod_k``, or ``<chain>/rod_k`` with ``chains:``)."""
     truncated: bool = False
     notes: list[str] = field(default_factory=list)
     counts: dict[str, int] = field(default_factory=lambda: {t: 0 for t in TOPICS})
@@ -211,7 +223,8 @@ class LogStream:
         if torques is not None and self.n is not None:
             torques = self.torque_array(t_ns, torques)
         return Group(t_ns, state=values.get(STATE_TOPIC), bending=values.get(BENDING_TOPIC),
-                     nodes=values.get(POSES_TOPIC), applied=applied, torques=torques)
+                     nodes=values.get(POSES_TOPIC), applied=applied, torques=torques,
+                     base=values.get(BASE_TOPIC), applied_base=values.get(APPLIED_BASE_TOPIC))
 
     def _decode(self, topic: str, log_ns: int, msg: Any):
         """The arrays of one message, checked against the first state message's n."""
@@ -226,17 +239,24 @@ class LogStream:
             names = list(msg.name)
             if self.n is None:
                 n = len(names)
-                if n == 0 or names != [f"rod_{k}" for k in range(1, n + 1)]:
+                if n == 0 or not valid_rod_names(names):
                     raise LogFormatError(f"{STATE_TOPIC} names {names[:4]}... are not "
-                                         "rod_1..rod_n")
-                self.n = n
+                                         "rod_1..rod_n (or <chain>/rod_1.. per chain)")
+                self.n, self.rod_names = n, names
             n = self.n
             pos = np.asarray(msg.position, dtype=float)
             vel = np.asarray(msg.velocity, dtype=float)
-            if len(names) != n or names[-1] != f"rod_{n}" or pos.size != n or vel.size != n:
+            if len(names) != n or names[-1] != self.rod_names[-1] or pos.size != n \
+                    or vel.size != n:
                 raise LogFormatError(f"{STATE_TOPIC} at t = {t} s has {len(names)} names, "
                                      f"{pos.size} positions, {vel.size} velocities (expected {n})")
             return pos, vel
+        if topic == APPLIED_BASE_TOPIC:
+            data = np.asarray(msg.data, dtype=float).reshape(-1)
+            if data.size != 4 or not np.all(np.isfinite(data)):
+                raise LogFormatError(f"{APPLIED_BASE_TOPIC} at t = {t} s is not 4 finite values "
+                                     "[Fx, Fy, M, T_w]")
+            return data
         if topic == TORQUES_TOPIC:
             data = np.asarray(msg.data, dtype=float)     # checked once n is known
             return data if self.n is None else self.torque_array(log_ns, data)
@@ -246,18 +266,23 @@ class LogStream:
             raise LogFormatError(f"{topic} at t = {t} s comes before the first {STATE_TOPIC}")
         n = self.n
         if topic == BENDING_TOPIC:
-            want = [f"alpha_{k}" for k in range(1, n + 1)] + [f"beta_{k}" for k in range(1, n + 1)]
+            want = [_renamed(r, "alpha_") for r in self.rod_names] + \
+                [_renamed(r, "beta_") for r in self.rod_names]
             pos = np.asarray(msg.position, dtype=float)
             if list(msg.name) != want or pos.size != 2 * n:
                 raise LogFormatError(f"{BENDING_TOPIC} at t = {t} s does not hold "
-                                     f"alpha_1..alpha_{n}, beta_1..beta_{n}")
+                                     f"alpha_1..alpha_{n}, beta_1..beta_{n} (the rods' names)")
             return pos[:n], pos[n:]
         if topic == POSES_TOPIC:
             xy = np.array([[p.position.x, p.position.y] for p in msg.poses], dtype=float)
-            if xy.shape != (n + 1, 2):
+            if xy.ndim != 2 or xy.shape[0] < n + 1:
                 raise LogFormatError(f"{POSES_TOPIC} at t = {t} s has {xy.shape[0]} poses "
-                                     f"(expected {n + 1}: nodes 0..{n})")
+                                     f"(expected at least {n + 1}: nodes 0..{n})")
             return xy
+        if topic == BASE_TOPIC:
+            p = msg.pose.pose
+            return np.array([p.position.x, p.position.y,
+                             2.0 * np.arctan2(p.orientation.z, p.orientation.w)], dtype=float)
         return self.applied_array(log_ns, np.asarray(msg.data, dtype=float))
 
     def applied_array(self, log_ns: int, data: np.ndarray) -> np.ndarray:
@@ -287,6 +312,29 @@ class LogStream:
     def has_torques(self) -> bool:
         """Whether any file of the log has an ``applied_torques`` topic."""
         return any(TORQUES_TOPIC.lstrip("/") in names for names in self.topics)
+
+
+def valid_rod_names(names: list[str]) -> bool:
+    """Whether ``names`` are rod_1..rod_n, or per chain ``<chain>/rod_1..`` (chains one after
+    the other, each once)."""
+    seen, prefix, k = set(), None, 0
+    for name in names:
+        head, _, tail = name.rpartition("/")
+        if head != prefix:
+            if head in seen:
+                return False
+            seen.add(head)
+            prefix, k = head, 0
+        k += 1
+        if tail != f"rod_{k}" or (head == "" and len(seen) > 1):
+            return False
+    return "" not in seen or len(seen) == 1
+
+
+def _renamed(rod_name: str, prefix: str) -> str:
+    """``left/rod_3`` -> ``left/alpha_3`` for ``prefix`` ``alpha_``."""
+    head, sep, tail = rod_name.rpartition("/")
+    return head + sep + prefix + tail[len("rod_"):]
 
 
 def read_log(path: str | os.PathLike, namespace: str | None = None) -> LogStream:

@@ -133,6 +133,8 @@ TYPE_NAMES = (
     "diagnostic_msgs/msg/DiagnosticArray",
     "rosgraph_msgs/msg/Clock",
     "std_msgs/msg/String",
+    "geometry_msgs/msg/WrenchStamped",
+    "nav_msgs/msg/Odometry",
 )
 """The message types rod_sim writes, keys of :data:`SCHEMAS` and :data:`TYPE_HASHES`."""
 
@@ -218,6 +220,17 @@ MSG_FILES: dict[str, str] = {
         '\n'
         'Pose[] poses\n'
     ),
+    'geometry_msgs/PoseWithCovariance': (
+        '# This represents a pose in free space with uncertainty.\n'
+        '\n'
+        'Pose pose\n'
+        '\n'
+        '# Row-major representation of the 6x6 covariance matrix\n'
+        '# The orientation parameters use a fixed-axis representation.\n'
+        '# In order, the parameters are:\n'
+        '# (x, y, z, rotation about X axis, rotation about Y axis, rotation about Z axis)\n'
+        'float64[36] covariance\n'
+    ),
     'geometry_msgs/Quaternion': (
         '# This represents an orientation in free space in quaternion form.\n'
         '\n'
@@ -225,6 +238,23 @@ MSG_FILES: dict[str, str] = {
         'float64 y 0\n'
         'float64 z 0\n'
         'float64 w 1\n'
+    ),
+    'geometry_msgs/Twist': (
+        '# This expresses velocity in free space broken into its linear and angular parts.\n'
+        '\n'
+        'Vector3  linear\n'
+        'Vector3  angular\n'
+    ),
+    'geometry_msgs/TwistWithCovariance': (
+        '# This expresses velocity in free space with uncertainty.\n'
+        '\n'
+        'Twist twist\n'
+        '\n'
+        '# Row-major representation of the 6x6 covariance matrix\n'
+        '# The orientation parameters use a fixed-axis representation.\n'
+        '# In order, the parameters are:\n'
+        '# (x, y, z, rotation about X axis, rotation about Y axis, rotation about Z axis)\n'
+        'float64[36] covariance\n'
     ),
     'geometry_msgs/Vector3': (
         '# This represents a vector in free space.\n'
@@ -236,6 +266,35 @@ MSG_FILES: dict[str, str] = {
         'float64 x\n'
         'float64 y\n'
         'float64 z\n'
+    ),
+    'geometry_msgs/Wrench': (
+        '# This represents force in free space, separated into its linear and angular parts.\n'
+        '\n'
+        'Vector3  force\n'
+        'Vector3  torque\n'
+    ),
+    'geometry_msgs/WrenchStamped': (
+        '# A wrench with reference coordinate frame and timestamp\n'
+        '\n'
+        'std_msgs/Header header\n'
+        'Wrench wrench\n'
+    ),
+    'nav_msgs/Odometry': (
+        '# This represents an estimate of a position and velocity in free space.\n'
+        '# The pose in this message should be specified in the coordinate frame given by header.frame_id\n'
+        '# The twist in this message should be specified in the coordinate frame given by the child_frame_id\n'
+        '\n'
+        '# Includes the frame id of the pose parent.\n'
+        'std_msgs/Header header\n'
+        '\n'
+        '# Frame id the pose points to. The twist is in this coordinate frame.\n'
+        'string child_frame_id\n'
+        '\n'
+        '# Estimated pose that is typically relative to a fixed world frame.\n'
+        'geometry_msgs/PoseWithCovariance pose\n'
+        '\n'
+        '# Estimated linear and angular velocity relative to child_frame_id.\n'
+        'geometry_msgs/TwistWithCovariance twist\n'
     ),
     'rosgraph_msgs/Clock': (
         '# This message communicates the current time.\n'
@@ -505,6 +564,8 @@ TYPE_HASHES: dict[str, str] = {
     'diagnostic_msgs/msg/DiagnosticArray': 'RIHS01_5a8a36efb05fb25070fa0fb3810290c0e6cd4862b54a8fb975a1ee8dc55a333e',
     'rosgraph_msgs/msg/Clock': 'RIHS01_692f7a66e93a3c83e71765d033b60349ba68023a8c689a79e48078bcb5c58564',
     'std_msgs/msg/String': 'RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18',
+    'geometry_msgs/msg/WrenchStamped': 'RIHS01_8dc3deaf06b2ab281f9f9a742a8961c328ca7cec16e3fd6586d3a5c83fa78f77',
+    'nav_msgs/msg/Odometry': 'RIHS01_3cc97dc7fb7502f8714462c526d369e35b603cfc34d946e3f2eda2766dfec6e0',
 }
 # GENERATED-SCHEMAS-END
 

@@ -11,7 +11,28 @@ import numpy as np
 
 from rod_sim.io.log_format import LogFormatError
 from rod_sim.io.log_open import open_log
+from rod_sim.io.log_source import valid_rod_names
 from rod_sim.io.topic_names import base_name
+
+
+def read_base_odometry(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
+    """``(t (N,) [s], base (N, 3))`` from ``base_odometry``: the base frame's origin x, y [m]
+    and its angle psi [rad], unwrapped over the samples (the quaternion gives it modulo
+    2 pi). LogFormatError when the log has no such message."""
+    times, base = [], []
+    topic = "/base_odometry"
+    with open_log(path) as log:
+        topic = log.resolve([topic]).get(base_name(topic), topic)
+        for _, t_ns, msg in log.messages([topic]):
+            p = msg.pose.pose
+            times.append(t_ns)
+            base.append((p.position.x, p.position.y,
+                         2.0 * np.arctan2(p.orientation.z, p.orientation.w)))
+    if not times:
+        raise LogFormatError(f"{path} has no {topic} messages")
+    base = np.asarray(base, dtype=float)
+    base[:, 2] = np.unwrap(base[:, 2])
+    return np.asarray(times, dtype=np.int64) / 1e9, base
 
 
 def _joint_series(path, topic: str, prefix: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -23,7 +44,7 @@ def _joint_series(path, topic: str, prefix: str) -> tuple[np.ndarray, np.ndarray
             if names is None:
                 names = list(msg.name)
                 expected = [f"{prefix}{k}" for k in range(1, len(names) + 1)]
-                if names != expected:
+                if names != expected and not (prefix == "rod_" and valid_rod_names(names)):
                     raise LogFormatError(f"{path}: {topic} names {names} are not {prefix}1..")
             elif list(msg.name) != names:
                 raise LogFormatError(f"{path}: {topic} changes its joint names at {t_ns} ns")

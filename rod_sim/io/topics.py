@@ -29,6 +29,7 @@ TOPIC_TYPES: dict[str, str] = {
     "rod_states": "sensor_msgs/msg/JointState",
     "bending": "sensor_msgs/msg/JointState",
     "node_poses": "geometry_msgs/msg/PoseArray",
+    "base_odometry": "nav_msgs/msg/Odometry",
     "markers": "visualization_msgs/msg/MarkerArray",
     "applied_forces": "std_msgs/msg/Float64MultiArray",
     "applied_torques": "std_msgs/msg/Float64MultiArray",
@@ -45,6 +46,9 @@ DEFAULT_TOPICS = ("joint_states", "rod_states", "bending", "node_poses", "applie
 
 SNAPSHOT_TOPICS = DEFAULT_TOPICS + ("clock",)
 """Topics that a snapshot alone determines (``diagnostics`` needs :func:`diagnostics`)."""
+
+BASE_TOPICS = ("base_odometry",)
+"""Topics a snapshot determines on a moving (free or prescribed) base only."""
 
 FORCE_LAYOUT_LABELS = ("node", "xy")
 """``applied_forces``/``nodal_forces`` layout: a row-major (n, 2) array, dim[0] 'node'
@@ -155,6 +159,24 @@ def node_poses(snapshot: Snapshot, frame_id: str = "world") -> Msg:
     return {"header": header(snapshot.t, frame_id), "poses": poses}
 
 
+def base_odometry(snapshot: Snapshot, frame_id: str = "world", child_frame_id: str = "base"
+                  ) -> Msg:
+    """``nav_msgs/Odometry`` of the base frame's origin (``snapshot.base``): pose in
+    ``frame_id`` (x, y, 0) [m], yaw psi; twist in the base frame ``child_frame_id``, as
+    nav_msgs defines it: linear R(psi)^T (x', y') [m/s], angular z psi' [rad/s]; covariances
+    zero."""
+    x, y, psi, vx, vy, w = (float(v) for v in snapshot.base)
+    c, s = math.cos(psi), math.sin(psi)
+    zero = [0.0] * 36
+    return {"header": header(snapshot.t, frame_id), "child_frame_id": child_frame_id,
+            "pose": {"pose": {"position": {"x": x, "y": y, "z": 0.0},
+                              "orientation": yaw_quaternion(psi)}, "covariance": zero},
+            "twist": {"twist": {"linear": {"x": c * vx + s * vy, "y": -s * vx + c * vy,
+                                           "z": 0.0},
+                                "angular": {"x": 0.0, "y": 0.0, "z": w}},
+                      "covariance": list(zero)}}
+
+
 def _marker(when: dict[str, int], frame_id: str, ns: str, marker_id: int, marker_type: int,
             width: float, color: Msg, points: list[list[float]]) -> Msg:
     """One marker stamped ``when`` ({'sec', 'nanosec'}); ``points``: [x, y] pairs [m] of
@@ -263,6 +285,8 @@ def clock(t: float) -> Msg:
 
 
 DIAGNOSTIC_OK, DIAGNOSTIC_WARN, DIAGNOSTIC_ERROR, DIAGNOSTIC_STALE = 0, 1, 2, 3
+DIAGNOSTICS_STATUS_NAME = "rod_sim: simulation"
+"""The status name of the node's ``/diagnostics`` (and of ``simulate``'s per-sample ones)."""
 
 
 def diagnostics(t: float, values: Mapping[str, Any], hardware_id: str, *,
@@ -287,6 +311,7 @@ _BUILDERS: dict[str, Callable[[Snapshot, Scene, str], Msg]] = {
     "rod_states": lambda s, scene, f: rod_states(s, f),
     "bending": lambda s, scene, f: bending(s, f),
     "node_poses": lambda s, scene, f: node_poses(s, f),
+    "base_odometry": lambda s, scene, f: base_odometry(s, f),
     "markers": lambda s, scene, f: markers(s, scene, f),
     "applied_forces": lambda s, scene, f: applied_forces(s),
     "clock": lambda s, scene, f: clock(s.t),
@@ -306,5 +331,5 @@ def snapshot_messages(snapshot: Snapshot, scene: Scene, frame_id: str = "world",
     unknown = [t for t in wanted if t not in _BUILDERS]
     if unknown:
         raise ValueError(f"cannot build topic(s) {', '.join(unknown)} from a snapshot "
-                         f"(choose from {', '.join(SNAPSHOT_TOPICS)})")
+                         f"(choose from {', '.join(SNAPSHOT_TOPICS + BASE_TOPICS)})")
     return {name: _BUILDERS[name](snapshot, scene, frame_id) for name in wanted}

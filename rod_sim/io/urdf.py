@@ -69,28 +69,28 @@ def _stop_limits(scene) -> tuple[np.ndarray, np.ndarray]:
     return limits[0], limits[1]
 
 
-_ROD = """  <link name="rod_{k}">
+_ROD = """  <link name="{p}rod_{k}">
     <inertial>
       <origin xyz="{xc} 0.0 0.0" rpy="0.0 0.0 0.0" />
       <mass value="{mass}" />
       <inertia ixx="{ixx}" ixy="0.0" ixz="0.0" iyy="{izz}" iyz="0.0" izz="{izz}" />
     </inertial>
-    <visual name="rod_{k}_chord">
+    <visual name="{p}rod_{k}_chord">
       <origin xyz="{half} 0.0 0.0" rpy="0.0 1.5707963267948966 0.0" />
       <geometry>
         <cylinder radius="{radius}" length="{length}" />
       </geometry>
     </visual>
 {node}  </link>
-  <joint name="hinge_{h}" type="revolute">
-    <origin xyz="{at} 0.0 0.0" rpy="0.0 0.0 0.0" />
+  <joint name="{p}hinge_{h}" type="revolute">
+    <origin xyz="{at} {at_y} 0.0" rpy="0.0 0.0 0.0" />
     <parent link="{parent}" />
-    <child link="rod_{k}" />
+    <child link="{p}rod_{k}" />
     <axis xyz="0 0 1" />
     <limit lower="{lower}" upper="{upper}" effort="1000000000000.0" velocity="1000000.0" />
   </joint>
 """
-_NODE = """    <visual name="node_{k}">
+_NODE = """    <visual name="{p}node_{k}">
       <origin xyz="{length} 0.0 0.0" rpy="0.0 0.0 0.0" />
       <geometry>
         <sphere radius="{sphere}" />
@@ -110,31 +110,111 @@ def scene_urdf(scene, fixed_frame: str = "world") -> str:
 def urdf_chunks(scene, fixed_frame: str = "world", rods: int = 1000):
     """:func:`scene_urdf`'s text in pieces of ``rods`` rods (``rod-sim urdf`` writes them as
     they come: memory bounded whatever n; ~915 bytes per rod)."""
-    n = scene.n
-    length = np.asarray(scene.length, dtype=float)
-    rod_mass = np.asarray(scene.mass_per_length, dtype=float) * length
-    node_mass = np.broadcast_to(np.asarray(scene.node_mass, dtype=float), (n,))
-    lower, upper = _stop_limits(scene)
     frame = _attr(fixed_frame)
     parts = ['<?xml version="1.0"?>\n', f'<robot name="{_attr(scene.name)}">\n',
              f'  <link name="{frame}" />\n']
+    if not scene.is_spacecraft:
+        yield from _chain_chunks(scene, slice(0, scene.n), "", frame, (0.0, 0.0), parts, rods)
+        return
+    parts.append(_base(scene, frame))
+    slices = scene.chain_slices()
+    for c, (chain, sl) in enumerate(zip(scene.chains, slices)):
+        prefix = f"{_attr(chain.name)}/" if chain.name is not None else ""
+        last = c == len(slices) - 1
+        chunks = _chain_chunks(scene, sl, prefix, "base", tuple(chain.attach), parts, rods,
+                               last)
+        for chunk in chunks:
+            yield chunk
+        parts = []
+
+
+def _chain_chunks(scene, sl: slice, prefix: str, root: str, attach: tuple[float, float],
+                  parts: list[str], rods: int, last: bool = True):
+    """The links and joints of the rods ``sl`` (one chain) under link ``root``, hinge 0 at
+    ``attach`` [m] in it, names prefixed by ``prefix``; ``parts``: text before them; the
+    closing tag after the last chain."""
+    n = sl.stop - sl.start
+    length = np.asarray(scene.length, dtype=float)[sl]
+    rod_mass = np.asarray(scene.mass_per_length, dtype=float)[sl] * length
+    node_mass = np.broadcast_to(np.asarray(scene.node_mass, dtype=float),
+                                (scene.n,))[sl]
+    lower, upper = (a[sl] for a in _stop_limits(scene))
     for k in range(1, n + 1):
         l_k, m_k, mu_k = float(length[k - 1]), float(rod_mass[k - 1]), float(node_mass[k - 1])
         radius = RADIUS_FRACTION * l_k
         mass, xc, izz = rod_inertia(l_k, m_k, mu_k)
-        node = (_NODE.format(k=k, length=_fmt(l_k), sphere=_fmt(2 * radius))
+        node = (_NODE.format(p=prefix, k=k, length=_fmt(l_k), sphere=_fmt(2 * radius))
                 if mu_k > 0.0 else "")
         parts.append(_ROD.format(
-            k=k, h=k - 1, xc=_fmt(xc), mass=_fmt(mass), ixx=_fmt(0.5 * mass * radius ** 2),
-            izz=_fmt(izz), half=_fmt(0.5 * l_k), radius=_fmt(radius), length=_fmt(l_k),
-            node=node, at=_fmt(0.0 if k == 1 else length[k - 2]),
-            parent=frame if k == 1 else f"rod_{k - 1}", lower=_fmt(lower[k - 1]),
+            p=prefix, k=k, h=k - 1, xc=_fmt(xc), mass=_fmt(mass),
+            ixx=_fmt(0.5 * mass * radius ** 2), izz=_fmt(izz), half=_fmt(0.5 * l_k),
+            radius=_fmt(radius), length=_fmt(l_k), node=node,
+            at=_fmt(attach[0] if k == 1 else length[k - 2]),
+            at_y=_fmt(attach[1] if k == 1 else 0.0),
+            parent=root if k == 1 else f"{prefix}rod_{k - 1}", lower=_fmt(lower[k - 1]),
             upper=_fmt(upper[k - 1])))
         if k % rods == 0:
             yield "".join(parts)
-            parts = []
-    parts.append(f'  <link name="tip" />\n  <joint name="tip_joint" type="fixed">\n'
+            parts.clear()
+    parts.append(f'  <link name="{prefix}tip" />\n  <joint name="{prefix}tip_joint" '
+                 f'type="fixed">\n'
                  f'    <origin xyz="{_fmt(length[-1])} 0.0 0.0" rpy="0.0 0.0 0.0" />\n'
-                 f'    <parent link="rod_{n}" />\n    <child link="tip" />\n  </joint>\n'
-                 '</robot>\n')
+                 f'    <parent link="{prefix}rod_{n}" />\n    <child link="{prefix}tip" />\n'
+                 '  </joint>\n' + ('</robot>\n' if last else ''))
     yield "".join(parts)
+
+
+BASE_LIMIT = 1.0e12
+"""[m] the position limits of the base's prismatic joints (URDF requires limits)."""
+
+_BASE_JOINT = """  <link name="{child}" />
+  <joint name="{name}" type="{kind}">
+    <origin xyz="0.0 0.0 0.0" rpy="0.0 0.0 0.0" />
+    <parent link="{parent}" />
+    <child link="{child}" />
+    <axis xyz="{axis}" />
+    <limit lower="{lower}" upper="{upper}" effort="1000000000000.0" velocity="1000000.0" />
+  </joint>
+"""
+
+
+def _base(scene, frame: str) -> str:
+    """The ``base`` link (inertia of a free base, a box visual) and what joins it to the root
+    ``frame``: a fixed joint ``base_joint`` at a fixed base's pose; on a moving base the
+    joints ``base_x``, ``base_y`` (prismatic along x, y of the root) and ``base_psi``
+    (revolute about z) through the massless links ``base_x_link``, ``base_y_link`` -- the
+    planar joint as robot_state_publisher moves it (it turns a URDF ``planar`` joint into a
+    fixed one), positioned by the ``joint_states`` entries ``base_x``, ``base_y``,
+    ``base_psi``."""
+    from rod_sim.io.encoders import base_box
+
+    b = scene.base
+    cx, cy = (float(v) for v in b.centre_of_mass)
+    side = base_box(scene)
+    inertial = ""
+    if b.mode == "free":
+        inertial = (f'    <inertial>\n      <origin xyz="{_fmt(cx)} {_fmt(cy)} 0.0" '
+                    f'rpy="0.0 0.0 0.0" />\n      <mass value="{_fmt(b.mass)}" />\n'
+                    f'      <inertia ixx="{_fmt(0.5 * b.inertia)}" ixy="0.0" ixz="0.0" '
+                    f'iyy="{_fmt(0.5 * b.inertia)}" iyz="0.0" izz="{_fmt(b.inertia)}" />\n'
+                    '    </inertial>\n')
+    out = [f'  <link name="base">\n{inertial}    <visual name="base_box">\n'
+           f'      <origin xyz="{_fmt(cx)} {_fmt(cy)} 0.0" rpy="0.0 0.0 0.0" />\n'
+           f'      <geometry>\n        <box size="{_fmt(side)} {_fmt(side)} '
+           f'{_fmt(0.2 * side)}" />\n      </geometry>\n    </visual>\n  </link>\n']
+    if b.mode == "fixed":
+        out.append(f'  <joint name="base_joint" type="fixed">\n'
+                   f'    <origin xyz="{_fmt(b.x)} {_fmt(b.y)} 0.0" rpy="0.0 0.0 '
+                   f'{_fmt(b.psi)}" />\n    <parent link="{frame}" />\n'
+                   '    <child link="base" />\n  </joint>\n')
+        return "".join(out)
+    for name, kind, parent, child, axis, limit in (
+            ("base_x", "prismatic", frame, "base_x_link", "1 0 0", BASE_LIMIT),
+            ("base_y", "prismatic", "base_x_link", "base_y_link", "0 1 0", BASE_LIMIT),
+            ("base_psi", "revolute", "base_y_link", "base", "0 0 1", WIDE)):
+        text = _BASE_JOINT.format(name=name, kind=kind, parent=parent, child=child, axis=axis,
+                                  lower=_fmt(-limit), upper=_fmt(limit))
+        if child == "base":                 # the base link itself is written above
+            text = text.split("\n", 1)[1]
+        out.append(text)
+    return "".join(out)

@@ -22,7 +22,7 @@ _ARRAY_RE = re.compile(r"^(.+?)\[\d*\]$")
 
 
 class CommandError(ValueError):
-    """A ``nodal_forces`` command that cannot be applied; ``str(err)`` is one line."""
+    """A command that cannot be applied; ``str(err)`` is one line."""
 
 
 @lru_cache(maxsize=None)
@@ -93,40 +93,29 @@ def to_message(type_name: str, data: Mapping[str, Any]) -> Any:
 
 
 def command_forces(msg: Any, n: int) -> np.ndarray:
-    """Validated nodal forces (n, 2) [N] from a ``std_msgs/Float64MultiArray`` command.
+    """Validated nodal forces (n, 2) [N] from a ``std_msgs/Float64MultiArray`` command for one
+    chain of n rods on the ground.
 
     ``msg.data[data_offset:]`` must hold exactly 2n finite values [X_1, Y_1, ..., X_n, Y_n];
     the layout's dims are not needed and not checked. Raises CommandError naming the problem.
+    Several chains, a wheel: :class:`rod_sim.ros.command_layout.CommandLayout`.
     """
-    return _command_values(msg, 2 * n, f"[X_1, Y_1, ..., X_{n}, Y_{n}] for {n} nodes"
-                           ).reshape(n, 2)
+    from rod_sim.ros.command_layout import CommandLayout
+
+    return CommandLayout.single(n).forces(msg)
 
 
 def command_torques(msg: Any, n: int) -> np.ndarray:
     """Validated hinge torques (n,) [N m] from a ``std_msgs/Float64MultiArray`` command on
-    ``hinge_torques``.
+    ``hinge_torques`` for one chain of n rods on the ground.
 
     ``msg.data[data_offset:]`` must hold exactly n finite values [T_0, ..., T_{n-1}] in joint
     order hinge_0..hinge_{n-1} (the ``joint_states`` names; the convention of a joint-group
     effort controller); the layout's dims are not needed and not checked. Raises CommandError
     naming the problem."""
-    return _command_values(msg, n, f"[T_0, ..., T_{n - 1}] [N m] for hinges "
-                                   f"hinge_0..hinge_{n - 1}")
+    from rod_sim.ros.command_layout import CommandLayout
 
-
-def _command_values(msg: Any, size: int, layout: str) -> np.ndarray:
-    """The ``size`` finite values of a ``Float64MultiArray`` command after its
-    ``layout.data_offset`` (a copy), else CommandError naming the count (``layout`` describes
-    the expected values) or the first non-finite entry."""
-    offset = int(getattr(getattr(msg, "layout", None), "data_offset", 0) or 0)
-    data = np.asarray(msg.data, dtype=float)[offset:]
-    if data.size != size:
-        raise CommandError(f"expected {size} values {layout}, got {data.size}")
-    bad = np.flatnonzero(~np.isfinite(data))
-    if bad.size:
-        i = int(bad[0]) + offset
-        raise CommandError(f"non-finite value {msg.data[i]!r} at data[{i}]")
-    return data.copy()
+    return CommandLayout.single(n).torques(msg)
 
 
 def message_to_dict(msg: Any) -> Any:

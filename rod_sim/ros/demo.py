@@ -1,6 +1,13 @@
-"""Demo: the simulator node, the hinge PD controller and a recording, in one process.
+"""Demo: the simulator node, a PD controller and a recording, in one process.
 
     python -m rod_sim.ros.demo --out out/demo.mcap --duration 3
+    python -m rod_sim.ros.demo --scene config/two_wing_deployment.yaml
+
+On a scene with a free base (the second line) the controller is the attitude controller
+(:mod:`rod_sim.ros.attitude`: the base's moment from its angle), the run is in lockstep and
+lasts 15 s by default (the wings of config/two_wing_deployment.yaml have latched by 13.4 s),
+and ``rod-sim compare`` is run on the log at the end (``--no-compare`` skips it); otherwise
+the hinge PD controller (:mod:`rod_sim.ros.controller`), as before.
 
 Both nodes share one executor; the simulator records the log of docs/interface.md section 4. After
 ``--duration`` seconds of simulated time (or on Ctrl-C/SIGTERM) both nodes are shut down, the
@@ -33,9 +40,10 @@ def build_parser() -> argparse.ArgumentParser:
         prog="python -m rod_sim.ros.demo",
         description="Run the rod_sim node with the hinge PD controller in one process and "
                     "record an MCAP log.")
-    parser.add_argument("--out", required=True, type=Path, help="MCAP log to write")
-    parser.add_argument("--duration", type=float, default=3.0,
-                        help="simulated time to run [s] (default 3)")
+    parser.add_argument("--out", type=Path, default=Path("out/demo.mcap"),
+                        help="MCAP log to write (default out/demo.mcap)")
+    parser.add_argument("--duration", type=float, default=None,
+                        help="simulated time to run [s] (default 3; 15 on a free base)")
     parser.add_argument("--scene", default="config/paper_example.yaml",
                         help="scene file (default config/paper_example.yaml)")
     parser.add_argument("--model", default="reduced", help="reduced, full or rigid")
@@ -49,11 +57,56 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--kd", type=float, default=None,
                         help="controller derivative gain [N m s/rad] (default: the node's)")
     parser.add_argument("--force", action="store_true", help="overwrite an existing --out")
+    parser.add_argument("--no-compare", action="store_true",
+                        help="free base: do not run rod-sim compare on the log")
     return parser
 
 
+def _free_base(scene_file: str) -> bool:
+    """Whether the scene file (if it loads) has a free base; a scene that does not load is
+    the node's to report."""
+    from rod_sim.core.scene import SceneError
+    from rod_sim.io.scene_yaml import load_scene
+
+    try:
+        return load_scene(scene_file).base.mode == "free"
+    except (SceneError, OSError, ValueError):
+        return False
+
+
+def _controller(free_base: bool, args, scene: str):
+    """The attitude controller on a free base, else the hinge PD controller."""
+    from rclpy.parameter import Parameter
+
+    gains = [Parameter(name, value=float(value)) for name, value in
+             (("kp", args.kp), ("kd", args.kd)) if value is not None]
+    if free_base:
+        from rod_sim.ros.attitude import AttitudePDController
+
+        return AttitudePDController(parameter_overrides=gains)
+    from rod_sim.ros.controller import HingePDController
+
+    return HingePDController(parameter_overrides=[Parameter("scene_file", value=scene),
+                                                  *gains])
+
+
+def _compare(log: Path) -> int:
+    """``rod-sim compare`` on the log (its report printed); its exit code."""
+    import subprocess
+
+    print(f"demo: rod-sim compare {log}", flush=True)
+    return subprocess.run([sys.executable, "-m", "rod_sim.tools.cli", "compare", str(log)]
+                          ).returncode
+
+
 def run(args: argparse.Namespace) -> int:
-    """Run the demo; 0 on success, 2 for bad input (one line on stderr)."""
+    """Run the demo; 0 on success (a free base: compare's exit code), 2 for bad input (one
+    line on stderr)."""
+    free_base = _free_base(str(args.scene))
+    if args.duration is None:
+        args.duration = 15.0 if free_base else 3.0
+    if free_base:
+        args.sync = True
     if not (args.duration > 0):
         print(f"demo: error: --duration must be > 0 s (got {args.duration})", file=sys.stderr)
         return 2
@@ -71,7 +124,6 @@ def run(args: argparse.Namespace) -> int:
     from rclpy.signals import SignalHandlerOptions
 
     from rod_sim.core.scene import SceneError
-    from rod_sim.ros.controller import HingePDController
     from rod_sim.ros.node import NodeConfigError, RodSimNode
     from rod_sim.ros.process import StopRequest, spin_until
 
@@ -87,10 +139,7 @@ def run(args: argparse.Namespace) -> int:
                 Parameter("sync_mode", value=bool(args.sync)),
                 Parameter("record_path", value=str(args.out))])
             nodes.append(sim)
-            gains = [Parameter(name, value=float(value)) for name, value in
-                     (("kp", args.kp), ("kd", args.kd)) if value is not None]
-            controller = HingePDController(parameter_overrides=[
-                Parameter("scene_file", value=str(args.scene)), *gains])
+            controller = _controller(free_base, args, str(args.scene))
             nodes.append(controller)
             executor = SingleThreadedExecutor()
             for node in nodes:
@@ -98,6 +147,10 @@ def run(args: argparse.Namespace) -> int:
             spin_until(executor, stop, done=lambda: sim.sim_time >= args.duration)
             summary = (f"simulated {sim.sim_time:.3f} s, {controller.commands_sent} commands, "
                        f"{sim.commands_rejected} rejected")
+            if free_base and controller.psi_history:
+                psi = [p for _, p in controller.psi_history]
+                summary += (f"; bus angle psi: max |psi| {max(map(abs, psi)):.3g} rad, "
+                            f"final {psi[-1]:.3g} rad")
         except (NodeConfigError, SceneError) as exc:
             print(f"demo: error: {exc}", file=sys.stderr)
             return 2
@@ -107,7 +160,9 @@ def run(args: argparse.Namespace) -> int:
             for node in reversed(nodes):
                 node.destroy_node()
             rclpy.try_shutdown()
-    print(f"demo: {summary}; log: {args.out}")
+    print(f"demo: {summary}; log: {args.out}", flush=True)
+    if free_base and not args.no_compare and summary != "interrupted":
+        return _compare(args.out)
     return 0
 
 

@@ -1,37 +1,57 @@
-"""The rod_sim node's inputs, without ROS: both command intakes and what a period holds.
+"""The rod_sim node's inputs, without ROS: the command intakes and what a period holds.
 
-``nodal_forces`` (2n values [N]) and ``hinge_torques`` (n values [N m]) each have a
-:class:`~rod_sim.ros.commands.CommandIntake` (length check, decoding, validation, counts,
-zero-order hold, timeout). A period holds (n, 3) = [X, Y, T]:
+``nodal_forces`` (2n values [N]), ``hinge_torques`` (n values [N m], n + 1 with a reaction
+wheel) and ``base_wrench`` (geometry_msgs/WrenchStamped) each have a
+:class:`~rod_sim.ros.commands.CommandIntake` (length check, decoding, validation per chain,
+counts, zero-order hold, timeout; :mod:`rod_sim.ros.command_layout`). A period holds (n, 3) =
+[X, Y, T] for the chains, and with a free base (n + 2, 3): row n the base wrench [Fx, Fy, M]
+in Oxy (a base-frame wrench turned by the base's angle at the period's start), row n + 1 the
+wheel motor torque in column 2 (the kernels' load-table rows):
 
 - paced (real time, as fast as possible, ``~/step``): per topic the latest valid command, or
   zero once it is older than ``command_timeout`` (:meth:`Inputs.held`);
 - lockstep: one period per valid command, in order of arrival (:meth:`Inputs.next_queued`); a
-  command of one topic keeps the other topic's last command.
+  command of one topic keeps the other topics' last commands.
 """
 from __future__ import annotations
 
 from collections import deque
+from typing import Callable
 
 import numpy as np
 
 from rod_sim.core.units import NS_PER_S
-from rod_sim.ros.commands import FORCES, TORQUES, Command, CommandIntake
+from rod_sim.ros.command_layout import CommandLayout, to_inertial
+from rod_sim.ros.commands import FORCES, TORQUES, WRENCH, Command, CommandIntake
+
+_WHAT = {FORCES: "command force", TORQUES: "hinge torques", WRENCH: "base wrench"}
 
 
 class Inputs:
-    """The commands of a chain of ``n`` rods; ``timeout_s``: ``command_timeout`` [s]."""
+    """The commands of a scene of ``n`` rods; ``timeout_s``: ``command_timeout`` [s];
+    ``layout``: what the commands hold (default: one chain of n rods on the ground);
+    ``base_angle()``: the base's angle psi [rad] now (turns a base-frame wrench into Oxy);
+    ``inertial_frame``: the ``frame_id`` of a wrench given in Oxy."""
 
-    def __init__(self, n: int, timeout_s: float):
+    def __init__(self, n: int, timeout_s: float, layout: CommandLayout | None = None,
+                 base_angle: Callable[[], float] | None = None, inertial_frame: str = "world"):
         self.n = n
-        self.forces = CommandIntake(n, timeout_s, FORCES)
-        self.torques = CommandIntake(n, timeout_s, TORQUES)
-        self.intakes = {FORCES: self.forces, TORQUES: self.torques}
+        self.layout = CommandLayout.single(n) if layout is None else layout
+        self.forces = CommandIntake(n, timeout_s, FORCES, self.layout)
+        self.torques = CommandIntake(n, timeout_s, TORQUES, self.layout)
+        self.wrench = CommandIntake(n, timeout_s, WRENCH, self.layout, inertial_frame)
+        self.intakes = {FORCES: self.forces, TORQUES: self.torques, WRENCH: self.wrench}
         self.queue: deque[Command] = deque()
         """Lockstep: valid commands waiting for their period."""
         self.rejection = ""
-        """The latest rejection of either topic, prefixed with the topic."""
-        self._queued_held = np.zeros((n, 3))
+        """The latest rejection of any topic, prefixed with the topic."""
+        self._base_angle = base_angle if base_angle is not None else (lambda: 0.0)
+        self._queued: dict[str, Command] = {}
+        """Lockstep: the last command of each topic taken from the queue."""
+
+    def set_inertial_frame(self, frame_id: str) -> None:
+        """The ``frame_id`` parameter changed: a wrench in Oxy now names this frame."""
+        self.wrench.inertial_frame = frame_id
 
     def set_timeout(self, seconds: float) -> None:
         for intake in self.intakes.values():
@@ -42,10 +62,10 @@ class Inputs:
         for intake in self.intakes.values():
             intake.clear()
         self.queue.clear()
-        self._queued_held = np.zeros((self.n, 3))
+        self._queued = {}
 
     def any_command(self) -> bool:
-        """Whether a valid command (either topic) is held since the start or the last reset."""
+        """Whether a valid command (any topic) is held since the start or the last reset."""
         return any(intake.latest is not None for intake in self.intakes.values())
 
     def note_rejection(self, intake: CommandIntake) -> str:
@@ -67,31 +87,43 @@ class Inputs:
         return command, ("" if command is not None else self.note_rejection(intake))
 
     def held(self, sim_ns: int, wall_age: bool) -> tuple[np.ndarray, list[tuple[str, str]]]:
-        """The inputs to hold over the next period (n, 3) [X, Y, T] (command ages: wall time
-        if ``wall_age``, else simulated time at ``sim_ns``), and (topic, line) for each topic
-        whose command just timed out."""
-        held = np.empty((self.n, 3))
-        notes = []
-        for intake, columns in ((self.forces, slice(0, 2)), (self.torques, 2)):
+        """The inputs to hold over the next period ((n, 3) [X, Y, T], (n + 2, 3) with a free
+        base: module docstring; command ages: wall time if ``wall_age``, else simulated time
+        at ``sim_ns``), and (topic, line) for each topic whose command just timed out."""
+        values, notes = {}, []
+        for kind, intake in self.intakes.items():
             was_active = intake.active
-            held[:, columns] = intake.held(sim_ns, wall_age)
+            values[kind] = intake.held(sim_ns, wall_age)
             if was_active and not intake.active:
-                what = "command force" if intake.kind == FORCES else "hinge torques"
-                notes.append((intake.kind, f"no valid {intake.kind} command for "
-                             f"{intake.timeout_ns / NS_PER_S:g} s: {what} set to zero"))
-        return held, notes
+                notes.append((kind, f"no valid {kind} command for "
+                              f"{intake.timeout_ns / NS_PER_S:g} s: {_WHAT[kind]} set to zero"))
+        body = self.wrench.active and self.wrench.latest.body
+        return self._compose(values[FORCES], values[TORQUES], values[WRENCH], body), notes
+
+    def _compose(self, forces, torques, wrench, body: bool) -> np.ndarray:
+        """The held inputs (rows: :attr:`CommandLayout.rows`) of the chains' forces (n, 2),
+        the torques (n,) or (n + 1,) (the wheel last) and the wrench (3,) (in the base frame
+        if ``body``: turned by the base's angle now)."""
+        n = self.n
+        held = np.zeros((self.layout.rows, 3))
+        held[:n, :2] = forces
+        held[:n, 2] = torques[:n]
+        if self.layout.free_base:
+            held[n] = to_inertial(wrench, body, self._base_angle() if body else 0.0)
+            if self.layout.wheel:
+                held[n + 1, 2] = torques[n]
+        return held
 
     def next_queued(self) -> np.ndarray:
-        """Lockstep: the inputs (n, 3) of the oldest queued command's period."""
+        """Lockstep: the inputs of the oldest queued command's period (as :meth:`held`)."""
         command = self.queue.popleft()
         self.intakes[command.kind].active = True
-        held = self._queued_held.copy()
-        if command.kind == TORQUES:
-            held[:, 2] = command.forces
-        else:
-            held[:, :2] = command.forces
-        self._queued_held = held
-        return held
+        self._queued[command.kind] = command
+        latest = {kind: (self._queued[kind].forces if kind in self._queued else intake.zero)
+                  for kind, intake in self.intakes.items()}
+        wrench = self._queued.get(WRENCH)
+        return self._compose(latest[FORCES], latest[TORQUES], latest[WRENCH],
+                             wrench is not None and wrench.body)
 
     def drain(self, step, running, deadline_ns: int, batch: int) -> bool:
         """Lockstep: ``step(held)`` the periods of up to ``batch`` queued commands while
@@ -106,7 +138,8 @@ class Inputs:
         return bool(self.queue) and running()
 
     def counts(self) -> dict[str, str]:
-        """Diagnostics values: received, rejected and active per topic."""
+        """Diagnostics values: received, rejected and active per topic (``base_wrench_*``
+        too: a wrench sent to a scene without a free base is rejected and counted)."""
         out = {f"{kind}_{what}": str(getattr(intake, what))
                for kind, intake in self.intakes.items() for what in ("received", "rejected")}
         out.update({f"{kind}_active": "true" if intake.active else "false"

@@ -145,7 +145,7 @@ def node_report(control, period, inputs, dropped: int, sim_time: float, period_n
     meter, ledger = period.meter, period.ledger
     mean_ms, max_ms = meter.step_cost_ms()
     rtf_target = None if control.sync_mode else control.rtf
-    forces, torques = inputs.forces, inputs.torques
+    intakes = inputs.intakes.values()
     return DiagnosticReport(
         mode=control.mode(), state=control.state(inputs.any_command()), sim_time=sim_time,
         rtf_target=rtf_target, rtf_measured=meter.real_time_factor(wall),
@@ -153,11 +153,11 @@ def node_report(control, period, inputs, dropped: int, sim_time: float, period_n
         step_budget=(period_ns / 1e6 / control.rtf) if rtf_target else None,
         steps=meter.steps, dropped_periods=dropped, energy=ledger.energy,
         energy_residual=ledger.residual,
-        commands_received=forces.received + torques.received,
-        commands_rejected=forces.rejected + torques.rejected,
-        last_rejection=inputs.rejection, command_active=forces.active or torques.active,
+        commands_received=sum(i.received for i in intakes),
+        commands_rejected=sum(i.rejected for i in intakes),
+        last_rejection=inputs.rejection, command_active=any(i.active for i in intakes),
         max_abs_alpha=period.max_alpha, max_abs_beta=period.max_beta,
         model=period.model.name, integrator=integrator, error=control.error,
         recording_error=recording_error,
         validity=[f.message for f in period.validity.findings() if f.kind != "bending"],
-        extra={**extra, **inputs.counts()})
+        extra={**extra, **inputs.counts(), **period.spacecraft_values()})

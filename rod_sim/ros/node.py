@@ -1,6 +1,7 @@
-"""The rod_sim ROS 2 node (docs/interface.md section 3): a chain of elastic rods driven by nodal
-forces and hinge torques; ``sim_node`` / ``rod-sim node`` / ``python -m rod_sim.ros.node
---ros-args -p scene_file:=config/paper_example.yaml [-p sync_mode:=true]``.
+"""The rod_sim ROS 2 node (docs/interface.md section 3): chains of elastic rods driven by nodal
+forces and hinge torques, on a base driven by a wrench and a reaction wheel; ``sim_node`` /
+``rod-sim node`` / ``python -m rod_sim.ros.node --ros-args -p
+scene_file:=config/paper_example.yaml [-p sync_mode:=true]``.
 
 This module is wiring: ROS entities whose callbacks call parts with one job each, none needing
 a ROS graph: parameters (settings), simulation (scene, model, simulator, work budget), inputs
@@ -22,7 +23,6 @@ from pathlib import Path
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import SetBool, Trigger
 
 from rod_sim.core.units import NS_PER_S
@@ -30,7 +30,9 @@ from rod_sim.io import topics
 from rod_sim.io.log_writer import LogWriter
 from rod_sim.io.scene_yaml import scene_to_yaml
 from rod_sim.ros import simulation
-from rod_sim.ros.commands import FORCES, TORQUES, CommandIntake
+from rod_sim.ros.applied_base import base_values
+from rod_sim.ros.command_layout import CommandLayout
+from rod_sim.ros.commands import FORCES, MESSAGE_TYPES, TORQUES, WRENCH, CommandIntake
 from rod_sim.ros.control import NextTurn, RunControl
 from rod_sim.ros.conversions import message_class, message_to_dict
 from rod_sim.ros.errors import NodeConfigError, ThrottledLog
@@ -51,7 +53,7 @@ __all__ = ["RodSimNode", "NodeConfigError", "main", "PARAMETERS", "SERVICE_QUEUE
 COMMAND_TYPE = "std_msgs/msg/Float64MultiArray"
 DIAGNOSTICS_TOPIC = "/diagnostics"
 """Absolute, where diagnostic_aggregator listens (as diagnostic_updater publishes)."""
-DIAGNOSTICS_STATUS_NAME = "rod_sim: simulation"
+DIAGNOSTICS_STATUS_NAME = topics.DIAGNOSTICS_STATUS_NAME
 DIAGNOSTICS_PERIOD_S = 1.0   # [s] wall period of diagnostics
 IDLE_CLOCK_PERIOD_S = 0.1    # [s] wall period of /clock while no period advances
 WAITING_LOG_PERIOD_S = 3.0   # [s] wall period of the "waiting for ..." line at t = 0
@@ -85,12 +87,15 @@ class RodSimNode(Node):
             self.sim, self.period_ns = built.sim, built.period_ns
             self.period = simulation.start(built, s)
             self._budget = built.budget
-            self.inputs = Inputs(self.scene.n, s.command_timeout)
+            layout = CommandLayout.of_scene(self.scene)
+            self.inputs = Inputs(self.scene.n, s.command_timeout, layout, self._base_angle,
+                                 s.frame_id)
             self.control = RunControl(s.sync_mode, s.start_paused, s.real_time_factor)
             self._tick_timer = None
             self._pacing = Pacing(self.period_ns, s.real_time_factor)
             self._topic_names = {o.name: self.resolve_topic_name(o.name) for o in OUTPUTS}
-            self._topic_names.update({t: self.resolve_topic_name(t) for t in (FORCES, TORQUES)})
+            self._topic_names.update({t: self.resolve_topic_name(t)
+                                      for t in (FORCES, TORQUES, WRENCH)})
             self._topic_names["diagnostics"] = self.resolve_topic_name(DIAGNOSTICS_TOPIC)
             self._recording.start(Path(s.record_path) if s.record_path else None)
             self._create_interfaces()
@@ -104,7 +109,16 @@ class RodSimNode(Node):
             self.get_logger().warning(unknown_warning(self.unknown_parameters))
         self.get_logger().info(simulation.start_line(
             self.get_fully_qualified_name(), built, self.control.mode(),
-            (self._topic_names[FORCES], self._topic_names[TORQUES]), self.log_path, s))
+            tuple(self._topic_names[t] for t in self._command_topics()), self.log_path, s))
+
+    def _command_topics(self) -> tuple[str, ...]:
+        """The command topics the start-up line names (base_wrench only for a free base; it
+        is subscribed in any case, so that a wrench sent to another base is counted)."""
+        return (FORCES, TORQUES) + ((WRENCH,) if self.inputs.layout.free_base else ())
+
+    def _base_angle(self) -> float:
+        """The base's angle psi [rad] now (turns a base-frame wrench into Oxy)."""
+        return self.model.base_state(self.sim.t, self.sim.y).psi
 
     def _create_interfaces(self) -> None:
         s = self.settings
@@ -117,7 +131,7 @@ class RodSimNode(Node):
             message_class(topics.TOPIC_TYPES["clock"]), "/clock", clock_qos(s.clock_reliability),
             event_callbacks=quiet_events()) if s.publish_clock else None, IDLE_CLOCK_PERIOD_S)
         for topic, intake in self.inputs.intakes.items():   # raw: length checked first
-            self.create_subscription(Float64MultiArray, self._topic_names[topic],
+            self.create_subscription(intake.message_class, self._topic_names[topic],
                                      functools.partial(self._on_command_bytes, intake=intake),
                                      COMMAND_QOS, raw=True)
         self.create_service(Trigger, "~/reset", self._on_reset, qos_profile=SERVICE_QOS)
@@ -175,6 +189,7 @@ class RodSimNode(Node):
                 self.inputs.set_timeout(float(p.value))
             elif p.name == "frame_id":
                 self._outputs.frame_id = str(p.value)
+                self.inputs.set_inertial_frame(str(p.value))
                 self._outputs.descriptions(self.sim.t_ns, record=False,
                                            which=("robot_description",))
             elif p.name == "step_count":
@@ -190,20 +205,13 @@ class RodSimNode(Node):
         """Subscriptions matched to our publisher of the output ``topic`` (relative name)."""
         return self._pubs[topic].get_subscription_count()
 
-    # names the tests written before the split into parts use (kept so they pass unchanged)
-    _ledger = property(lambda self: self.period.ledger)
-    _validity = property(lambda self: self.period.validity)
-    _log = property(lambda self: self._recording.writer)
-    _latest = property(lambda self: self.inputs.forces.latest)
-    _last_rejection = property(lambda self: self.inputs.forces.last_rejection)
-    _command_active = property(lambda self: self.inputs.forces.active)
 
     def _on_command_bytes(self, data: bytes, intake: CommandIntake | None = None) -> None:
         """A serialized command: checked, recorded, validated, held (lockstep: queued)."""
         intake = self.inputs.forces if intake is None else intake
         command, warning = self.inputs.receive(data, intake, self.sim.t_ns, lambda msg: (
-            self._recording.record(self._topic_names[intake.kind], COMMAND_TYPE, self.sim.t_ns,
-                                   message_to_dict(msg))))
+            self._recording.record(self._topic_names[intake.kind], MESSAGE_TYPES[intake.kind],
+                                   self.sim.t_ns, message_to_dict(msg))))
         if command is None:
             self._log_throttled(f"rejected {intake.kind}", "warning", warning)
             return
@@ -238,8 +246,9 @@ class RodSimNode(Node):
             self._sync_trigger.trigger()
 
     def _step_period(self, held) -> bool:
-        """One period holding ``held`` ((n, 3) [X, Y, T] or (n, 2) forces) and publish its
-        outputs; False (paused, reported) when the integration fails."""
+        """One period holding ``held`` ((n, 3) [X, Y, T], (n + 2, 3) with a free base's rows,
+        or (n, 2) forces) and publish its outputs; False (paused, reported) when the
+        integration fails."""
         snap = self.period.run(held, self._publish_applied)
         if snap is None:
             self.control.fail(self.period.error)
@@ -254,8 +263,10 @@ class RodSimNode(Node):
         return True
 
     def _publish_applied(self, t_ns: int) -> None:
-        self._outputs.applied(t_ns, self.model.forces(t_ns / NS_PER_S, self.sim.held),
-                              self.sim.held[:, 2].copy())
+        n, held = self.scene.n, self.sim.held
+        loads = self.model.loads_at(t_ns / NS_PER_S, held)
+        self._outputs.applied(t_ns, loads[:n, :2].copy(), held[:n, 2].copy(),
+                              base_values(loads) if self.inputs.layout.free_base else None)
 
     def _publish_state(self, snap) -> None:
         self.period.note_state(snap)
@@ -334,7 +345,7 @@ class RodSimNode(Node):
         return create_log(path, node_log_metadata(
             scene_to_yaml(self.scene), self.model.name, self.sim.integrator.describe(),
             self.settings, self.control.mode(), self.get_fully_qualified_name()),
-            offered_qos(self._topic_names, log_depths(self.settings.sync_mode)))
+            offered_qos(self._topic_names, log_depths(self.settings.sync_mode, self.scene)))
 
     def destroy_node(self) -> None:
         """Close the log (with its summary) and the live view, then destroy the node."""

@@ -25,6 +25,8 @@ from rod_sim.core.snapshot import Snapshot
 from rod_sim.io import cdr, encoders, topics
 from rod_sim.io.hinge_events import HINGE_EVENTS_TOPIC, HINGE_EVENTS_TYPE, event_message, \
     event_time_ns
+from rod_sim.ros.applied_base import APPLIED_BASE_TOPIC, APPLIED_BASE_TYPE, base_array, \
+    base_values
 
 
 @dataclass(frozen=True)
@@ -40,15 +42,21 @@ class Output:
     qos: str
     encode: encoders.SnapshotEncoder | None = None
     rate_parameter: str | None = None
+    applies: Callable[[Scene], bool] | None = None
+    """Whether a scene has this topic (None: every scene)."""
+
+    def exists_for(self, scene: Scene) -> bool:
+        return self.applies is None or bool(self.applies(scene))
 
     @property
     def is_state(self) -> bool:
         return self.encode is not None
 
 
-def _state(name: str, rate_parameter: str | None = None) -> Output:
+def _state(name: str, rate_parameter: str | None = None,
+           applies: Callable[[Scene], bool] | None = None) -> Output:
     return Output(name, topics.TOPIC_TYPES[name], "state", encoders.SNAPSHOT_ENCODERS[name],
-                  rate_parameter)
+                  rate_parameter, applies)
 
 
 OUTPUTS: tuple[Output, ...] = (
@@ -56,13 +64,17 @@ OUTPUTS: tuple[Output, ...] = (
     _state("rod_states"),
     _state("bending"),
     _state("node_poses"),
+    _state("base_odometry", applies=lambda scene: scene.moving_base),
     _state("markers", "markers_rate_hz"),
     Output("applied_forces", topics.TOPIC_TYPES["applied_forces"], "applied"),
     Output("applied_torques", topics.TOPIC_TYPES["applied_torques"], "applied"),
+    Output(APPLIED_BASE_TOPIC, APPLIED_BASE_TYPE, "applied",
+           applies=lambda scene: scene.base.mode == "free"),
     Output("robot_description", topics.TOPIC_TYPES["robot_description"], "latched"),
     Output("scene", topics.TOPIC_TYPES["scene"], "latched"),
     Output("diagnostics", topics.TOPIC_TYPES["diagnostics"], "diagnostics"),
-    Output(HINGE_EVENTS_TOPIC, HINGE_EVENTS_TYPE, "events"),
+    Output(HINGE_EVENTS_TOPIC, HINGE_EVENTS_TYPE, "events",
+           applies=lambda scene: has_hinge_events(scene)),
 )
 """Every output topic of the node but ``/clock`` (docs/interface.md section 3)."""
 
@@ -89,12 +101,14 @@ def divider(rate_hz: float, topic_rate_hz: float) -> int:
     return max(1, round(rate_hz / topic_rate_hz)) if topic_rate_hz > 0 else 1
 
 
-def log_depths(sync_mode: bool) -> dict[str, int]:
-    """Relative topic -> history depth of the transient-local topics, as offered in a log."""
+def log_depths(sync_mode: bool, scene: Scene) -> dict[str, int]:
+    """Relative topic -> history depth of the scene's transient-local topics, as offered in a
+    log (``hinge_events`` in any case: events are recorded whatever the scene)."""
     from rod_sim.ros.qos import LOCKSTEP_STATE_DEPTH, STATE_DEPTH
 
     depths = {**LOG_DEPTHS, "state": LOCKSTEP_STATE_DEPTH if sync_mode else STATE_DEPTH}
-    return {o.name: depths[o.qos] for o in OUTPUTS if o.qos in depths}
+    return {o.name: depths[o.qos] for o in OUTPUTS
+            if o.qos in depths and (o.qos == "events" or o.exists_for(scene))}
 
 
 def quiet_events():
@@ -111,9 +125,10 @@ def quiet_events():
 
 
 def create_publishers(node, names: Mapping[str, str], scene: Scene, sync_mode: bool) -> dict:
-    """A publisher on ``node`` for each output of :data:`OUTPUTS` under its resolved name
-    (``hinge_events`` only for a scene with latches or stops), with the QoS of its entry and no
-    QoS event handlers (:func:`quiet_events`)."""
+    """A publisher on ``node`` for each output of :data:`OUTPUTS` that the scene has, under
+    its resolved name (``hinge_events`` only for a scene with latches or stops,
+    ``applied_base`` only for a free base), with the QoS of its entry and no QoS event
+    handlers (:func:`quiet_events`)."""
     from rod_sim.ros import qos as profiles
     from rod_sim.ros.conversions import message_class
 
@@ -122,7 +137,7 @@ def create_publishers(node, names: Mapping[str, str], scene: Scene, sync_mode: b
            "diagnostics": profiles.DIAGNOSTICS_QOS, "events": profiles.EVENTS_QOS}
     return {o.name: node.create_publisher(message_class(o.type_name), names[o.name], qos[o.qos],
                                           event_callbacks=quiet_events())
-            for o in OUTPUTS if o.qos != "events" or has_hinge_events(scene)}
+            for o in OUTPUTS if o.exists_for(scene)}
 
 
 class Outputs:
@@ -173,17 +188,23 @@ class Outputs:
         and the same bytes."""
         encoded = {}
         for name in names:
-            if self.due(name, t_ns):
+            if self.due(name, t_ns) and BY_NAME[name].exists_for(self.scene):
                 encoded[name] = BY_NAME[name].encode(snapshot, self.scene, self.frame_id)
                 self.send(name, t_ns, encoded[name], record=record)
         for tap in self.taps:
             tap(snapshot, t_ns, encoded)
 
-    def applied(self, t_ns: int, forces: np.ndarray, torques: np.ndarray) -> None:
-        """The applied forces (n, 2) [N] and hinge torques (n,) [N m] from ``t_ns`` on: each
+    def applied(self, t_ns: int, forces: np.ndarray, torques: np.ndarray,
+                base: np.ndarray | None = None) -> None:
+        """The applied forces (n, 2) [N] and hinge torques (n,) [N m] from ``t_ns`` on, and on
+        a free base ``base`` (4,) = [Fx, Fy, M, T_w] (:mod:`rod_sim.ros.applied_base`): each
         recorded every period, published when it changes (and the first time)."""
-        for name, values, encode in (("applied_forces", forces, encoders.force_array),
-                                     ("applied_torques", torques, encoders.torque_array)):
+        sent = [("applied_forces", forces, encoders.force_array),
+                ("applied_torques", torques, encoders.torque_array)]
+        if base is not None:
+            sent.append((APPLIED_BASE_TOPIC, base,
+                         lambda v: cdr.encoder(APPLIED_BASE_TYPE)(base_array(v))))
+        for name, values, encode in sent:
             last = self._applied_last.get(name)
             changed = last is None or not np.array_equal(values, last)
             if changed:

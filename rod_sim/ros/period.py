@@ -21,6 +21,7 @@ from typing import Callable
 import numpy as np
 
 from rod_sim.core.integrators import IntegrationError
+from rod_sim.core.ledger import SpacecraftLedger, diagnostic_strings, diagnostic_values
 from rod_sim.core.snapshot import Snapshot
 from rod_sim.core.units import NS_PER_S
 from rod_sim.core.validity import ValidityMonitor, balance_sample
@@ -30,9 +31,10 @@ from rod_sim.ros.pacing import RateMeter
 
 
 def full_inputs(held, n: int) -> np.ndarray:
-    """(n, 3) [X, Y, T] from (n, 3), or from (n, 2) / 2n forces (zero torques)."""
+    """(n, 3) [X, Y, T] from (n, 3), or from (n, 2) / 2n forces (zero torques); (n + 2, 3)
+    (with the base's and the wheel's rows) as it is."""
     held = np.asarray(held, dtype=float)
-    if held.shape == (n, 3):
+    if held.shape in ((n, 3), (n + 2, 3)):
         return held
     full = np.zeros((n, 3))
     full[:, :2] = held.reshape(n, 2)
@@ -49,6 +51,11 @@ class PeriodRunner:
         self.budget = budget
         self.period_ns = int(period_ns)
         self.ledger = EnergyLedger.for_model(self.model, self.energy(sim.held))
+        self.spacecraft = SpacecraftLedger(self.model) if self.model.is_spacecraft else None
+        """The momentum balance and injected work (spacecraft scenes; None otherwise)."""
+        self.last_state: Snapshot | None = None
+        """The snapshot at the end of the last good period (spacecraft diagnostics)."""
+        self._book_spacecraft(sim.held)
         self.validity = ValidityMonitor(self.model)
         self.meter = RateMeter(time.monotonic_ns())
         self.max_alpha = 0.0
@@ -71,9 +78,27 @@ class PeriodRunner:
         self.events_seen = 0
         self.error = None
         self.ledger.start(self.energy(self.sim.held))
+        if self.spacecraft is not None:
+            self.spacecraft.start()
+        self.last_state = None
+        self._book_spacecraft(self.sim.held)
         self._balance_end = None
         self.validity = ValidityMonitor(self.model)
         self.meter.restart(time.monotonic_ns())
+
+    def _book_spacecraft(self, held) -> None:
+        """The simulator's state in the momentum ledger (a spacecraft scene)."""
+        if self.spacecraft is not None:
+            sim = self.sim
+            self.spacecraft.add(sim.t, sim.y, held, sim.mode)
+
+    def spacecraft_values(self) -> dict[str, str]:
+        """The spacecraft keys of ``/diagnostics`` (:func:`rod_sim.core.ledger.diagnostic_values`)
+        at the last period's end; {} for a plain chain."""
+        if self.spacecraft is None:
+            return {}
+        snap = self.last_state if self.last_state is not None else self.sim.snapshot()
+        return diagnostic_strings(diagnostic_values(snap, self.spacecraft))
 
     def take_extremes(self) -> tuple[float, float]:
         """max |alpha|, max |beta| [rad] since the last call (then start again)."""
@@ -87,13 +112,13 @@ class PeriodRunner:
         self.max_beta = max(self.max_beta, float(np.max(np.abs(snap.beta), initial=0.0)))
 
     def run(self, held, at_start: Callable[[int], None] | None = None) -> Snapshot | None:
-        """One period holding ``held`` ((n, 3) [X, Y, T] or (n, 2) forces) plus the scene's
+        """One period holding ``held`` ((n, 3) [X, Y, T], (n + 2, 3) with the base's and the
+        wheel's rows, or (n, 2) forces) plus the scene's
         scripted loads; ``at_start(t_ns)`` is called once the inputs are set. Returns the
         snapshot at the period's end, or None (``error`` set, state unchanged) on failure."""
         sim = self.sim
         held = full_inputs(held, sim.model.n)
-        sim.set_forces(held[:, :2])
-        sim.set_hinge_torques(held[:, 2])
+        sim.set_held(held)
         if at_start is not None:
             at_start(sim.t_ns)
         last = self._balance_end
@@ -101,6 +126,7 @@ class PeriodRunner:
             start_sample = last[2]
         else:       # one right-hand side gives the slopes and the rate's direction
             start_sample = balance_sample(self.model, sim.t, sim.y, held, sim.mode)
+            self._book_spacecraft(held)     # the inputs changed: their rates from now on
         work = self.budget.work(sim)
         start = time.perf_counter_ns()
         try:
@@ -117,7 +143,9 @@ class PeriodRunner:
         end_sample = balance_sample(self.model, sim.t, sim.y, held, sim.mode, bending, f)
         self.ledger.add(start_sample, end_sample, sim.events[self.events_seen:])
         self._balance_end = (sim.t_ns, held.copy(), end_sample)
-        self.validity.update(sim.t, sim.y, held, snap.alpha, snap.beta)
+        self._book_spacecraft(held)
+        self.last_state = snap
+        self.validity.update(sim.t, sim.y, held[:sim.model.n], snap.alpha, snap.beta)
         self.validity.update_energy(sim.t, self.ledger.residual, self.ledger.scale,
                                     self.ledger.unresolved)
         return snap

@@ -3,6 +3,7 @@
     python -m rod_sim.ros.rate_bench --rate 1000 --duration 10
     python -m rod_sim.ros.rate_bench --rods 128 --rate 100 --duration 10 --json
     python -m rod_sim.ros.rate_bench --lockstep 5000 --record --keep-log out/lockstep.mcap
+    python -m rod_sim.ros.rate_bench --spacecraft --rate 100 --record
 
 The node runs in its own process (``python -m rod_sim.ros.node``, real-time pace, the reduced
 model by default); this process subscribes to ``rod_states`` and time-stamps every message on
@@ -24,6 +25,10 @@ it reports round trips per wall second and the node process's CPU time per round
 figure a loaded machine disturbs least). ``--keep-log`` keeps the node's log (``--record``);
 ``--node-pythonpath`` runs the node from another source tree (e.g. to compare the logs of two
 versions for the same inputs).
+
+``--spacecraft`` runs two chains of ``--rods`` rods each (default 512) on a free base instead
+(:func:`rod_sim.tools.bench.spacecraft.two_chain_scene`: the base turning, the chains bent and
+moving), the case of issue 28: 2 x 512 rods at 100 Hz with recording.
 
 With ``--period-cost K`` no ROS graph is started: this process builds the node's simulation
 from the same settings (:mod:`rod_sim.ros.simulation`) and runs K control periods through the
@@ -62,6 +67,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scene", default=str(DEFAULT_SCENE), help="scene YAML (default: the paper's example)")
     p.add_argument("--rods", type=int, default=None,
                    help="override the number of rods (same per-rod properties and loads)")
+    p.add_argument("--spacecraft", action="store_true",
+                   help="two chains of --rods rods each (default 512) on a free base")
     p.add_argument("--model", default="reduced", choices=("reduced", "full", "rigid"))
     p.add_argument("--rate", type=float, default=1000.0, help="node rate_hz [Hz]")
     p.add_argument("--duration", type=float, default=10.0, help="measured wall window [s]")
@@ -88,11 +95,20 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def scene_file(args, tmp: Path) -> Path:
-    """The scene to run: ``--scene`` itself, or a copy with ``--rods`` rods."""
-    if args.rods is None:
-        return Path(args.scene)
+    """The scene to run: ``--scene`` itself, or a copy with ``--rods`` rods, or with
+    ``--spacecraft`` two chains of ``--rods`` (512) rods on a free base."""
     from rod_sim.io.scene_yaml import load_scene, scene_to_yaml
     from rod_sim.core.scene import Scene
+
+    if args.spacecraft:
+        from rod_sim.tools.bench.spacecraft import two_chain_scene
+
+        scene = two_chain_scene(args.rods or 512)
+        path = tmp / f"{scene.name}.yaml"
+        path.write_text(scene_to_yaml(scene))
+        return path
+    if args.rods is None:
+        return Path(args.scene)
 
     data = load_scene(args.scene).to_dict()
     n_old = data["rods"]["count"]
@@ -318,11 +334,13 @@ def measure(args) -> dict:
     from rclpy.executors import SingleThreadedExecutor
     from sensor_msgs.msg import JointState
 
+    from rod_sim.io.scene_yaml import load_scene
     from rod_sim.ros.qos import keep_last
 
     with tempfile.TemporaryDirectory() as tmpdir:
         tmp = Path(tmpdir)
         scene = scene_file(args, tmp)
+        scene_name, n = scene.stem, load_scene(scene).n
         params = {"scene_file": str(scene), "model": args.model, "rate_hz": float(args.rate),
                   "real_time_factor": 1.0, "sync_mode": False, "publish_clock": True,
                   "record_path": str(tmp / "bench.mcap") if args.record else ""}
@@ -370,13 +388,12 @@ def measure(args) -> dict:
                 node_proc.kill()
         result = summarize(np.array(wall[first_kept:], dtype=np.int64),
                            np.array(stamps[first_kept:], dtype=np.int64), args.rate)
-    from rod_sim.io.scene_yaml import load_scene
     if cpu0 is not None and cpu1 is not None:
         result["node_cpu_fraction"] = (cpu1 - cpu0) / args.duration
     if args.live_view:
         result["viewer_frames"] = viewer_frames
-    result.update({"scene": Path(args.scene).name,
-                   "n": args.rods if args.rods else load_scene(args.scene).n,
+    result.update({"scene": Path(args.scene).name if not args.spacecraft else scene_name,
+                   "n": n,
                    "model": args.model, "rate_hz_set": args.rate, "record": args.record,
                    "window_s": args.duration})
     return result
@@ -405,7 +422,7 @@ def measure_period_cost(args) -> dict:
         names = {o.name: "/" + o.name for o in OUTPUTS}
         recording = NodeRecording(lambda path: create_log(path, node_log_metadata(
             scene_to_yaml(built.scene), model.name, sim.integrator.describe(), settings,
-            "lockstep", "/rod_sim"), offered_qos(names, log_depths(True))),
+            "lockstep", "/rod_sim"), offered_qos(names, log_depths(True, built.scene))),
             logging.getLogger("rate_bench"))
         recording.start(Path(settings.record_path) if settings.record_path else None)
         outputs = Outputs(built.scene, names, {}, recording, built.period_ns, "world",
@@ -415,8 +432,9 @@ def measure_period_cost(args) -> dict:
         commands = [np.zeros((n, 2)) if args.held_constant else lockstep_force(k, n)
                     for k in range(k_all + 10)]
 
-        def applied(t_ns: int) -> None:
-            outputs.applied(t_ns, model.forces(t_ns / 1e9, sim.held), sim.held[:, 2].copy())
+        def applied(t_ns: int) -> None:       # as the node's _publish_applied (no base)
+            loads = model.loads_at(t_ns / 1e9, sim.held)
+            outputs.applied(t_ns, loads[:n, :2].copy(), sim.held[:n, 2].copy())
 
         def with_outputs(k: int) -> None:
             snap = period.run(commands[k], applied)

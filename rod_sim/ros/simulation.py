@@ -95,7 +95,8 @@ def _warm_up(simulation: Simulation, settings) -> None:
     model.energies(snap.t, scratch.y, scratch.held)
     model.powers(snap.t, scratch.y, scratch.held)
     for name in STATE_TOPICS:
-        BY_NAME[name].encode(snap, simulation.scene, settings.frame_id)
+        if BY_NAME[name].exists_for(simulation.scene):
+            BY_NAME[name].encode(snap, simulation.scene, settings.frame_id)
 
 
 def start_line(node: str, simulation: Simulation, mode: str, command_topics, log_path,
@@ -105,7 +106,7 @@ def start_line(node: str, simulation: Simulation, mode: str, command_topics, log
     return (f"{node}: scene {simulation.scene.name!r} (n = {simulation.scene.n}), model "
             f"{simulation.model.name}, {sim.integrator.describe()}, {settings.rate_hz:g} Hz, "
             f"{mode}, work budget {simulation.budget.describe()}; commands on "
-            f"{command_topics[0]} and {command_topics[1]}"
+            f"{', '.join(command_topics[:-1])} and {command_topics[-1]}"
             + (f", recording to {log_path}" if log_path else "")
             + (", paused until ~/pause false or the first command"
                if settings.start_paused else ""))

@@ -179,6 +179,8 @@ def format_report(report, info: dict) -> str:
                                           for name, _ in COLUMNS))
     lines.append("     (scd: significant correct digits, see docs/compare.md)")
     lines += chaos_lines(report)
+    for line in report.spacecraft_lines:
+        lines += _wrap(line)
     for note in report.notes:
         lines += _wrap(f"note: {note}")
     lines.append("")

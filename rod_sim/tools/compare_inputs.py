@@ -73,9 +73,14 @@ class HeldInputs:
     scene's loads (n, 2) [N]); torques are held as logged. Counts messages and segments and
     the largest |held| force [N] and torque [N m]."""
 
-    def __init__(self, log, n: int, scripted_forces):
+    def __init__(self, log, n: int, scripted_forces, scripted_base=None):
         self.log = log
         self.scripted_forces = scripted_forces
+        self.scripted_base = scripted_base
+        """``scripted_base(t [s]) -> (2, 3)``: the scene's base and wheel rows of the load
+        table (a free base; None otherwise): ``applied_base`` less them is held."""
+        self.base_msgs: list[tuple[int, np.ndarray]] = []
+        self.held_base: np.ndarray | None = None
         self.applied: list[tuple[int, np.ndarray]] = []
         self.torque_msgs: list[tuple[int, np.ndarray]] = []
         self.held: np.ndarray | None = None
@@ -104,6 +109,9 @@ class HeldInputs:
             changes.setdefault(t, {})["forces"] = applied
         for t, value in torques:
             changes.setdefault(t, {})["torques"] = value
+        bases, self.base_msgs = _split(self.base_msgs, t_cut)
+        for t, value in bases:
+            changes.setdefault(t, {})["base"] = value
         bounds, helds = [], []
         for t in sorted(changes):
             change = changes[t]
@@ -123,7 +131,13 @@ class HeldInputs:
                 self.torque_messages += 1
                 self.held_torque = value
                 self.max_torque = max(self.max_torque, float(np.max(np.abs(value))))
+            if "base" in change and self.scripted_base is not None:
+                fx, fy, m, tw = change["base"]
+                self.held_base = np.array([[fx, fy, m], [0.0, 0.0, tw]]) \
+                    - self.scripted_base(t / NS_PER_S)
             held = np.column_stack([self.held_force, self.held_torque])
+            if self.held_base is not None:
+                held = np.vstack([held, self.held_base])
             if self.held is None or not np.array_equal(held, self.held):
                 bounds.append(t)
                 helds.append(self.held)

@@ -54,7 +54,8 @@ class Run:
     def advance(self, t_out: np.ndarray, bounds: list[int], helds: list[np.ndarray]) -> np.ndarray:
         """States (len(t_out), 6n) at the sorted times ``t_out`` [ns] (all >= ``t_ns``, the
         last <= ``bounds[-1]``); the held input ``helds[i]`` (n, 3) = forces X, Y [N] and hinge
-        torques T [N m] (or (n, 2): forces, zero torques) applies up to
+        torques T [N m] (or (n, 2): forces, zero torques; or (n + 2, 3) with the free base's
+        rows of ``Simulator.set_held``) applies up to
         ``bounds[i]`` [ns] (the integrator restarts there). Raises IntegrationError."""
         out = np.empty((t_out.size, self.y.size))
         k = 0
@@ -67,7 +68,11 @@ class Run:
             j = k
             while j < t_out.size and t_out[j] <= b:
                 j += 1
-            held = np.asarray(held, dtype=float).reshape(self.model.n, -1)
+            held = np.asarray(held, dtype=float)
+            if held.shape == (self.model.n + 2, 3):      # with a free base's rows
+                self.sim.set_held(held)
+                held = held[:self.model.n]
+            held = held.reshape(self.model.n, -1)
             self.sim.set_forces(held[:, :2])
             self.sim.set_hinge_torques(held[:, 2] if held.shape[1] == 3
                                        else np.zeros(self.model.n))

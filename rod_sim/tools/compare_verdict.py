@@ -30,6 +30,7 @@ class Cause(enum.Enum):
     STATE_GAPS = "state_gaps"                   # /rod_states samples are missing
     REFERENCE_NOT_CONVERGED = "reference_not_converged"   # the two re-runs differ too much
     DEPARTS_BEYOND_HORIZON = "departs_beyond_horizon"     # max |phi error| / gain > tol
+    SPACECRAFT_EXCEEDED = "spacecraft_exceeded"   # a chain's hinge or the base's error > tol
 
 
 @dataclass(frozen=True)
@@ -49,6 +50,8 @@ class Reason:
     t: float | None = None
     first_t: float | None = None
     interval: tuple[float, float] | None = None
+    detail: str | None = None
+    """SPACECRAFT_EXCEEDED: the sentence of :mod:`rod_sim.tools.compare_spacecraft`."""
 
     def text(self) -> str:
         """The reason as one sentence (the text report's FAIL line and JSON ``reasons``)."""
@@ -63,6 +66,8 @@ class Reason:
             a, b = self.interval
             return (f"/rod_states has {int(self.value)} gap(s) (first {a:.6g} s to {b:.6g} s): "
                     "the missing samples were not checked")
+        if self.cause is Cause.SPACECRAFT_EXCEEDED:
+            return str(self.detail)
         if self.cause is Cause.REFERENCE_NOT_CONVERGED:
             return (f"the reference is not converged{upto} (estimated phi error "
                     f"{self.value:.2g} rad)")
@@ -89,13 +94,15 @@ class Judgement:
 def judge(*, tolerance: float, max_error: float, horizon: float | None,
           within_max: float, within_where: tuple[int, float], first_exceeded: float | None,
           gap_count: int, first_gap: tuple[float, float] | None, converged: bool,
-          reference_error: float, deamplified_beyond: float | None) -> Judgement:
+          reference_error: float, deamplified_beyond: float | None,
+          spacecraft: tuple[str, ...] = ()) -> Judgement:
     """The verdict of a comparison at ``tolerance`` [rad] from: the largest phi error over the
     whole log ``max_error`` (non-finite: the log is), the ``horizon`` [s] (None: none), the
     largest error before it ``within_max`` at ``within_where`` = (rod, t [s]), the first time
     the tolerance is exceeded, the number of state gaps and the first one (s, s), whether the
     reference ``converged`` and its estimated error before the horizon ``reference_error``,
-    and beyond the horizon the largest error divided by the gain (None: no sample there)."""
+    and beyond the horizon the largest error divided by the gain (None: no sample there);
+    ``spacecraft``: the sentences of the chains and the base over their tolerances."""
     finite = math.isfinite(max_error)
     reasons = []
     if not finite:
@@ -113,6 +120,8 @@ def judge(*, tolerance: float, max_error: float, horizon: float | None,
     if deamplified_beyond is not None and deamplified_beyond > tolerance and finite:
         reasons.append(Reason(Cause.DEPARTS_BEYOND_HORIZON, deamplified_beyond, tolerance,
                               horizon))
+    reasons.extend(Reason(Cause.SPACECRAFT_EXCEEDED, limit=tolerance, horizon=horizon,
+                          detail=text) for text in spacecraft)
     if reasons:
         return Judgement(Verdict.FAIL, tuple(reasons))
     return Judgement(Verdict.PASS if horizon is None else Verdict.PASS_THEN_INCONCLUSIVE)

@@ -56,6 +56,7 @@ from rod_sim.core.units import NS_PER_S
 from .compare_chaos import CONVERGED_FRACTION, ChaosTracker
 from .compare_chaos import ONSET_GAIN, TWIN_DELTA  # noqa: F401  (documented constants)
 from .compare_inputs import CompareInputError, HeldInputs, SampleTimeline
+from .compare_spacecraft import SpacecraftCheck
 from .compare_runs import (COMPARE_CHECK_RTOL, COMPARE_REFERENCE_RTOL, References,
                            reference_model)
 from .compare_stats import (QUANTITIES, BeyondHorizon, Decimated, QuantityStats,
@@ -104,6 +105,9 @@ class Report:
     judgement: Judgement
     info: dict[str, Any] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    spacecraft: dict[str, Any] | None = None
+    """A spacecraft scene's per-chain and base errors (:mod:`.compare_spacecraft`), else None."""
+    spacecraft_lines: list[str] = field(default_factory=list)
 
     @property
     def within_tolerance(self) -> bool:
@@ -176,6 +180,7 @@ class Report:
             "gaps": {"rod_states": [list(g) for g in self.gaps], "count": self.gap_count},
             "truncated": self.truncated,
             "notes": list(self.notes),
+            "spacecraft": self.spacecraft,
         }
 
 
@@ -191,12 +196,18 @@ class _Comparison:
         y0 = self.model.initial_state()
         self.refs = References(self.model, rtol, check_rtol, y0)
         self.chaos = ChaosTracker(self.model, rtol, y0)
-        self.inputs = HeldInputs(log, n, self.model.forces)
+        self.inputs = HeldInputs(
+            log, n, self.model.forces,
+            (lambda t: scene.scripted_load_table(t)[n:n + 2])
+            if scene.base.mode == "free" else None)
         self.timeline = SampleTimeline(rate_hz)
         rods = list(range(1, n + 1))
+        self.spacecraft = SpacecraftCheck(scene, self.model, tolerance) \
+            if scene.is_spacecraft else None
+        rows = n + 1 if self.spacecraft is None else n + len(scene.chains) + 1
         self.q = {"phi": QuantityStats("phi", rods, keep),
                   "phi_rate": QuantityStats("phi_rate", rods, keep),
-                  "node_position": QuantityStats("node_position", list(range(n + 1)), keep),
+                  "node_position": QuantityStats("node_position", list(range(rows)), keep),
                   "alpha": QuantityStats("alpha", rods, keep),
                   "beta": QuantityStats("beta", rods, keep)}
         self.within = WithinHorizon()
@@ -206,6 +217,7 @@ class _Comparison:
         self.states: list[tuple[int, np.ndarray, np.ndarray]] = []
         self.bending: list[tuple[int, np.ndarray, np.ndarray]] = []
         self.nodes: list[tuple[int, np.ndarray]] = []
+        self.bases: list[tuple[int, np.ndarray]] = []
 
     # ----- input -----
 
@@ -219,10 +231,14 @@ class _Comparison:
             self.bending.append((g.t_ns, *g.bending))
         if g.nodes is not None:
             self.nodes.append((g.t_ns, g.nodes))
+        if g.base is not None:
+            self.bases.append((g.t_ns, g.base))
         if g.applied is not None:
             self.inputs.applied.append((g.t_ns, g.applied))
         if g.torques is not None:
             self.inputs.torque_msgs.append((g.t_ns, g.torques))
+        if g.applied_base is not None:
+            self.inputs.base_msgs.append((g.t_ns, g.applied_base))
         if g.state is not None and self.states and (
                 len(self.states) >= WINDOW_SAMPLES
                 or g.t_ns - self.states[0][0] >= WINDOW_S * NS_PER_S):
@@ -268,11 +284,20 @@ class _Comparison:
         err = np.abs(phi_log - phi_ref)
         self.q["phi"].add(ts, err, phi_ref)
         self.q["phi_rate"].add(ts, np.abs(np.array([s[2] for s in states]) - rate_ref), rate_ref)
+        if self.spacecraft is not None:
+            bases = dict(b for b in self.bases if b[0] <= t_cut)
+            self.bases = [b for b in self.bases if b[0] > t_cut]
+            base_log = np.array([bases.get(int(t), (np.nan,) * 3) for t in t_st], dtype=float)
+            self.spacecraft.add(ts, phi_log, y[rows], base_log.reshape(-1, 3))
         if poses:
             r = np.searchsorted(t_out, [p[0] for p in poses])
-            p_ref = np.array([node_positions(np.asarray(self.scene.length, dtype=float), p)
-                              for p in y[r, :n]])
-            d = np.linalg.norm(np.array([p[1] for p in poses]) - p_ref, axis=2)
+            p_ref = self._reference_nodes(t_out[r] / NS_PER_S, y[r])
+            logged = np.array([p[1] for p in poses])
+            if logged.shape[1:] != p_ref.shape[1:]:
+                raise CompareInputError(f"/node_poses has {logged.shape[1]} poses but the "
+                                        f"scene {self.scene.name!r} has {p_ref.shape[1]}: "
+                                        "wrong scene")
+            d = np.linalg.norm(logged - p_ref, axis=2)
             self.q["node_position"].add(np.array([p[0] for p in poses]) / NS_PER_S, d,
                                         np.linalg.norm(p_ref, axis=2))
         if bend:
@@ -285,6 +310,17 @@ class _Comparison:
         gain = self.chaos.gains(yt[rows], phi_ref)
         self._judge(ts, np.where(np.isfinite(err), err, np.inf), gain, ref_sep, phi_log, phi_ref)
         self.chaos.renormalise(self.refs.ref.y)
+
+    def _reference_nodes(self, ts: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """(N, rows, 2) [m] the full model's ``node_poses`` positions: nodes 0..n of the plain
+        chain, or every chain's nodes and then the base frame's origin."""
+        n = self.n
+        if self.spacecraft is None:
+            return np.array([node_positions(np.asarray(self.scene.length, dtype=float), p)
+                             for p in y[:, :n]])
+        base = self.spacecraft.reference_base(ts, y)
+        return np.array([np.concatenate([self.model.node_positions(float(t), yi), b[None, :2]])
+                         for t, yi, b in zip(ts, y, base)])
 
     def _judge(self, ts, err, gain, ref_sep, phi_log, phi_ref) -> None:
         """Sample by sample: the horizon (chaos tracker), then the within / beyond-horizon
@@ -340,7 +376,11 @@ class _Comparison:
             first_exceeded=self.within.first_exceeded, gap_count=line.gap_count,
             first_gap=line.gaps[0] if line.gaps else None, converged=converged,
             reference_error=self.within.ref_separation,
-            deamplified_beyond=beyond["max_deamplified_phi_error"] if beyond else None)
+            deamplified_beyond=beyond["max_deamplified_phi_error"] if beyond else None,
+            spacecraft=tuple(self.spacecraft.failures()) if self.spacecraft else ())
+        if self.spacecraft is not None and self.spacecraft.moving and \
+                not self.spacecraft.base_samples:
+            notes.append("no /base_odometry messages: the base was not compared")
         return Report(
             n=self.n, tolerance=float(tol), samples=line.count,
             t_start=line.first / NS_PER_S, t_end=t_end,
@@ -348,7 +388,9 @@ class _Comparison:
             reference=reference, forces=self.inputs.summary(),
             gaps=line.gaps, gap_count=line.gap_count, truncated=bool(self.log.truncated),
             horizon=chaos.horizon, chaos=summary, within=within, series=self.series,
-            judgement=judgement, notes=notes)
+            judgement=judgement, notes=notes,
+            spacecraft=self.spacecraft.summary() if self.spacecraft else None,
+            spacecraft_lines=self.spacecraft.lines() if self.spacecraft else [])
 
 
 def compare_log(log: "LogStream", scene: Scene, tolerance: float = DEFAULT_TOLERANCE, *,

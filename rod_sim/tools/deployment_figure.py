@@ -2,7 +2,9 @@
 
 Draws the chords of the rods (node positions from the logged rod angles and the scene's rod
 lengths) at several simulated times, and marks the latch events of ``/hinge_events``
-(docs/hinges.md). Also ``rod-sim deployment-figure LOG PNG``.
+(docs/hinges.md). On a spacecraft scene every chain hangs on the base, drawn as a box at its
+centre of mass turned by psi (from ``/base_odometry`` on a moving base), and a third panel shows
+the bus turning, psi(t). Also ``rod-sim deployment-figure LOG PNG``.
 """
 from __future__ import annotations
 
@@ -76,29 +78,51 @@ def run(args) -> int:
     else:
         t_last = max([e["t"] for e in latches], default=t[-1])
         times = list(np.linspace(0.0, t_last, 8)) + [float(t[-1])]
-    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(8, 8), gridspec_kw={"height_ratios": [3, 1.4]})
+    base = _base_series(args.log, scene, t) if scene.is_spacecraft else None
+    if base is None:
+        fig, (ax, ax2) = plt.subplots(2, 1, figsize=(8, 8),
+                                      gridspec_kw={"height_ratios": [3, 1.4]})
+    else:
+        fig, (ax, ax2, ax3) = plt.subplots(3, 1, figsize=(8, 10),
+                                           gridspec_kw={"height_ratios": [3, 1.4, 1.0]})
     cmap = plt.get_cmap("viridis")
     for j, ts in enumerate(times):
         i = int(np.argmin(np.abs(t - ts)))
-        xy = node_positions(np.asarray(scene.length), phi[i])
-        ax.plot(xy[:, 0], xy[:, 1], "-o", ms=3, color=cmap(j / max(len(times) - 1, 1)),
-                label=f"t = {t[i]:.2f} s")
-    ax.plot([0], [0], "ks", ms=8)
+        color = cmap(j / max(len(times) - 1, 1))
+        if base is None:
+            xy = node_positions(np.asarray(scene.length), phi[i])
+            ax.plot(xy[:, 0], xy[:, 1], "-o", ms=3, color=color, label=f"t = {t[i]:.2f} s")
+        else:
+            _draw_spacecraft(ax, scene, phi[i], base[i], color, f"t = {t[i]:.2f} s")
+    if base is None:
+        ax.plot([0], [0], "ks", ms=8)
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_title(f"{scene.name}: chain at several times ({len(latches)} latch events)")
     ax.legend(fontsize=7, loc="best")
-    theta = np.diff(phi, prepend=0.0, axis=1)
+    if base is None:
+        theta = np.diff(phi, prepend=0.0, axis=1)
+        labels = [f"hinge {h}" for h in range(scene.n)]
+    else:
+        from .compare_spacecraft import hinge_angles
+
+        theta = hinge_angles(np.asarray(scene.chain_root), phi, base[:, 2])
+        labels = [f"{c.name or 'chain'} {h}" for c in scene.chains for h in range(c.count)]
     for h in range(scene.n):
-        ax2.plot(t, theta[:, h], label=f"hinge {h}")
+        ax2.plot(t, theta[:, h], label=labels[h])
     for e in latches:
         ax2.axvline(e["t"], color="k", lw=0.6, ls=":")
         ax2.annotate(f"latch {e['hinge']}", (e["t"], 0.0), rotation=90, fontsize=7,
                      xytext=(2, 5), textcoords="offset points")
     ax2.set_xlabel("t [s]")
     ax2.set_ylabel("hinge angle [rad]")
-    ax2.legend(fontsize=7, ncol=scene.n)
+    ax2.legend(fontsize=7, ncol=scene.n if base is None else min(scene.n, 5))
+    if base is not None:
+        ax3.plot(t, base[:, 2], "k-")
+        ax3.set_xlabel("t [s]")
+        ax3.set_ylabel("base angle psi [rad]")
+        ax3.set_title(f"the bus turns: psi from {base[0, 2]:.4g} to {base[-1, 2]:.4g} rad")
     fig.tight_layout()
     try:
         fig.savefig(png, dpi=110)
@@ -106,6 +130,40 @@ def run(args) -> int:
         raise UsageError(f"png: cannot write {png}: {err.strerror or err}") from None
     print(f"{png}: {len(times)} snapshots, {len(latches)} latch events")
     return 0
+
+
+def _base_series(log: str, scene, t: np.ndarray) -> np.ndarray:
+    """(N, 3) the base's x, y [m], psi [rad] at the rod_states times ``t`` [s]: from
+    ``/base_odometry`` on a moving base (psi unwrapped), the scene's constant pose otherwise."""
+    b = scene.base
+    if not scene.moving_base:
+        return np.tile([b.x, b.y, b.psi], (t.size, 1))
+    from ..io.series import read_base_odometry
+
+    tb, base = read_base_odometry(log)
+    return np.column_stack([np.interp(t, tb, base[:, k]) for k in range(3)])
+
+
+def _draw_spacecraft(ax, scene, phi: np.ndarray, base: np.ndarray, color, label: str) -> None:
+    """Every chain's chords and the base's box (side :func:`~rod_sim.io.encoders.base_box`,
+    at its centre of mass, turned by psi) at one instant."""
+    from ..core.kinematics import chain_node_positions
+    from ..io.encoders import base_box
+
+    x, y, psi = (float(v) for v in base)
+    seg = scene.chain_starts
+    attach = np.array([c.attach for c in scene.chains], dtype=float).reshape(-1, 2)
+    nodes = chain_node_positions(np.asarray(scene.length, float), phi, seg, attach, x, y, psi)
+    for c in range(len(scene.chains)):
+        a, b = int(seg[c]) + c, int(seg[c + 1]) + c + 1
+        ax.plot(nodes[a:b, 0], nodes[a:b, 1], "-o", ms=3, color=color,
+                label=label if c == 0 else None)
+    half = 0.5 * base_box(scene)
+    rot = np.array([[math.cos(psi), -math.sin(psi)], [math.sin(psi), math.cos(psi)]])
+    corners = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1], [-1, -1]]) * half \
+        + np.asarray(scene.base.centre_of_mass, float)
+    box = corners @ rot.T + np.array([x, y])
+    ax.plot(box[:, 0], box[:, 1], "-", color=color, lw=1.5)
 
 
 def main(argv=None) -> int:

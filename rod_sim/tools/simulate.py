@@ -171,6 +171,13 @@ class _LoggedRun:
         """A :class:`~rod_sim.io.live_view.LiveView` shown each sample (or None)."""
         self.rtf = 1.0
         self._live_start: float | None = None
+        from ..core.ledger import SpacecraftLedger
+        from ..io import topics
+
+        self.spacecraft = SpacecraftLedger(sim.model) if sim.model.is_spacecraft else None
+        """The momentum ledger of a spacecraft scene (its values go to ``/diagnostics``)."""
+        self.topics = topics.DEFAULT_TOPICS + (topics.BASE_TOPICS if scene.moving_base else ())
+        """The state topics of each sample (``base_odometry`` on a moving base)."""
 
     def _write(self, t: float, y, mode=None) -> None:
         from ..core.validity import EnergyBalance, balance_sample
@@ -195,14 +202,35 @@ class _LoggedRun:
         from ..io import encoders, topics
 
         t_ns = topics.time_ns(snap.t)
-        encoded = encoders.snapshot_bytes(snap, self.scene, self.frame_id)
+        encoded = encoders.snapshot_bytes(snap, self.scene, self.frame_id, self.topics)
+        diagnostics = self._diagnostics(t, y, mode, snap)
         with signals_deferred():            # every record of a sample whole, or none
             for name, data in encoded.items():
                 self.log.write_cdr("/" + name, topics.TOPIC_TYPES[name], t_ns, data)
+            if diagnostics is not None:
+                self.log.write("/diagnostics", topics.TOPIC_TYPES["diagnostics"], t_ns,
+                               diagnostics)
             self.samples += 1
             self.t_logged = t
         if self.live is not None:
             self._show(t, t_ns, snap, encoded)
+
+    def _diagnostics(self, t: float, y, mode, snap):
+        """A spacecraft scene's ``/diagnostics`` message of the sample (None otherwise): the
+        node's energy keys and the spacecraft keys (docs/interface.md section 3), the momentum
+        ledger fed with every sample."""
+        if self.spacecraft is None:
+            return None
+        from ..core.ledger import diagnostic_strings, diagnostic_values
+        from ..io import topics
+
+        self.spacecraft.add(t, y, None, mode)
+        b = self.balance
+        values = {"energy_J": f"{self._last.energy:.17g}",
+                  "energy_balance_residual_J": f"{b.residual if b is not None else 0.0:.17g}",
+                  **diagnostic_strings(diagnostic_values(snap, self.spacecraft))}
+        return topics.diagnostics(t, values, self.scene.name,
+                                  name=topics.DIAGNOSTICS_STATUS_NAME)
 
     def _show(self, t: float, t_ns: int, snap, encoded) -> None:
         """Pace the samples at ``rtf`` and show them in the live view."""
