@@ -21,3 +21,17 @@ def test_summary_of_a_steady_stream_with_one_late_and_one_missing_message():
 def test_parameter_values_are_written_as_ros_yaml():
     assert [ros_arg(v) for v in (True, False, "", "a.yaml", 1000.0)] == [
         "true", "false", "''", "a.yaml", "1000.0"]
+
+
+def test_period_cost_runs_the_node_parts_without_ros(capsys):
+    """--period-cost K: CPU per period of the integration, the period and the period with its
+    outputs (a log written) are reported (no timing is asserted: each is a positive number)."""
+    import json
+
+    from rod_sim.ros.rate_bench import main
+
+    assert main(["--period-cost", "30", "--rate", "500", "--record", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["n"] == 8 and result["periods"] == 10 and result["record"]
+    for key in ("integration_ms", "period_ms", "period_with_outputs_ms"):
+        assert result[key] > 0.0, result

@@ -50,8 +50,14 @@ class HingeEvent:
 
 
 def hinge_angles(phi: np.ndarray) -> np.ndarray:
-    """Rigid hinge angles theta (..., n) [rad] from rod angles phi (..., n) (rates from rates)."""
-    return np.diff(phi, prepend=0.0, axis=-1)
+    """Rigid hinge angles theta (..., n) [rad] from rod angles phi (..., n) (rates from rates):
+    phi_1 - 0, phi_2 - phi_1, ... (the values of ``np.diff(phi, prepend=0.0)``, without its
+    concatenation: this runs several times per sample)."""
+    a = np.asarray(phi)
+    out = np.empty(a.shape, dtype=np.result_type(a.dtype, np.float64))
+    np.subtract(a[..., :1], 0.0, out=out[..., :1])
+    np.subtract(a[..., 1:], a[..., :-1], out=out[..., 1:])
+    return out
 
 
 def contact_moments(theta, dtheta, lower, upper, stiffness, damping) -> np.ndarray:

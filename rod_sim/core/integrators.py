@@ -22,10 +22,22 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
-from . import erk, hinges, radau
+from .scipy_tables import light_dop853_tables
+
+with light_dop853_tables():     # erk's tables without scipy.integrate's import
+    from . import erk, hinges, radau
 from .kernels import Control, Events, Output, Problem, Span
+
+
+
+def _solve_ivp():
+    """scipy's ``solve_ivp``, imported when a scipy method first runs (importing
+    ``scipy.integrate`` costs ~1 s, which a start with the compiled integrators never needs)."""
+    from scipy.integrate import solve_ivp
+
+    return solve_ivp
+
 
 DEFAULT_RTOL = 1e-8
 DEFAULT_STEP = 1e-3
@@ -442,7 +454,7 @@ class ScipyIntegrator(Integrator):
 
             try:
                 with np.errstate(all="ignore"):
-                    sol = solve_ivp(fun, (a, b), y, method=self.name, rtol=self.rtol,
+                    sol = _solve_ivp()(fun, (a, b), y, method=self.name, rtol=self.rtol,
                                     atol=self.abs_tol, dense_output=True, events=fns)
             except _NonFinite as exc:
                 raise _failure(model, exc.reason, exc.t, exc.y, held) from None

@@ -15,7 +15,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.sparse.linalg import ArpackNoConvergence, LinearOperator, eigsh
 
 from . import kernels
 
@@ -113,6 +112,8 @@ def lowest_bending_mode(model, phi: np.ndarray, guess_omega: float) -> float:
     free = _free_coordinates(model)
     if free.size <= DENSE_UP_TO:
         return _dense_lowest(model, phi, free)
+    from scipy.sparse.linalg import ArpackNoConvergence, LinearOperator, eigsh  # ~0.3 s
+
     sigma = (0.9 * guess_omega) ** 2
     M = LinearOperator((d, d), matvec=lambda v: mass_times(model, phi, v), dtype=float)
     K = LinearOperator((d, d), matvec=lambda v: stiffness_times(model, v), dtype=float)

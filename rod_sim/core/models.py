@@ -19,7 +19,10 @@ from typing import Callable, NamedTuple, Protocol
 
 import numpy as np
 
-from . import erk, hinges, kernels, radau
+from .scipy_tables import light_dop853_tables
+
+with light_dop853_tables():     # erk's tables without scipy.integrate's import
+    from . import erk, hinges, kernels, radau
 from .kinematics import chain_node_positions, node_positions
 from .matrices import ChainParams
 from .scene import LOAD_AXES, Scene
@@ -179,6 +182,7 @@ class Model(Protocol):
     def mass_times(self, y: np.ndarray, v: np.ndarray | None = None) -> np.ndarray: ...
     def project_velocity(self, y: np.ndarray, mode=None) -> np.ndarray: ...
     def bending(self, t, y, held=None, mode=None) -> tuple[np.ndarray, np.ndarray]: ...
+    def rhs_bending(self, t, y, held=None, mode=None) -> tuple[np.ndarray, tuple]: ...
     def bending_rates(self, t, y, held=None) -> tuple[np.ndarray, np.ndarray]: ...
     def hinge_deflection(self, t, y, held=None, bending=None,
                          mode=None) -> tuple[np.ndarray, np.ndarray]: ...
@@ -186,7 +190,7 @@ class Model(Protocol):
     def kinetic_energy(self, t, y, held=None) -> float: ...
     def energies(self, t, y, held=None, bending=None, mode=None) -> Energies: ...
     def powers(self, t, y, held=None, mode=None) -> tuple[float, float]: ...
-    def snapshot(self, t, y, held=None, mode=None) -> Snapshot: ...
+    def snapshot(self, t, y, held=None, mode=None, bending=None) -> Snapshot: ...
 
 
 def load_table(scene: Scene):
@@ -245,6 +249,9 @@ class ChainModel:
                                 scene.stop_damping], dtype=float)
         self._plans: dict = {}
         self.has_latches = bool(np.isfinite(scene.latch_angle).any())
+        self.has_stops = bool(np.any(np.isfinite(scene.stop_lower)
+                                     | np.isfinite(scene.stop_upper)))
+        """Whether any hinge has a finite stop (else no contact ever: contact_state is 0)."""
         self._check_base_features()
         self.extra = self.plan().extra
 
@@ -413,6 +420,8 @@ class ChainModel:
     def contact_state(self, y: np.ndarray) -> np.ndarray:
         """Stop contacts (n,) int8 implied by the state: +1 above the upper stop (or on it and
         moving in), -1 below the lower one (or on it and moving in), 0 otherwise."""
+        if not self.has_stops:      # every stop at -inf / +inf: never touched
+            return np.zeros(self.n, dtype=np.int8)
         s = self.scene
         theta = self.hinge_angles(y)
         rate = self.hinge_rates(y)
@@ -426,6 +435,9 @@ class ChainModel:
         with the stop contacts ``contact`` (None: as implied by y)."""
         out = np.empty(self.state_size)
         y = np.ascontiguousarray(y, dtype=float)
+        if y.shape != out.shape:        # the kernel does not check its bounds
+            raise ValueError(f"y: a state of {self.name} model has {self.state_size} "
+                             f"components, got shape {y.shape}")
         side = self.contact_state(y) if contact is None else contact
         self.kernel(t, y, self.chain, self.plan(mode, side).extra, self.loads, self._held(held),
                     t, out)
@@ -498,6 +510,13 @@ class ChainModel:
         """End slopes (alpha, beta), each (n,) [rad]."""
         raise NotImplementedError
 
+    def rhs_bending(self, t, y, held=None, mode=None) -> tuple[np.ndarray, tuple]:
+        """(:meth:`rhs`, :meth:`bending`) at (t, y): dy/dt (state_size,) and (alpha, beta)
+        (n,) each [rad], the same values as the two calls give (a sample needs both: the
+        snapshot and the energy balance's power rate; the reduced model gets both from one
+        right-hand side)."""
+        return self.rhs(t, y, held, mode), self.bending(t, y, held, mode)
+
     def bending_rates(self, t, y, held=None) -> tuple[np.ndarray, np.ndarray]:
         """Rates of the end slopes as the model's equations carry them [rad/s]."""
         return np.zeros(self.n), np.zeros(self.n)
@@ -524,6 +543,8 @@ class ChainModel:
 
     def contact_moments(self, y: np.ndarray, mode=None) -> np.ndarray:
         """Stop contact moments (n,) [N m] on theta (zero on locked hinges)."""
+        if not self.has_stops:
+            return np.zeros(self.n)
         s = self.scene
         m = hinges.contact_moments(self.hinge_angles(y), self.hinge_rates(y),
                                    s.stop_lower, s.stop_upper, s.stop_stiffness, s.stop_damping)
@@ -610,9 +631,11 @@ class ChainModel:
         delta, _ = self.hinge_deflection(t, y, held, bending=(alpha, beta))
         p, s = self.params, self.scene
         hinge = 0.5 * float(np.sum(p.kappa * (delta - s.hinge_rest_angle) ** 2))
-        pen = hinges.contact_penetration(self.hinge_angles(y, t), s.stop_lower, s.stop_upper)
-        pen[self.plan(mode).locked] = 0.0
-        hinge += 0.5 * float(np.sum(s.stop_stiffness * pen**2))
+        if self.has_stops:      # the stop contacts' elastic energy (no stop: none)
+            pen = hinges.contact_penetration(self.hinge_angles(y, t), s.stop_lower,
+                                             s.stop_upper)
+            pen[self.plan(mode).locked] = 0.0
+            hinge += 0.5 * float(np.sum(s.stop_stiffness * pen**2))
         bend = float(np.sum(2.0 * p.EI / p.l * (alpha**2 + beta**2 + alpha * beta)))
         return Energies(self.kinetic_energy(t, y, held), hinge, bend,
                         self.gravity_energy(t, y, (alpha, beta)))
@@ -662,7 +685,7 @@ class ChainModel:
                                 + loads[self.n + 1, 2] * st.wheel_rate)
         damper = float(np.sum(self.params.nu * ddelta**2))
         s = self.scene
-        if np.any(np.isfinite(s.stop_lower) | np.isfinite(s.stop_upper)):
+        if self.has_stops:
             theta, dtheta = self.hinge_angles(y, t), self.hinge_rates(y, t)
             elastic = -s.stop_stiffness * (np.maximum(0.0, theta - s.stop_upper)
                                            - np.maximum(0.0, s.stop_lower - theta))
@@ -726,13 +749,14 @@ class ChainModel:
         com = com_sum / mass
         return Momentum(P, H, H - float(cross(com, P)), com, mass)
 
-    def snapshot(self, t: float, y: np.ndarray, held=None, mode=None) -> Snapshot:
+    def snapshot(self, t: float, y: np.ndarray, held=None, mode=None, bending=None) -> Snapshot:
         """Everything published about the chain at (t, y). hinge_moment = kappa (Delta -
         theta_rest) + nu Delta' minus the stop contact moment (the constraint reaction of a
-        locked hinge is not included)."""
+        locked hinge is not included). ``bending`` = (alpha, beta) if already known at (t, y,
+        held, mode)."""
         phi = np.array(self.phi(y), dtype=float)
         dphi = np.array(self.phi_rate(y), dtype=float)
-        alpha, beta = self.bending(t, y, held, mode)
+        alpha, beta = self.bending(t, y, held, mode) if bending is None else bending
         delta, ddelta = self.hinge_deflection(t, y, held, bending=(alpha, beta))
         p = self.params
         moment = (p.kappa * (delta - self.scene.hinge_rest_angle) + p.nu * ddelta
@@ -806,9 +830,15 @@ class ReducedModel(ChainModel):
     def bending(self, t, y, held=None, mode=None):
         """gamma = (alpha, beta) (n,) each [rad] from the quasi-static rows of (14), which the
         kernel solves together with phi'' (left in its work array)."""
-        self.rhs(t, y, held, mode)
-        W = self.plan(mode, self.contact_state(np.asarray(y, dtype=float))).extra.work
-        return W[:, kernels.W_A].copy(), W[:, kernels.W_B].copy()
+        return self.rhs_bending(t, y, held, mode)[1]
+
+    def rhs_bending(self, t, y, held=None, mode=None):
+        """dy/dt and gamma = (alpha, beta) from one right-hand side (its work array)."""
+        y = np.ascontiguousarray(y, dtype=float)
+        side = self.contact_state(y)
+        f = self.rhs(t, y, held, mode, side)
+        W = self.plan(mode, side).extra.work
+        return f, (W[:, kernels.W_A].copy(), W[:, kernels.W_B].copy())
 
 
 class FullModel(ChainModel):

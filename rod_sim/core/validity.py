@@ -410,16 +410,20 @@ class BalanceSample:
     remainder: float = 0.0
 
 
-def balance_sample(model, t: float, y, held=None, mode=None, bending=None) -> BalanceSample:
+def balance_sample(model, t: float, y, held=None, mode=None, bending=None,
+                   f=None) -> BalanceSample:
     """The :class:`BalanceSample` of state ``y`` at ``t`` [s] with held inputs ``held`` and the
-    latched hinges ``mode`` locked (``bending`` = (alpha, beta) if known). One right-hand side
+    latched hinges ``mode`` locked (``bending`` = (alpha, beta) and ``f`` = the right-hand
+    side dy/dt there, if known: ``model.rhs_bending`` gives both at once). One right-hand side
     and a few O(n) power evaluations; the rates are central differences of
     :data:`RATE_STEP` along the right-hand side (one-sided at a load breakpoint)."""
     y = np.asarray(y, dtype=float)
+    if f is None:
+        f, known = model.rhs_bending(t, y, held, mode)
+        bending = known if bending is None else bending
     energy, power = balance_terms(model, t, y, held, mode, bending)
     before = power + load_jump_power(model, t, y, held)
     h = RATE_STEP
-    f = model.rhs(t, y, held, mode)
     up, down = y + h * f, y - h * f
     p_up = net_power(model, t + h, up, held, mode)
     p_down = net_power(model, t - h, down, held, mode)

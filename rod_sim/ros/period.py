@@ -124,7 +124,7 @@ class PeriodRunner:
         last = self._balance_end
         if last is not None and last[0] == sim.t_ns and np.array_equal(last[1], held):
             start_sample = last[2]
-        else:
+        else:       # one right-hand side gives the slopes and the rate's direction
             start_sample = balance_sample(self.model, sim.t, sim.y, held, sim.mode)
             self._book_spacecraft(held)     # the inputs changed: their rates from now on
         work = self.budget.work(sim)
@@ -137,9 +137,10 @@ class PeriodRunner:
             self.error = self._failure(exc, work, start)
             return None
         self.meter.add_step(self.period_ns, time.perf_counter_ns() - start)
-        snap = sim.snapshot()
-        end_sample = balance_sample(self.model, sim.t, sim.y, held, sim.mode,
-                                    (snap.alpha, snap.beta))
+        # one right-hand side for the snapshot's slopes and the balance's power rate
+        f, bending = self.model.rhs_bending(sim.t, sim.y, held, sim.mode)
+        snap = self.model.snapshot(sim.t, sim.y, held, sim.mode, bending)
+        end_sample = balance_sample(self.model, sim.t, sim.y, held, sim.mode, bending, f)
         self.ledger.add(start_sample, end_sample, sim.events[self.events_seen:])
         self._balance_end = (sim.t_ns, held.copy(), end_sample)
         self._book_spacecraft(held)

@@ -21,13 +21,24 @@ With ``--lockstep K`` the node runs in lockstep (``sync_mode``) instead and this
 its controller in another process: on each ``rod_states`` (taken as serialized bytes) it
 publishes the next ``nodal_forces`` command (a fixed function of the step number, so that two
 runs get the same inputs), K round trips (command -> period -> states) after the t = 0 state;
-it reports round trips per wall second. ``--keep-log`` keeps the node's log (``--record``);
+it reports round trips per wall second and the node process's CPU time per round trip (the
+figure a loaded machine disturbs least). ``--keep-log`` keeps the node's log (``--record``);
 ``--node-pythonpath`` runs the node from another source tree (e.g. to compare the logs of two
 versions for the same inputs).
 
 ``--spacecraft`` runs two chains of ``--rods`` rods each (default 512) on a free base instead
 (:func:`rod_sim.tools.bench.spacecraft.two_chain_scene`: the base turning, the chains bent and
 moving), the case of issue 28: 2 x 512 rods at 100 Hz with recording.
+
+With ``--period-cost K`` no ROS graph is started: this process builds the node's simulation
+from the same settings (:mod:`rod_sim.ros.simulation`) and runs K control periods through the
+node's own parts (``PeriodRunner.run``, the output table's encoders, the recording with
+``--record``), the held inputs changing every period (``lockstep_force``, as a lockstep
+controller sends them) or, with ``--held-constant``, zero; it reports CPU time per period
+[ms] (the minimum of three rounds of K/3): the integration alone (``Simulator.advance``), the
+period (integration, snapshot, energy ledger, validity) and the period with its outputs (what
+the node does per period besides the executor and DDS). CPU time is what a loaded machine
+disturbs least.
 
 ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is LOCALHOST and ``ROS_DOMAIN_ID`` is ``--domain`` (default
 226) for both processes: nothing leaves the machine.
@@ -36,6 +47,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import subprocess
 import sys
@@ -74,6 +86,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="copy the node's log here (with --record)")
     p.add_argument("--node-pythonpath", default=None,
                    help="PYTHONPATH of the node process (default: this process's)")
+    p.add_argument("--period-cost", type=int, default=0, metavar="K",
+                   help="no ROS: CPU per control period of the node's parts over K periods")
+    p.add_argument("--held-constant", action="store_true",
+                   help="with --period-cost: zero held inputs instead of a new command each "
+                        "period")
     return p
 
 
@@ -255,6 +272,7 @@ def measure_lockstep(args) -> dict:
         rclpy.init()
         sent = [0]
         times: list[int] = []
+        cpu0: list[float | None] = [None]
         try:
             node = rclpy.create_node("rate_bench_controller")
             pub = node.create_publisher(Float64MultiArray, "nodal_forces", COMMAND_QOS)
@@ -268,6 +286,8 @@ def measure_lockstep(args) -> dict:
                     return          # the node's command subscription is not matched yet: the
                                     # waiting state comes again in 0.5 s
                 times.append(time.perf_counter_ns())
+                if k == 0:
+                    cpu0[0] = process_cpu_s(node_proc.pid)
                 sent[0] = k + 1
                 pub.publish(commands[k])
 
@@ -290,6 +310,7 @@ def measure_lockstep(args) -> dict:
             while not last[0] and time.monotonic() < deadline:
                 executor.spin_once(timeout_sec=0.1)
             end = time.perf_counter_ns()
+            cpu1 = process_cpu_s(node_proc.pid)
             executor.shutdown()
             node.destroy_node()
         finally:
@@ -299,8 +320,10 @@ def measure_lockstep(args) -> dict:
             args.keep_log.parent.mkdir(parents=True, exist_ok=True)
             args.keep_log.write_bytes(log.read_bytes())
     span = (end - times[0]) / 1e9 if times else float("nan")
+    cpu = (cpu1 - cpu0[0]) if cpu0[0] is not None and cpu1 is not None else float("nan")
     return {"n": n, "model": args.model, "rate_hz_set": args.rate, "record": args.record,
             "round_trips": done, "round_trips_per_s": done / span if times else 0.0,
+            "node_cpu_ms_per_round_trip": 1e3 * cpu / done if done else float("nan"),
             "complete": bool(last[0] and done == len(commands))}
 
 
@@ -376,14 +399,90 @@ def measure(args) -> dict:
     return result
 
 
+def measure_period_cost(args) -> dict:
+    """CPU [ms] per control period of the node's parts, without ROS (``--period-cost``)."""
+    import logging
+
+    from rod_sim.io.scene_yaml import scene_to_yaml
+    from rod_sim.ros import simulation
+    from rod_sim.ros.outputs import OUTPUTS, Outputs, divider, log_depths
+    from rod_sim.ros.parameters import PARAMETERS, NodeSettings
+    from rod_sim.ros.recording import NodeRecording, create_log, node_log_metadata, offered_qos
+
+    with tempfile.TemporaryDirectory() as tmpdir:
+        tmp = Path(tmpdir)
+        values = {spec.name: spec.default for spec in PARAMETERS}
+        values.update(scene_file=str(scene_file(args, tmp)), model=args.model,
+                      rate_hz=float(args.rate),
+                      record_path=str(tmp / "cost.mcap") if args.record else "")
+        settings = NodeSettings(**values)
+        built = simulation.build(settings, "/rod_sim", ())
+        period = simulation.start(built, settings)
+        sim, model, n = built.sim, built.model, built.scene.n
+        names = {o.name: "/" + o.name for o in OUTPUTS}
+        recording = NodeRecording(lambda path: create_log(path, node_log_metadata(
+            scene_to_yaml(built.scene), model.name, sim.integrator.describe(), settings,
+            "lockstep", "/rod_sim"), offered_qos(names, log_depths(True, built.scene))),
+            logging.getLogger("rate_bench"))
+        recording.start(Path(settings.record_path) if settings.record_path else None)
+        outputs = Outputs(built.scene, names, {}, recording, built.period_ns, "world",
+                          {o.name: divider(settings.rate_hz, getattr(settings, o.rate_parameter))
+                           for o in OUTPUTS if o.rate_parameter})
+        k_all = max(3, args.period_cost)
+        commands = [np.zeros((n, 2)) if args.held_constant else lockstep_force(k, n)
+                    for k in range(k_all + 10)]
+
+        def applied(t_ns: int) -> None:       # as the node's _publish_applied (no base)
+            loads = model.loads_at(t_ns / 1e9, sim.held)
+            outputs.applied(t_ns, loads[:n, :2].copy(), sim.held[:n, 2].copy())
+
+        def with_outputs(k: int) -> None:
+            snap = period.run(commands[k], applied)
+            period.note_state(snap)
+            outputs.state(snap, sim.t_ns)
+
+        def bare(k: int) -> None:
+            period.run(commands[k])
+
+        def integration(k: int) -> None:
+            sim.advance(built.period_ns / 1e9)
+
+        for k in range(10):
+            with_outputs(k)
+        per_round = k_all // 3
+        best = {}
+        for _ in range(3):
+            for name, step in (("integration", integration), ("period", bare),
+                               ("period_with_outputs", with_outputs)):
+                start = time.process_time()
+                for k in range(per_round):
+                    step(10 + k)
+                cost = (time.process_time() - start) / per_round * 1e3
+                best[name] = min(best.get(name, math.inf), cost)
+        recording.close()
+    return {"n": n, "model": args.model, "rate_hz_set": args.rate, "record": args.record,
+            "held": "constant" if args.held_constant else "changing every period",
+            "periods": per_round, **{f"{k}_ms": v for k, v in best.items()}}
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    if args.period_cost:
+        result = measure_period_cost(args)
+        print(json.dumps(result, indent=1) if args.json else
+              f"n = {result['n']} {result['model']}, {args.rate:g} Hz, held {result['held']}"
+              f"{', recording' if args.record else ''}: CPU per period: integration "
+              f"{result['integration_ms']:.3f} ms, period {result['period_ms']:.3f} ms, with "
+              f"outputs {result['period_with_outputs_ms']:.3f} ms (min of 3 x "
+              f"{result['periods']})")
+        return 0
     if args.lockstep:
         result = measure_lockstep(args)
         print(json.dumps(result, indent=1) if args.json else
               f"n = {result['n']} {result['model']}, lockstep at rate_hz {args.rate:g}"
               f"{' + recording' if args.record else ''}: {result['round_trips']} round trips, "
-              f"{result['round_trips_per_s']:.0f} per second"
+              f"{result['round_trips_per_s']:.0f} per second, node CPU "
+              f"{result['node_cpu_ms_per_round_trip']:.3f} ms per round trip"
               + ("" if result["complete"] else " (INCOMPLETE)"))
         return 0 if result["complete"] else 1
     result = measure(args)

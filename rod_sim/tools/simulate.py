@@ -183,9 +183,10 @@ class _LoggedRun:
         from ..core.validity import EnergyBalance, balance_sample
 
         model = self.sim.model
-        snap = model.snapshot(t, y, None, mode)
+        f, bending = model.rhs_bending(t, y, None, mode)     # one right-hand side for both
+        snap = model.snapshot(t, y, None, mode, bending)
         self.validity.update(snap.t, y, None, snap.alpha, snap.beta)
-        sample = balance_sample(model, t, y, None, mode, (snap.alpha, snap.beta))
+        sample = balance_sample(model, t, y, None, mode, bending, f)
         if self.balance is None:
             self.balance = EnergyBalance.for_model(model, sample.energy)
         else:

@@ -1,0 +1,137 @@
+"""The cheap per-sample path (issue 26 item 5) gives the values of the plain calls, bit for bit:
+one right-hand side per sample for the slopes and the energy balance's power rate
+(``ChainModel.rhs_bending``), the snapshot and the balance sample fed with them, the hinge
+angles without ``np.diff``, no stop contact without finite stops; the validity monitor's
+force-jump check on a free-base scene; start-up without importing ``scipy.integrate``."""
+from __future__ import annotations
+
+import dataclasses
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from procs import REPO
+from rod_sim.core import hinges
+from rod_sim.core.integrators import make_integrator
+from rod_sim.core.models import make_model
+from rod_sim.core.simulator import Simulator
+from rod_sim.core.validity import ValidityMonitor, balance_sample, force_jump_slopes
+from rod_sim.io.scene_yaml import load_scene
+
+SCENES = ("paper_example.yaml", "deployment.yaml", "two_wing_deployment.yaml")
+MODELS = ("reduced", "rigid", "full")
+
+
+def _held(n: int, k: int) -> np.ndarray:
+    j = np.arange(n)
+    return np.stack([0.3 * np.sin(k + j), 0.2 * np.cos(k - j), 0.01 * np.sin(2 * k + j)], 1)
+
+
+def _states(scene_name: str, model_name: str, count: int = 3):
+    """(model, sim) after each of ``count`` periods of 10 ms with changing held inputs."""
+    scene = load_scene(REPO / "config" / scene_name)
+    model = make_model(model_name, scene)
+    sim = Simulator(model, make_integrator("dop853-jit"))
+    for k in range(count):
+        held = _held(scene.n, k)
+        sim.set_forces(held[:, :2])
+        sim.set_hinge_torques(held[:, 2])
+        sim.advance(0.01)
+        yield model, sim
+
+
+def _same(a, b) -> bool:
+    """Bitwise equality of arrays, floats and (nested) tuples/dataclasses of them."""
+    if dataclasses.is_dataclass(a):
+        return _same(dataclasses.astuple(a), dataclasses.astuple(b))
+    if isinstance(a, (tuple, list)):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    a, b = np.asarray(a), np.asarray(b)
+    return a.shape == b.shape and a.dtype == b.dtype and a.tobytes() == b.tobytes()
+
+
+@pytest.mark.parametrize("scene_name", SCENES)
+@pytest.mark.parametrize("model_name", MODELS)
+def test_one_rhs_per_sample_gives_the_plain_values(scene_name, model_name):
+    for model, sim in _states(scene_name, model_name):
+        t, y, held, mode = sim.t, sim.y, sim.held, sim.mode
+        f, bending = model.rhs_bending(t, y, held, mode)
+        assert _same(f, model.rhs(t, y, held, mode))
+        assert _same(bending, model.bending(t, y, held, mode))
+        assert _same(model.snapshot(t, y, held, mode, bending), model.snapshot(t, y, held, mode))
+        plain = balance_sample(model, t, y, held, mode)
+        assert _same(balance_sample(model, t, y, held, mode, bending, f), plain)
+        assert _same(balance_sample(model, t, y, held, mode, bending), plain)
+
+
+def test_hinge_angles_are_np_diff_with_a_leading_zero():
+    rng = np.random.default_rng(3)
+    for phi in (rng.normal(size=7), rng.normal(size=(4, 5)), np.array([-0.0, 1.0, np.nan]),
+                np.zeros(0), np.array([2.5]), np.arange(4)):
+        want = np.diff(phi, prepend=0.0, axis=-1)
+        got = hinges.hinge_angles(phi)
+        assert got.dtype == want.dtype and got.tobytes() == want.tobytes()
+
+
+def test_no_finite_stop_no_contact_and_with_stops_the_law():
+    scene = load_scene(REPO / "config" / "paper_example.yaml")
+    model = make_model("reduced", scene)
+    assert not model.has_stops
+    y = model.initial_state()
+    y[:scene.n] = np.linspace(-3.0, 3.0, scene.n)
+    assert np.array_equal(model.contact_state(y), np.zeros(scene.n, dtype=np.int8))
+    stopped = make_model("reduced", load_scene(REPO / "config" / "deployment.yaml"))
+    assert stopped.has_stops
+    y = stopped.initial_state()
+    theta = stopped.hinge_angles(y)
+    s = stopped.scene
+    want = np.where(theta > s.stop_upper, 1, np.where(theta < s.stop_lower, -1, 0))
+    assert np.array_equal(stopped.contact_state(y), want)
+
+
+def test_rhs_refuses_a_state_of_the_wrong_size():
+    model = make_model("reduced", load_scene(REPO / "config" / "two_wing_deployment.yaml"))
+    y = model.initial_state()
+    with pytest.raises(ValueError, match="components"):
+        model.rhs(0.0, y[:2 * model.n])
+
+
+def test_force_jump_on_a_free_base_scene_uses_the_whole_state():
+    """The monitor judged a jump of the held inputs with [phi, phi_rate] as the state, which a
+    free base's pose and twist are missing from (IndexError). The jump is the difference of
+    two quasi-static slope solves of a loads-free reduced model at the whole state."""
+    scene = load_scene(REPO / "config" / "two_wing_deployment.yaml")
+    model = make_model("reduced", scene)
+    assert model.nb
+    monitor = ValidityMonitor(model)
+    y = model.initial_state()
+    before, after = _held(scene.n, 0), _held(scene.n, 1) * 50.0
+    monitor.update(0.0, y, before)
+    monitor.update(0.01, y, after)            # raised IndexError before the fix
+    free = make_model("reduced", scene.with_changes(loads=()))
+    a0, b0 = free.bending(0.0, y, before)
+    a1, b1 = free.bending(0.0, y, after)
+    want = np.abs(np.concatenate([a1 - a0, b1 - b0]))
+    got = force_jump_slopes(scene, model.phi(y), model.phi_rate(y), before, after, y)
+    np.testing.assert_array_equal(got, want)
+    assert want.max() > 0.0
+
+
+def test_start_up_does_not_import_scipy_integrate():
+    code = (
+        "import sys\n"
+        "import numpy as np\n"
+        "import rod_sim.core.models, rod_sim.core.integrators\n"
+        "from rod_sim.core import erk\n"
+        "assert 'scipy.integrate' not in sys.modules, 'scipy.integrate imported'\n"
+        "from scipy.integrate import solve_ivp\n"
+        "from scipy.integrate._ivp import dop853_coefficients as d\n"
+        "assert np.array_equal(erk.A_DOP, d.A) and np.array_equal(erk.E5_DOP, d.E5)\n"
+        "r = solve_ivp(lambda t, y: -y, (0, 1), [1.0], method='DOP853', rtol=1e-10, atol=1e-12)\n"
+        "assert abs(r.y[0, -1] - np.exp(-1.0)) < 1e-8\n"
+        "print('ok')\n")
+    out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True,
+                         text=True, timeout=300)
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr
