@@ -46,8 +46,12 @@ def _same(a, b) -> bool:
     """Bitwise equality of arrays, floats and (nested) tuples/dataclasses of them."""
     if dataclasses.is_dataclass(a):
         return _same(dataclasses.astuple(a), dataclasses.astuple(b))
+    if isinstance(a, dict):
+        return isinstance(b, dict) and a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
     if isinstance(a, (tuple, list)):
         return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    if a is None or b is None:
+        return a is b
     a, b = np.asarray(a), np.asarray(b)
     return a.shape == b.shape and a.dtype == b.dtype and a.tobytes() == b.tobytes()
 
