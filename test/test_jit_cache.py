@@ -31,6 +31,20 @@ def test_stamp_changes_when_a_compiled_module_changes_and_only_then(tmp_path):
     assert jit.sources_stamp(tmp_path) not in (before, jit.sources_stamp(jit.CORE_DIR))
 
 
+def test_stamp_changes_with_the_optimisation_level():
+    """Code compiled at another NUMBA_OPT is not loaded (it is recompiled)."""
+    assert jit.sources_stamp(opt="3") != jit.sources_stamp(opt="1")
+    assert jit.sources_stamp(opt=jit.OPT_LEVEL) == jit.sources_stamp()
+
+
+@pytest.mark.skipif(not jit.HAVE_NUMBA, reason="numba not installed")
+def test_numba_uses_the_package_optimisation_level():
+    from numba.core import config
+
+    config.reload_config()              # as numba does before each compile
+    assert str(int(config.OPT)) == str(int(jit.OPT_LEVEL.replace("max", "3")))
+
+
 @pytest.mark.skipif(not jit.HAVE_NUMBA, reason="numba not installed")
 def test_compiled_integrators_and_kernels_use_the_core_stamp():
     if not jit.CORE_LOCATORS:

@@ -12,6 +12,13 @@ holds compiled code (:func:`compiled_sources`: the modules that name ``njit``, i
 plain-Python function compiled elsewhere, as motion.py's ``profile_at``), so that a change to
 any of them recompiles them all, and an edit of the pure-Python modules (models, scene,
 validity, ...) recompiles nothing.
+
+LLVM optimisation level: numba optimises at ``NUMBA_OPT`` = 3 by default, and each driver
+links and re-optimises the whole call tree of the kernels it inlines, which made a cold
+compile of one driver cost 70-190 s of CPU. This package sets :data:`OPT_LEVEL` instead
+(``ROD_SIM_NUMBA_OPT`` or an explicit ``NUMBA_OPT`` overrides it); the level is part of the
+cache stamp, so that code compiled at another level is not loaded. Measured compile and run
+times per level, and the bit-identity of the results: README, "Compile time".
 """
 from __future__ import annotations
 
@@ -20,6 +27,17 @@ import os
 from pathlib import Path
 
 CORE_DIR = Path(__file__).resolve().parent
+
+DEFAULT_OPT_LEVEL = "1"
+"""numba's optimisation level for this package unless ``ROD_SIM_NUMBA_OPT`` or ``NUMBA_OPT``
+says otherwise ('0' .. '3' or 'max')."""
+OPT_LEVEL = (os.environ.get("ROD_SIM_NUMBA_OPT") or os.environ.get("NUMBA_OPT")
+             or DEFAULT_OPT_LEVEL)
+"""The optimisation level in use (a string, as ``NUMBA_OPT`` takes it)."""
+INLINE = os.environ.get("ROD_SIM_NUMBA_INLINE", "always")
+"""'always': the ``inline="always"`` option of the kernels' helpers is honoured (numba
+inlines their IR at every call site and types it again there); 'never': it is dropped (each
+helper is compiled once and called; LLVM may still inline the machine code)."""
 
 
 COMPILED_MARK = b"njit"
@@ -32,9 +50,11 @@ def compiled_sources(directory: Path = CORE_DIR) -> list[Path]:
     return [p for p in sorted(Path(directory).glob("*.py")) if COMPILED_MARK in p.read_bytes()]
 
 
-def sources_stamp(directory: Path = CORE_DIR) -> str:
-    """SHA-256 over the names and contents of :func:`compiled_sources` of ``directory``."""
-    digest = hashlib.sha256()
+def sources_stamp(directory: Path = CORE_DIR, opt: str | None = None) -> str:
+    """SHA-256 over the optimisation level ``opt`` (default :data:`OPT_LEVEL`) and the names
+    and contents of :func:`compiled_sources` of ``directory``."""
+    digest = hashlib.sha256(f"NUMBA_OPT={OPT_LEVEL if opt is None else opt}\0"
+                            f"inline={INLINE}\0".encode())
     for path in compiled_sources(directory):
         digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
     return digest.hexdigest()
@@ -71,7 +91,13 @@ def _install_core_locators(caching) -> tuple:
 try:  # pragma: no cover - exercised by whichever branch the machine has
     if os.environ.get("ROD_SIM_NO_JIT"):
         raise ImportError("disabled by ROD_SIM_NO_JIT")
+    # numba reads NUMBA_OPT at import and again whenever a NUMBA_ variable changes
+    # (config.reload_config before each compile): set both, before anything compiles
+    os.environ["NUMBA_OPT"] = OPT_LEVEL
     import numba
+    from numba.core import config as _config
+
+    _config.OPT = _config._process_opt_level(OPT_LEVEL)
 
     HAVE_NUMBA = True
     try:
@@ -83,6 +109,8 @@ try:  # pragma: no cover - exercised by whichever branch the machine has
     def njit(fn=None, **kwargs):
         """``numba.njit(cache=True)`` with the given options."""
         opts = {"cache": True, **kwargs}
+        if INLINE == "never":
+            opts.pop("inline", None)
         if fn is None:
             return lambda f: numba.njit(**opts)(f)
         return numba.njit(**opts)(fn)

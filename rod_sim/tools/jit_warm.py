@@ -1,20 +1,37 @@
-"""Compile every compiled driver into numba's on-disk cache: ``python -m rod_sim.tools.jit_warm``.
+"""Compile drivers into numba's on-disk cache ahead of use: ``python -m rod_sim.tools.jit_warm``.
 
-``make`` runs it after installing (and again whenever a module of ``rod_sim/core`` changes,
-which invalidates the cache), so that the first ``rod-sim`` command or node start does not
-spend ~20 s compiling. It iterates over whatever the registries hold: every model of
-``MODEL_NAMES`` with every integrator of ``INTEGRATOR_NAMES`` (rod_sim.core.names), on a
-plain chain and on a chain with hinge features (stops, latches, a locked hinge), so that a
-newly registered model, integrator or hinge driver is covered without editing this file.
+``make demo`` runs it with ``--demo`` (only what the demo needs: the reduced and the full
+model's dop853-jit drivers and the helpers the node's messages use), ``make test`` without
+(every driver), each again whenever a module of ``rod_sim/core`` changes (which invalidates
+the cache). Anything not compiled here compiles on first use with a notice saying what, why
+and how long (:mod:`rod_sim.tools.compile_watch`).
+
+The full set iterates over whatever the registries hold: every model of ``MODEL_NAMES`` with
+every integrator of ``INTEGRATOR_NAMES`` (rod_sim.core.names), on a plain chain and on a
+chain with hinge features (stops, latches, a locked hinge), so that a newly registered model,
+integrator or hinge driver is covered without editing this file. The drivers are grouped by
+the compiled entry point they use (one group runs in one process, in order: the same code is
+never compiled by two processes at once) and the groups run in ``--jobs`` processes (numba's
+cache keeps one index file per function: processes compiling different functions do not
+meet), the most expensive first. A line at least every :data:`TICK_S` seconds says what is
+compiling, how long it has taken and how long the rest should take.
 """
 from __future__ import annotations
 
+import argparse
+import os
 import sys
 import time
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from pathlib import Path
 
 CONFIG = Path(__file__).resolve().parents[2] / "config"
 SCENES = ("paper_example.yaml", "deployment.yaml")     # plain chain; hinge features
+DEMO = (("paper_example.yaml", "full", "dop853-jit"),
+        ("paper_example.yaml", "reduced", "dop853-jit"))
+"""What ``make demo`` runs: table1 (both models), the node (reduced), compare (full)."""
+TICK_S = 8.0
+"""[s] between progress lines while nothing finishes."""
 
 
 def drivers() -> list[tuple[str, str, str]]:
@@ -25,46 +42,138 @@ def drivers() -> list[tuple[str, str, str]]:
             for integrator in INTEGRATOR_NAMES]
 
 
+def entry_point(model: str, integrator: str) -> str:
+    """The name of the compiled function a (model, integrator) pair compiles (scipy's
+    methods share the model's right-hand side; the fixed-step methods one driver)."""
+    from ..core.names import SCIPY_METHODS
+
+    if integrator in SCIPY_METHODS:
+        return f"{model}_rhs"
+    family = {"dop853-jit": "dop853", "radau-jit": "radau"}.get(integrator, "fixed")
+    return f"{family}_{model}"
+
+
+def groups(todo) -> list[list[tuple[str, str, str]]]:
+    """``todo`` grouped by :func:`entry_point` (order kept within a group), the groups the
+    most expensive first (by :data:`compile_watch.COMPILE_CPU_S`)."""
+    from .compile_watch import COMPILE_CPU_S, UNKNOWN_CPU_S
+
+    by_key: dict[str, list] = {}
+    for item in todo:
+        by_key.setdefault(entry_point(item[1], item[2]), []).append(item)
+    return [by_key[k] for k in sorted(by_key, key=lambda k: -COMPILE_CPU_S.get(
+        k, UNKNOWN_CPU_S))]
+
+
+def estimate(group) -> float:
+    """CPU seconds measured for compiling a group's entry point."""
+    from .compile_watch import COMPILE_CPU_S, UNKNOWN_CPU_S
+
+    return COMPILE_CPU_S.get(entry_point(group[0][1], group[0][2]), UNKNOWN_CPU_S)
+
+
 def progress_line(done: int, total: int, what: str, took: float, elapsed: float,
-                  skipped: bool = False) -> str:
-    """One progress line: ``[done/total] what: took s (elapsed s, ~left s left)``; the estimate
-    of the time left is the mean time per driver so far times the drivers left [s]."""
-    left = elapsed / done * (total - done) if done else 0.0
+                  left: float, skipped: bool = False) -> str:
+    """One progress line: ``[done/total] what: took s (elapsed s so far, ~left s left)``."""
     status = "skipped (not supported)" if skipped else f"{took:.1f} s"
     return (f"rod_sim: [{done}/{total}] {what}: {status} ({elapsed:.0f} s so far, "
             f"~{left:.0f} s left)")
 
 
-def warm(log=print) -> int:
-    """Run every driver for 1 ms of simulated time, logging one progress line per driver with
-    an estimate of the time left; returns how many ran. A combination the library refuses
-    (e.g. a fixed-step integrator on a scene with hinge events) is skipped."""
+def run_group(group) -> list[tuple[str, float, float, bool]]:
+    """Run each (scene, model, integrator) of ``group`` for 1 ms, then the model's energies
+    and powers (the helpers a node's messages use): per item (label, wall s, CPU s,
+    skipped). A combination the library refuses (ValueError) is skipped."""
     from ..core.integrators import make_integrator
     from ..core.models import make_model
     from ..core.simulator import Simulator
     from ..io.scene_yaml import load_scene
 
-    scenes = {name: load_scene(CONFIG / name) for name in SCENES}
-    ran = 0
-    started = time.perf_counter()
-    todo = drivers()
-    log(f"rod_sim: compiling {len(todo)} drivers into numba's cache (a few minutes cold, "
-        "longer on a loaded machine; ~1 s when already cached)")
-    for done, (scene, model, integrator) in enumerate(todo, 1):
-        t0 = time.perf_counter()
+    out = []
+    for scene, model_name, integrator in group:
+        w0, c0 = time.perf_counter(), time.process_time()
         skipped = False
         try:
-            Simulator(make_model(model, scenes[scene]), make_integrator(integrator)).advance(1e-3)
-            ran += 1
+            model = make_model(model_name, load_scene(CONFIG / scene))
+            sim = Simulator(model, make_integrator(integrator))
+            sim.advance(1e-3)
+            model.energies(sim.t, sim.y, sim.held)
+            model.powers(sim.t, sim.y, sim.held)
         except ValueError:
             skipped = True
-        now = time.perf_counter()
-        log(progress_line(done, len(todo), f"{model} x {integrator} on {scene}", now - t0,
-                          now - started, skipped))
+        out.append((f"{model_name} x {integrator} on {scene}", time.perf_counter() - w0,
+                    time.process_time() - c0, skipped))
+    return out
+
+
+def warm(log=print, todo=None, jobs: int = 1, clock=time.perf_counter) -> int:
+    """Compile the drivers of ``todo`` (default: :func:`drivers`) in ``jobs`` processes (1:
+    in this one), logging one line per driver and, while none finishes, one every
+    :data:`TICK_S`; returns how many ran (not skipped)."""
+    from .compile_watch import load_slowdown
+
+    todo = drivers() if todo is None else list(todo)
+    plan = groups(todo)
+    total = len(todo)
+    jobs = max(1, min(jobs, len(plan)))
+    cpu_left = sum(estimate(g) for g in plan)
+    pace = load_slowdown() * max(1.0, jobs / (os.cpu_count() or 1)) / jobs
+    log(f"rod_sim: compiling {total} drivers ({len(plan)} compiled entry points) into "
+        f"numba's cache in {jobs} process(es): ~{cpu_left * pace:.0f} s at this load "
+        f"(measured {cpu_left:.0f} s of CPU cold; ~1 s when already cached)")
+    started = clock()
+    done = ran = 0
+    spent_cpu = spent_est = 0.0
+
+    def report(group, results):
+        nonlocal done, ran, cpu_left, spent_cpu, spent_est
+        cpu_left -= estimate(group)
+        spent_est += estimate(group)
+        spent_cpu += sum(r[2] for r in results)
+        elapsed = clock() - started
+        # the rest at the pace seen so far (wall per estimated CPU second), else the load's
+        rate = elapsed / spent_est if spent_est > 0 else pace
+        for label, took, _cpu, skipped in results:
+            done += 1
+            ran += not skipped
+            log(progress_line(done, total, label, took, elapsed, max(cpu_left, 0.0) * rate,
+                              skipped))
+
+    if jobs == 1:
+        for group in plan:
+            report(group, run_group(group))
+    else:
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            pending = {pool.submit(run_group, g): g for g in plan}
+            running_since = {f: clock() for f in pending}
+            while pending:
+                finished, _ = wait(pending, timeout=TICK_S, return_when=FIRST_COMPLETED)
+                for f in finished:
+                    report(pending.pop(f), f.result())
+                if not finished:
+                    elapsed = clock() - started
+                    rate = elapsed / spent_est if spent_est > 0 else pace
+                    now = [" / ".join(sorted({entry_point(g[0][1], g[0][2])}))
+                           for f, g in pending.items() if f.running()]
+                    log(f"rod_sim: [{done}/{total}] compiling {', '.join(now) or '...'} "
+                        f"({elapsed:.0f} s so far, ~{max(cpu_left, 0.0) * rate:.0f} s left)")
     log(f"rod_sim: {ran} compiled drivers ready in numba's cache "
-        f"({time.perf_counter() - started:.1f} s)")
+        f"({clock() - started:.1f} s, {spent_cpu:.0f} s CPU in the compiling processes)")
     return ran
 
 
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m rod_sim.tools.jit_warm",
+                                     description=__doc__.split("\n\n")[0])
+    parser.add_argument("--demo", action="store_true",
+                        help="only what `make demo` needs (default: every driver)")
+    parser.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1),
+                        help="compiling processes (default: 2, or 1 on one core)")
+    args = parser.parse_args(argv)
+    ran = warm(lambda line: print(line, flush=True), DEMO if args.demo else None,
+               max(1, args.jobs))
+    return 0 if ran else 1
+
+
 if __name__ == "__main__":
-    sys.exit(0 if warm(lambda line: print(line, flush=True)) else 1)
+    sys.exit(main())

@@ -1,0 +1,226 @@
+"""What numba is compiling, why and for how long: one notice per compile, then progress.
+
+A compiled driver that is not in numba's on-disk cache (the first use after an install or a
+change of ``rod_sim/core``; ``make warm`` compiles only what ``make demo`` needs) compiles on
+first use, which takes from a few seconds to a minute or more of CPU time. numba fires a
+``numba:compile`` event only on a cache miss (loading from the cache fires none), so the
+:class:`CompileWatch` listening to it says something only when a compile really happens:
+
+- after :data:`NOTICE_AFTER_S` of a compile, one notice: what compiles, why, and how long it
+  takes (the CPU seconds measured for it, :data:`COMPILE_CPU_S`, scaled to wall seconds by
+  the machine's load);
+- every :data:`TICK_S` after that, a progress line: elapsed and an estimate of the time left
+  (the CPU seconds still to go at the CPU rate the compile has had so far);
+- at the end (only if the notice was printed), how long it took.
+
+Only the outermost compile of a thread is reported (a driver compiles its kernels inside it).
+Every line contains :data:`COMPILE_NOTICE` (tests drop these timed lines by it).
+"""
+from __future__ import annotations
+
+import os
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+COMPILE_NOTICE = "compiling"
+"""Contained in every line the watch prints."""
+NOTICE_AFTER_S = 2.0
+"""[s] of wall time a compile runs before the notice (a cache load takes ~0.3 s: never)."""
+TICK_S = 8.0
+"""[s] between progress lines (the issue asks for one at least every 10 s)."""
+
+OPT_OF_TABLE = 1
+"""numba's optimisation level (rod_sim.core.jit.OPT_LEVEL) :data:`COMPILE_CPU_S` was
+measured at."""
+COMPILE_CPU_S = {
+    "dop853_full": 40.0, "dop853_reduced": 40.0, "dop853_rigid": 40.0,
+    "radau_full": 60.0, "radau_reduced": 40.0, "radau_rigid": 40.0,
+    "fixed_full": 10.0, "fixed_reduced": 10.0, "fixed_rigid": 10.0,
+    "full_rhs": 15.0, "reduced_rhs": 15.0, "rigid_rhs": 15.0,
+}
+"""Process CPU seconds to compile each compiled entry point from a cold cache (its kernels
+included), measured with ``python -m rod_sim.tools.jit_profile`` on the 2-core development
+machine at NUMBA_OPT = :data:`OPT_OF_TABLE` (README, "Compile time")."""
+UNKNOWN_CPU_S = 10.0
+"""[s] CPU assumed for a function not in the table."""
+
+_KINDS = {"dop853": "dop853-jit integrator", "radau": "radau-jit integrator",
+          "fixed": "fixed-step integrators (rk4, rk2, euler)"}
+_MODELS = ("full", "reduced", "rigid")
+
+
+def describe(name: str) -> str:
+    """What the compiled function ``name`` (a dispatcher's qualified name) is, in words."""
+    kind, _, model = name.partition("_")
+    if kind in _KINDS and model in _MODELS:
+        return f"the {model} model's {_KINDS[kind]}"
+    model, _, tail = name.partition("_")
+    if tail == "rhs" and model in _MODELS:
+        return f"the {model} model's right-hand side for scipy's solvers"
+    return f"the compiled function {name}"
+
+
+def load_slowdown(load: float | None = None, cores: int | None = None) -> float:
+    """Wall seconds per CPU second of one single-threaded job at the 1-minute load average
+    ``load`` (default: the machine's) on ``cores`` cores: max(1, (load + 1) / cores)."""
+    if load is None:
+        try:
+            load = os.getloadavg()[0]
+        except OSError:
+            load = 0.0
+    cores = cores or os.cpu_count() or 1
+    return max(1.0, (load + 1.0) / cores)
+
+
+@dataclass
+class _Compile:
+    """One outermost compile being watched."""
+
+    name: str
+    wall0: float
+    cpu0: float
+    estimate_cpu: float
+    announced: bool = False
+    last_line: float = 0.0
+    depth: int = 1
+    extra: dict = field(default_factory=dict)
+
+
+class CompileWatch:
+    """Turns numba's compile events into notices passed to ``sink`` (one line each).
+    ``clock`` (wall), ``cpu`` (process CPU), ``slowdown`` (wall per CPU second now) and
+    ``table`` are injectable for tests; :meth:`poll` does the timed part and is called by
+    the ticker thread :meth:`install` starts (or directly by a test)."""
+
+    def __init__(self, sink: Callable[[str], None], *, after: float = NOTICE_AFTER_S,
+                 every: float = TICK_S, clock=time.monotonic, cpu=time.process_time,
+                 slowdown=load_slowdown, table: dict | None = None):
+        self.sink = sink
+        self.after, self.every = after, every
+        self.clock, self.cpu, self.slowdown = clock, cpu, slowdown
+        self.table = COMPILE_CPU_S if table is None else table
+        self._active: dict[int, _Compile] = {}
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    # -- the compile thread's side (numba's events) ------------------------------------
+    def begin(self, name: str) -> None:
+        """A compile of ``name`` starts in the calling thread (nested ones are counted)."""
+        key = threading.get_ident()
+        with self._lock:
+            cur = self._active.get(key)
+            if cur is not None:
+                cur.depth += 1
+                return
+            self._active[key] = _Compile(name, self.clock(), self.cpu(),
+                                         self.table.get(name, UNKNOWN_CPU_S))
+
+    def end(self) -> None:
+        """The calling thread's innermost compile ended; after the outermost, a closing line
+        if the notice was printed."""
+        key = threading.get_ident()
+        with self._lock:
+            cur = self._active.get(key)
+            if cur is None:
+                return
+            cur.depth -= 1
+            if cur.depth:
+                return
+            del self._active[key]
+        if cur.announced:
+            self.sink(f"{COMPILE_NOTICE} {describe(cur.name)}: done in "
+                      f"{self.clock() - cur.wall0:.0f} s ({self.cpu() - cur.cpu0:.0f} s CPU); "
+                      "cached for later runs")
+
+    # -- the ticker's side -------------------------------------------------------------
+    def poll(self) -> list[str]:
+        """Print (and return) the notice or progress lines that are due now."""
+        now = self.clock()
+        lines = []
+        with self._lock:
+            due = [c for c in self._active.values()
+                   if (not c.announced and now - c.wall0 >= self.after)
+                   or (c.announced and now - c.last_line >= self.every)]
+            for c in due:
+                lines.append(self._progress(c, now) if c.announced else self._notice(c, now))
+                c.announced, c.last_line = True, now
+        for line in lines:
+            self.sink(line)
+        return lines
+
+    def _notice(self, c: _Compile, now: float) -> str:
+        wall = c.estimate_cpu * self.slowdown()
+        return (f"{COMPILE_NOTICE} {describe(c.name)} ({c.name}): it is not in numba's "
+                "cache yet (first use since an install or a change of rod_sim/core; compiled "
+                f"once, then cached). Measured {c.estimate_cpu:.0f} s of CPU; expect "
+                f"~{max(wall, now - c.wall0):.0f} s at this machine's load")
+
+    def _progress(self, c: _Compile, now: float) -> str:
+        elapsed, used = now - c.wall0, self.cpu() - c.cpu0
+        head = f"{COMPILE_NOTICE} {describe(c.name)}: {elapsed:.0f} s so far"
+        if used >= c.estimate_cpu:
+            return (f"{head}, past its measured {c.estimate_cpu:.0f} s of CPU "
+                    f"({used:.0f} s CPU used); should end soon")
+        rate = max(used / elapsed, 0.02) if elapsed > 0 else 1.0
+        return f"{head}, ~{(c.estimate_cpu - used) / rate:.0f} s left"
+
+    def _tick(self) -> None:
+        while not self._stop.wait(0.25):
+            try:
+                self.poll()
+            except Exception:   # a notice must never break the run
+                pass
+
+    # -- installation --------------------------------------------------------------------
+    def install(self) -> "CompileWatch":
+        """Listen to numba's compile events and start the ticker (a daemon thread)."""
+        from numba.core import event
+
+        watch = self
+
+        class _Listener(event.Listener):
+            def on_start(self, ev):
+                disp = ev.data.get("dispatcher")
+                watch.begin(getattr(getattr(disp, "py_func", None), "__qualname__", "?"))
+
+            def on_end(self, ev):
+                watch.end()
+
+        self._listener = _Listener()
+        event.register("numba:compile", self._listener)
+        return self.start_ticker()
+
+    def start_ticker(self) -> "CompileWatch":
+        """Start the daemon thread that calls :meth:`poll` four times a second."""
+        self._thread = threading.Thread(target=self._tick, name="rod-sim-compile-watch",
+                                        daemon=True)
+        self._thread.start()
+        return self
+
+    def uninstall(self) -> None:
+        """Stop listening and stop the ticker."""
+        from numba.core import event
+
+        self._stop.set()
+        if getattr(self, "_listener", None) is not None:
+            event.unregister("numba:compile", self._listener)
+            self._listener = None
+
+
+_installed: CompileWatch | None = None
+
+
+def watch_compiles(sink: Callable[[str], None]) -> CompileWatch | None:
+    """Install one process-wide :class:`CompileWatch` printing to ``sink`` (later calls
+    return the first); None when numba is not in use (``ROD_SIM_NO_JIT``)."""
+    global _installed
+    if _installed is None:
+        from ..core.jit import HAVE_NUMBA
+
+        if not HAVE_NUMBA:
+            return None
+        _installed = CompileWatch(sink).install()
+    return _installed
