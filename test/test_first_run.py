@@ -1,6 +1,6 @@
 """First-run experience: `make` installs quietly; `make demo` compiles what the demo runs,
 `make test` every registered driver into numba's cache (rod_sim.tools.jit_warm), whatever the
-registries hold, in 2 processes that never compile the same entry point."""
+registries hold, in 2 processes (one model each at a time)."""
 import re
 from pathlib import Path
 
@@ -44,12 +44,12 @@ def test_warm_progress_line():
     assert "skipped" in jit_warm.progress_line(1, 2, "a", 0.0, 0.0, 0.0, skipped=True)
 
 
-def test_warm_groups_never_split_an_entry_point_and_run_the_costliest_first():
+def test_warm_groups_are_models_and_the_costliest_run_first():
     plan = jit_warm.groups(jit_warm.drivers())
-    keys = [jit_warm.entry_point(g[0][1], g[0][2]) for g in plan]
-    assert len(keys) == len(set(keys)), "one group per compiled entry point"
-    for group, key in zip(plan, keys):
-        assert {jit_warm.entry_point(m, i) for _, m, i in group} == {key}
+    models = [g[0][1] for g in plan]
+    assert sorted(models) == sorted(names.MODEL_NAMES), "one group per model"
+    for group, model in zip(plan, models):
+        assert {m for _, m, _ in group} == {model}
     costs = [jit_warm.estimate(g) for g in plan]
     assert costs == sorted(costs, reverse=True)
     assert sum(map(len, plan)) == len(jit_warm.drivers())

@@ -54,3 +54,34 @@ def test_compiled_integrators_and_kernels_use_the_core_stamp():
         locator = dispatcher._cache._impl.locator
         assert isinstance(locator, jit.CORE_LOCATORS), type(locator)
         assert locator.get_source_stamp() == stamp
+
+
+@pytest.mark.skipif(not jit.CACHE_LOCKED, reason="no flock or no numba cache internals")
+def test_two_processes_saving_one_function_side_by_side_keep_both_entries(tmp_path,
+                                                                          monkeypatch):
+    """numba's save reads the index, adds its entry and writes it back: two writers at once
+    (make warm's 2 processes, here 2 threads with a widened window) lost an entry before
+    the lock; now both signatures are in the index, each with its own data."""
+    import threading
+    import time
+
+    from numba.core.caching import IndexDataCacheFile
+
+    load_index = IndexDataCacheFile._load_index
+
+    def slow_load_index(self):
+        got = load_index(self)
+        time.sleep(0.2)            # another writer would read the same index meanwhile
+        return got
+
+    monkeypatch.setattr(IndexDataCacheFile, "_load_index", slow_load_index)
+    files = [IndexDataCacheFile(str(tmp_path), "f-1.py311", "stamp") for _ in range(2)]
+    threads = [threading.Thread(target=f.save, args=(f"sig{i}", f"code{i}"))
+               for i, f in enumerate(files)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    monkeypatch.setattr(IndexDataCacheFile, "_load_index", load_index)
+    reader = IndexDataCacheFile(str(tmp_path), "f-1.py311", "stamp")
+    assert reader.load("sig0") == "code0" and reader.load("sig1") == "code1"

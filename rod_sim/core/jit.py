@@ -13,12 +13,14 @@ plain-Python function compiled elsewhere, as motion.py's ``profile_at``), so tha
 any of them recompiles them all, and an edit of the pure-Python modules (models, scene,
 validity, ...) recompiles nothing.
 
-LLVM optimisation level: numba optimises at ``NUMBA_OPT`` = 3 by default, and each driver
-links and re-optimises the whole call tree of the kernels it inlines, which made a cold
-compile of one driver cost 70-190 s of CPU. This package sets :data:`OPT_LEVEL` instead
-(``ROD_SIM_NUMBA_OPT`` or an explicit ``NUMBA_OPT`` overrides it); the level is part of the
-cache stamp, so that code compiled at another level is not loaded. Measured compile and run
-times per level, and the bit-identity of the results: README, "Compile time".
+Compile-time settings (measured with ``python -m rod_sim.tools.jit_profile``; README,
+"Compile time"): numba's LLVM optimisation level :data:`OPT_LEVEL` (``ROD_SIM_NUMBA_OPT``, or
+``NUMBA_OPT``; default numba's 3) and :data:`INLINE` (``ROD_SIM_NUMBA_INLINE``: whether the
+``inline="always"`` option of the kernels' helpers is honoured; default yes). Both are part of
+the cache stamp, so that code compiled with other settings is never loaded. Dropping the
+inlining halves a driver's cold compile (reduced x dop853-jit: 84 -> 38 s of CPU) with
+bit-identical results but costs 20-35 % of run time; a lower optimisation level saves < 10 %
+of compile time: the defaults stay.
 """
 from __future__ import annotations
 
@@ -28,7 +30,7 @@ from pathlib import Path
 
 CORE_DIR = Path(__file__).resolve().parent
 
-DEFAULT_OPT_LEVEL = "1"
+DEFAULT_OPT_LEVEL = "3"
 """numba's optimisation level for this package unless ``ROD_SIM_NUMBA_OPT`` or ``NUMBA_OPT``
 says otherwise ('0' .. '3' or 'max')."""
 OPT_LEVEL = (os.environ.get("ROD_SIM_NUMBA_OPT") or os.environ.get("NUMBA_OPT")
@@ -88,6 +90,49 @@ def _install_core_locators(caching) -> tuple:
     return mine
 
 
+CACHE_LOCK = ".rod_sim_cache.lock"
+"""Lock file in each numba cache directory (:func:`_lock_cache_files`)."""
+
+
+def _lock_cache_files(caching) -> bool:
+    """Make numba's cache safe for processes compiling side by side (``make warm`` runs 2):
+    numba writes an index file (signature -> data file) and the data file, each atomically,
+    but a save reads the index, picks a data file number and writes both, so two processes
+    saving different signatures of one function at once can lose an entry or pair one
+    signature with the other's machine code. Saves hold an exclusive ``flock`` on
+    :data:`CACHE_LOCK` of the cache directory, loads a shared one. Returns False (nothing
+    changed) where flock or numba's internal class is missing."""
+    try:
+        import fcntl
+    except ImportError:
+        return False
+    cls = getattr(caching, "IndexDataCacheFile", None)
+    if cls is None or not all(hasattr(cls, name) for name in ("save", "load")):
+        return False
+    if getattr(cls, "_rod_sim_locked", False):
+        return True
+
+    def locked(method, mode):
+        def wrapper(self, *args, **kwargs):
+            try:
+                fd = os.open(os.path.join(self._cache_path, CACHE_LOCK),
+                             os.O_RDWR | os.O_CREAT, 0o644)
+            except (OSError, AttributeError):
+                return method(self, *args, **kwargs)
+            try:
+                fcntl.flock(fd, mode)
+                return method(self, *args, **kwargs)
+            finally:
+                os.close(fd)                    # releases the lock
+        wrapper.__wrapped__ = method
+        return wrapper
+
+    cls.save = locked(cls.save, fcntl.LOCK_EX)
+    cls.load = locked(cls.load, fcntl.LOCK_SH)
+    cls._rod_sim_locked = True
+    return True
+
+
 try:  # pragma: no cover - exercised by whichever branch the machine has
     if os.environ.get("ROD_SIM_NO_JIT"):
         raise ImportError("disabled by ROD_SIM_NO_JIT")
@@ -103,8 +148,9 @@ try:  # pragma: no cover - exercised by whichever branch the machine has
     try:
         from numba.core import caching as _caching
         CORE_LOCATORS = _install_core_locators(_caching)
+        CACHE_LOCKED = _lock_cache_files(_caching)
     except ImportError:
-        CORE_LOCATORS = ()
+        CORE_LOCATORS, CACHE_LOCKED = (), False
 
     def njit(fn=None, **kwargs):
         """``numba.njit(cache=True)`` with the given options."""
@@ -117,7 +163,7 @@ try:  # pragma: no cover - exercised by whichever branch the machine has
 
 except ImportError:  # pragma: no cover
     HAVE_NUMBA = False
-    CORE_LOCATORS = ()
+    CORE_LOCATORS, CACHE_LOCKED = (), False
 
     def njit(fn=None, **kwargs):
         if fn is None:

@@ -31,19 +31,21 @@ NOTICE_AFTER_S = 2.0
 TICK_S = 8.0
 """[s] between progress lines (the issue asks for one at least every 10 s)."""
 
-OPT_OF_TABLE = 1
-"""numba's optimisation level (rod_sim.core.jit.OPT_LEVEL) :data:`COMPILE_CPU_S` was
-measured at."""
 COMPILE_CPU_S = {
-    "dop853_full": 40.0, "dop853_reduced": 40.0, "dop853_rigid": 40.0,
-    "radau_full": 60.0, "radau_reduced": 40.0, "radau_rigid": 40.0,
-    "fixed_full": 10.0, "fixed_reduced": 10.0, "fixed_rigid": 10.0,
-    "full_rhs": 15.0, "reduced_rhs": 15.0, "rigid_rhs": 15.0,
+    "dop853_full": 85.0, "dop853_reduced": 85.0, "dop853_rigid": 85.0,
+    "radau_full": 240.0, "radau_reduced": 95.0, "radau_rigid": 95.0,
+    "fixed_full": 60.0, "fixed_reduced": 60.0, "fixed_rigid": 60.0,
+    "full_rhs": 66.0, "reduced_rhs": 66.0, "rigid_rhs": 66.0,
 }
-"""Process CPU seconds to compile each compiled entry point from a cold cache (its kernels
-included), measured with ``python -m rod_sim.tools.jit_profile`` on the 2-core development
-machine at NUMBA_OPT = :data:`OPT_OF_TABLE` (README, "Compile time")."""
-UNKNOWN_CPU_S = 10.0
+"""Process CPU seconds to compile each compiled entry point from a cold cache, its model's
+kernel included, on the 2-core development machine (numba 0.68, NUMBA_OPT 3; README,
+"Compile time"): a kernel alone ~66 s (measured: scipy's Radau compiling it again for a
+strided state), dop853 drivers 79-94 s, radau-jit after its kernel 43-189 s, fixed-step
+after it 7-8 s."""
+KERNEL_CPU_S = 50.0
+"""CPU seconds of an entry point's estimate that a later entry point of the same model in
+the same process does not pay again (typing the model's kernel)."""
+UNKNOWN_CPU_S = 20.0
 """[s] CPU assumed for a function not in the table."""
 
 _KINDS = {"dop853": "dop853-jit integrator", "radau": "radau-jit integrator",

@@ -10,10 +10,10 @@ The full set iterates over whatever the registries hold: every model of ``MODEL_
 every integrator of ``INTEGRATOR_NAMES`` (rod_sim.core.names), on a plain chain and on a
 chain with hinge features (stops, latches, a locked hinge), so that a newly registered model,
 integrator or hinge driver is covered without editing this file. The drivers are grouped by
-the compiled entry point they use (one group runs in one process, in order: the same code is
-never compiled by two processes at once) and the groups run in ``--jobs`` processes (numba's
-cache keeps one index file per function: processes compiling different functions do not
-meet), the most expensive first. A line at least every :data:`TICK_S` seconds says what is
+model (one group runs in one process, in order, so that the model's kernel is compiled once)
+and the groups run in ``--jobs`` processes, the most expensive first. Processes compiling side
+by side may save different signatures of one shared helper at once: rod_sim.core.jit locks
+numba's cache index for that. A line at least every :data:`TICK_S` seconds says what is
 compiling, how long it has taken and how long the rest should take.
 """
 from __future__ import annotations
@@ -54,22 +54,22 @@ def entry_point(model: str, integrator: str) -> str:
 
 
 def groups(todo) -> list[list[tuple[str, str, str]]]:
-    """``todo`` grouped by :func:`entry_point` (order kept within a group), the groups the
-    most expensive first (by :data:`compile_watch.COMPILE_CPU_S`)."""
-    from .compile_watch import COMPILE_CPU_S, UNKNOWN_CPU_S
-
-    by_key: dict[str, list] = {}
+    """``todo`` grouped by model (order kept within a group: its drivers share the model's
+    kernel, compiled once by the group's process), the groups the most expensive first."""
+    by_model: dict[str, list] = {}
     for item in todo:
-        by_key.setdefault(entry_point(item[1], item[2]), []).append(item)
-    return [by_key[k] for k in sorted(by_key, key=lambda k: -COMPILE_CPU_S.get(
-        k, UNKNOWN_CPU_S))]
+        by_model.setdefault(item[1], []).append(item)
+    return sorted(by_model.values(), key=lambda g: -estimate(g))
 
 
 def estimate(group) -> float:
-    """CPU seconds measured for compiling a group's entry point."""
-    from .compile_watch import COMPILE_CPU_S, UNKNOWN_CPU_S
+    """CPU seconds measured for compiling a group's entry points in one process (the
+    model's kernel once: :data:`compile_watch.KERNEL_CPU_S`)."""
+    from .compile_watch import COMPILE_CPU_S, KERNEL_CPU_S, UNKNOWN_CPU_S
 
-    return COMPILE_CPU_S.get(entry_point(group[0][1], group[0][2]), UNKNOWN_CPU_S)
+    points = {entry_point(m, i) for _, m, i in group}
+    return sum(COMPILE_CPU_S.get(p, UNKNOWN_CPU_S) for p in points) \
+        - KERNEL_CPU_S * (len(points) - 1)
 
 
 def progress_line(done: int, total: int, what: str, took: float, elapsed: float,
@@ -153,8 +153,8 @@ def warm(log=print, todo=None, jobs: int = 1, clock=time.perf_counter) -> int:
                 if not finished:
                     elapsed = clock() - started
                     rate = elapsed / spent_est if spent_est > 0 else pace
-                    now = [" / ".join(sorted({entry_point(g[0][1], g[0][2])}))
-                           for f, g in pending.items() if f.running()]
+                    now = [f"the {g[0][1]} model's drivers" for f, g in pending.items()
+                           if f.running()]
                     log(f"rod_sim: [{done}/{total}] compiling {', '.join(now) or '...'} "
                         f"({elapsed:.0f} s so far, ~{max(cpu_left, 0.0) * rate:.0f} s left)")
     log(f"rod_sim: {ran} compiled drivers ready in numba's cache "
