@@ -36,16 +36,18 @@ COMPILE_CPU_S = {
     "radau_full": 240.0, "radau_reduced": 95.0, "radau_rigid": 95.0,
     "fixed_full": 60.0, "fixed_reduced": 60.0, "fixed_rigid": 60.0,
     "full_rhs": 66.0, "reduced_rhs": 66.0, "rigid_rhs": 66.0,
+    "mass_times": 2.0, "load_forces": 1.0,
 }
 """Process CPU seconds to compile each compiled entry point from a cold cache, its model's
 kernel included, on the 2-core development machine (numba 0.68, NUMBA_OPT 3; README,
 "Compile time"): a kernel alone ~66 s (measured: scipy's Radau compiling it again for a
 strided state), dop853 drivers 79-94 s, radau-jit after its kernel 43-189 s, fixed-step
-after it 7-8 s."""
+after it 7-8 s; the helpers a node's checks call ~1 s (mass_times: 1 s CPU, 3 s wall at
+load 7)."""
 KERNEL_CPU_S = 50.0
 """CPU seconds of an entry point's estimate that a later entry point of the same model in
 the same process does not pay again (typing the model's kernel)."""
-UNKNOWN_CPU_S = 20.0
+UNKNOWN_CPU_S = 5.0
 """[s] CPU assumed for a function not in the table."""
 
 _KINDS = {"dop853": "dop853-jit integrator", "radau": "radau-jit integrator",
@@ -106,6 +108,7 @@ class CompileWatch:
         self._active: dict[int, _Compile] = {}
         self._lock = threading.Lock()
         self._stop = threading.Event()
+        self._wake = threading.Event()
         self._thread: threading.Thread | None = None
 
     # -- the compile thread's side (numba's events) ------------------------------------
@@ -119,6 +122,7 @@ class CompileWatch:
                 return
             self._active[key] = _Compile(name, self.clock(), self.cpu(),
                                          self.table.get(name, UNKNOWN_CPU_S))
+        self._wake.set()
 
     def end(self) -> None:
         """The calling thread's innermost compile ended; after the outermost, a closing line
@@ -154,11 +158,12 @@ class CompileWatch:
         return lines
 
     def _notice(self, c: _Compile, now: float) -> str:
-        wall = c.estimate_cpu * self.slowdown()
+        wall = max(c.estimate_cpu * self.slowdown(), now - c.wall0)
+        measured = (f"Measured {c.estimate_cpu:.0f} s of CPU" if c.name in self.table else
+                    f"Not measured (helpers take ~{c.estimate_cpu:.0f} s of CPU)")
         return (f"{COMPILE_NOTICE} {describe(c.name)} ({c.name}): it is not in numba's "
                 "cache yet (first use since an install or a change of rod_sim/core; compiled "
-                f"once, then cached). Measured {c.estimate_cpu:.0f} s of CPU; expect "
-                f"~{max(wall, now - c.wall0):.0f} s at this machine's load")
+                f"once, then cached). {measured}; expect ~{wall:.0f} s at this machine's load")
 
     def _progress(self, c: _Compile, now: float) -> str:
         elapsed, used = now - c.wall0, self.cpu() - c.cpu0
@@ -170,7 +175,15 @@ class CompileWatch:
         return f"{head}, ~{(c.estimate_cpu - used) / rate:.0f} s left"
 
     def _tick(self) -> None:
-        while not self._stop.wait(0.25):
+        """Poll four times a second while a compile runs; sleep while none does (no wake-ups
+        in a running node)."""
+        while not self._stop.is_set():
+            if not self._active:
+                self._wake.wait()
+                self._wake.clear()
+                continue
+            if self._stop.wait(0.25):
+                break
             try:
                 self.poll()
             except Exception:   # a notice must never break the run
@@ -207,6 +220,7 @@ class CompileWatch:
         from numba.core import event
 
         self._stop.set()
+        self._wake.set()
         if getattr(self, "_listener", None) is not None:
             event.unregister("numba:compile", self._listener)
             self._listener = None

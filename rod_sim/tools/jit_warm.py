@@ -122,21 +122,22 @@ def warm(log=print, todo=None, jobs: int = 1, clock=time.perf_counter) -> int:
         f"numba's cache in {jobs} process(es): ~{cpu_left * pace:.0f} s at this load "
         f"(measured {cpu_left:.0f} s of CPU cold; ~1 s when already cached)")
     started = clock()
+    expected_end = started + cpu_left * pace
     done = ran = 0
     spent_cpu = spent_est = 0.0
 
     def report(group, results):
-        nonlocal done, ran, cpu_left, spent_cpu, spent_est
+        nonlocal done, ran, cpu_left, spent_cpu, spent_est, expected_end
         cpu_left -= estimate(group)
         spent_est += estimate(group)
         spent_cpu += sum(r[2] for r in results)
-        elapsed = clock() - started
-        # the rest at the pace seen so far (wall per estimated CPU second), else the load's
-        rate = elapsed / spent_est if spent_est > 0 else pace
+        now = clock()
+        # the rest at the pace seen so far (wall per estimated CPU second)
+        expected_end = now + max(cpu_left, 0.0) * (now - started) / spent_est
         for label, took, _cpu, skipped in results:
             done += 1
             ran += not skipped
-            log(progress_line(done, total, label, took, elapsed, max(cpu_left, 0.0) * rate,
+            log(progress_line(done, total, label, took, now - started, expected_end - now,
                               skipped))
 
     if jobs == 1:
@@ -151,12 +152,13 @@ def warm(log=print, todo=None, jobs: int = 1, clock=time.perf_counter) -> int:
                 for f in finished:
                     report(pending.pop(f), f.result())
                 if not finished:
-                    elapsed = clock() - started
-                    rate = elapsed / spent_est if spent_est > 0 else pace
-                    now = [f"the {g[0][1]} model's drivers" for f, g in pending.items()
-                           if f.running()]
-                    log(f"rod_sim: [{done}/{total}] compiling {', '.join(now) or '...'} "
-                        f"({elapsed:.0f} s so far, ~{max(cpu_left, 0.0) * rate:.0f} s left)")
+                    now = clock()
+                    busy = [f"the {g[0][1]} model's drivers" for f, g in pending.items()
+                            if f.running()]
+                    left = (f"~{expected_end - now:.0f} s left" if expected_end > now else
+                            "past the estimate, should end soon")
+                    log(f"rod_sim: [{done}/{total}] compiling {', '.join(busy) or '...'} "
+                        f"({now - started:.0f} s so far, {left})")
     log(f"rod_sim: {ran} compiled drivers ready in numba's cache "
         f"({clock() - started:.1f} s, {spent_cpu:.0f} s CPU in the compiling processes)")
     return ran
