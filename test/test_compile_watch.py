@@ -30,7 +30,8 @@ class Clocks:
 def make_watch(clocks, lines, slowdown=1.0, table=None):
     return CompileWatch(lines.append, clock=lambda: clocks.wall, cpu=lambda: clocks.cpu,
                         slowdown=lambda: slowdown,
-                        table={"dop853_full": 40.0} if table is None else table)
+                        table={"dop853_full": 40.0} if table is None else table,
+                        kernel_ready=lambda name: False)
 
 
 def test_a_long_compile_gets_one_notice_then_progress_then_a_closing_line():
@@ -166,6 +167,17 @@ def test_every_driver_has_a_measured_estimate_and_a_name_in_words():
             for family, disp in zip(("dop853", "fixed", "radau"), cls.compiled):
                 assert disp.py_func.__name__ == f"{family}_{model}"
             assert cls.kernel.py_func.__name__ == f"{model}_rhs"
+
+
+def test_a_driver_whose_kernel_is_compiled_already_is_estimated_without_it():
+    clocks, lines = Clocks(), []
+    watch = make_watch(clocks, lines, table={"fixed_full": 60.0})
+    watch.kernel_ready = lambda name: name == "fixed_full"
+    watch.begin("fixed_full")
+    clocks.advance(2.0)
+    (notice,) = watch.poll()
+    assert f"Measured {60 - compile_watch.KERNEL_CPU_S:.0f} s of CPU" in notice
+    assert not compile_watch.kernel_cached("mass_times")     # not a driver
 
 
 def test_the_slowdown_grows_with_the_load():

@@ -144,17 +144,19 @@ def warm(log=print, todo=None, jobs: int = 1, clock=time.perf_counter) -> int:
         for group in plan:
             report(group, run_group(group))
     else:
+        queue = list(plan)
         with ProcessPoolExecutor(max_workers=jobs) as pool:
-            pending = {pool.submit(run_group, g): g for g in plan}
-            running_since = {f: clock() for f in pending}
-            while pending:
+            pending = {}
+            while queue or pending:
+                while queue and len(pending) < jobs:   # submitted = running: the ticks say
+                    group = queue.pop(0)               # what really compiles
+                    pending[pool.submit(run_group, group)] = group
                 finished, _ = wait(pending, timeout=TICK_S, return_when=FIRST_COMPLETED)
                 for f in finished:
                     report(pending.pop(f), f.result())
                 if not finished:
                     now = clock()
-                    busy = [f"the {g[0][1]} model's drivers" for f, g in pending.items()
-                            if f.running()]
+                    busy = [f"the {g[0][1]} model's drivers" for g in pending.values()]
                     left = (f"~{expected_end - now:.0f} s left" if expected_end > now else
                             "past the estimate, should end soon")
                     log(f"rod_sim: [{done}/{total}] compiling {', '.join(busy) or '...'} "
