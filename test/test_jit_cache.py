@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import shutil
 
+import numpy as np
 import pytest
 
 from rod_sim.core import erk, jit, kernels
@@ -85,3 +86,29 @@ def test_two_processes_saving_one_function_side_by_side_keep_both_entries(tmp_pa
     monkeypatch.setattr(IndexDataCacheFile, "_load_index", load_index)
     reader = IndexDataCacheFile(str(tmp_path), "f-1.py311", "stamp")
     assert reader.load("sig0") == "code0" and reader.load("sig1") == "code1"
+
+
+@pytest.mark.parametrize("method", ["Radau", "BDF"])
+def test_scipy_jacobians_hand_the_kernel_contiguous_states(method):
+    """scipy's finite-difference Jacobian passes columns of a 2-D array; a strided state made
+    numba compile the whole kernel again (66 s of CPU per model): the kernel sees only
+    C-contiguous states, one specialisation."""
+    from pathlib import Path
+
+    from rod_sim.core.integrators import make_integrator
+    from rod_sim.core.models import make_model
+    from rod_sim.core.simulator import Simulator
+    from rod_sim.io.scene_yaml import load_scene
+
+    model = make_model("reduced", load_scene(Path(__file__).resolve().parents[1] / "config"
+                                             / "paper_example.yaml"))
+    kernel, layouts = model.kernel, []
+
+    def watched(t, y, *args):
+        layouts.append(y.flags.c_contiguous)
+        return kernel(t, np.ascontiguousarray(y), *args)   # this test compiles nothing
+
+    model.kernel = watched
+    Simulator(model, make_integrator(method)).advance(0.01)
+    assert len(layouts) > 2 * model.state_size        # a Jacobian was computed
+    assert all(layouts)
