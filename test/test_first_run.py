@@ -53,6 +53,9 @@ def test_warm_groups_are_models_and_the_costliest_run_first():
     costs = [jit_warm.estimate(g) for g in plan]
     assert costs == sorted(costs, reverse=True)
     assert sum(map(len, plan)) == len(jit_warm.drivers())
+    hinge = jit_warm.SCENES[-1]       # its velocity projection is compiled by one process
+    assert plan[0][0][0] == hinge and all(g[-1][0] == hinge for g in plan[1:])
+    assert all(g[0][0] != hinge for g in plan[1:])
 
 
 def test_warm_in_two_processes_ticks_while_nothing_finishes(monkeypatch):

@@ -36,7 +36,7 @@ COMPILE_CPU_S = {
     "radau_full": 240.0, "radau_reduced": 95.0, "radau_rigid": 95.0,
     "fixed_full": 65.0, "fixed_reduced": 65.0, "fixed_rigid": 65.0,
     "full_rhs": 66.0, "reduced_rhs": 66.0, "rigid_rhs": 66.0,
-    "mass_times": 2.0, "load_forces": 1.0,
+    "mass_times": 2.0, "load_forces": 1.0, "solve_with": 70.0,
 }
 """Process CPU seconds to compile each compiled entry point from a cold cache, its model's
 kernel included, on the 2-core development machine (numba 0.68, NUMBA_OPT 3; README,
@@ -44,7 +44,8 @@ kernel included, on the 2-core development machine (numba 0.68, NUMBA_OPT 3; REA
 strided state), dop853 drivers 79-94 s, radau-jit after its kernel 43-189 s, fixed-step
 after it 7-8 s (15 s with the kernel loaded from the cache: rk4 on the paper example, reduced,
 at load 8, 97 s wall); the helpers a node's checks call ~1 s (mass_times: 1 s CPU, 3 s wall at
-load 7)."""
+load 7); the velocity projection of a scene with locked hinges or latches (solve_with) ~70 s
+(~450 s wall at load 9)."""
 KERNEL_CPU_S = 50.0
 """CPU seconds of an entry point's estimate that a later entry point of the same model in
 the same process does not pay again (typing the model's kernel)."""
@@ -64,6 +65,8 @@ def describe(name: str) -> str:
     model, _, tail = name.partition("_")
     if tail == "rhs" and model in _MODELS:
         return f"the {model} model's right-hand side for scipy's solvers"
+    if name == "solve_with":
+        return "the velocity projection for locked hinges and latches"
     return f"the compiled function {name}"
 
 

@@ -54,12 +54,18 @@ def entry_point(model: str, integrator: str) -> str:
 
 
 def groups(todo) -> list[list[tuple[str, str, str]]]:
-    """``todo`` grouped by model (order kept within a group: its drivers share the model's
-    kernel, compiled once by the group's process), the groups the most expensive first."""
+    """``todo`` grouped by model (its drivers share the model's kernel, compiled once by the
+    group's process), the groups the most expensive first. The first group runs the hinge
+    scene first, the others run it last: a scene with locked hinges or latches compiles the
+    velocity projection (kernels.solve_with, ~70 s of CPU, one for every model) from Python,
+    and two processes reaching it together compiled it twice."""
     by_model: dict[str, list] = {}
     for item in todo:
         by_model.setdefault(item[1], []).append(item)
-    return sorted(by_model.values(), key=lambda g: -estimate(g))
+    plan = sorted(by_model.values(), key=lambda g: -estimate(g))
+    hinge = SCENES[-1]
+    return [sorted(g, key=lambda item: (item[0] == hinge) == (k > 0)) for k, g in
+            enumerate(plan)]
 
 
 def estimate(group) -> float:
