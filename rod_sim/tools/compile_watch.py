@@ -88,15 +88,29 @@ def kernel_cached(name: str) -> bool:
         return False
 
 
-def load_slowdown(load: float | None = None, cores: int | None = None) -> float:
-    """Wall seconds per CPU second of one single-threaded job at the 1-minute load average
-    ``load`` (default: the machine's) on ``cores`` cores: max(1, (load + 1) / cores)."""
+def _load_and_cores(load: float | None, cores: int | None) -> tuple[float, int]:
     if load is None:
         try:
             load = os.getloadavg()[0]
         except OSError:
             load = 0.0
-    cores = cores or os.cpu_count() or 1
+    return load, cores or os.cpu_count() or 1
+
+
+def cpu_inflation(load: float | None = None, cores: int | None = None) -> float:
+    """How much more CPU time a compile takes on a busy machine than the idle figures of
+    :data:`COMPILE_CPU_S` (shared caches and cores): 1 + 0.1 per unit of 1-minute load above
+    the core count. Fitted to this session's runs at load 6-9 on 2 cores: rk4 15 s of CPU
+    against 8 idle, the demo's 2 drivers 214 s against ~170, the full warm-up 1094 s
+    against ~830."""
+    load, cores = _load_and_cores(load, cores)
+    return 1.0 + 0.1 * max(0.0, load - cores)
+
+
+def load_slowdown(load: float | None = None, cores: int | None = None) -> float:
+    """Wall seconds per CPU second of one single-threaded job at the 1-minute load average
+    ``load`` (default: the machine's) on ``cores`` cores: max(1, (load + 1) / cores)."""
+    load, cores = _load_and_cores(load, cores)
     return max(1.0, (load + 1.0) / cores)
 
 
@@ -123,12 +137,13 @@ class CompileWatch:
     def __init__(self, sink: Callable[[str], None], *, after: float = NOTICE_AFTER_S,
                  every: float = TICK_S, clock=time.monotonic, cpu=time.process_time,
                  slowdown=load_slowdown, table: dict | None = None,
-                 kernel_ready=kernel_cached):
+                 kernel_ready=kernel_cached, inflation=cpu_inflation):
         self.sink = sink
         self.after, self.every = after, every
         self.clock, self.cpu, self.slowdown = clock, cpu, slowdown
         self.table = COMPILE_CPU_S if table is None else table
         self.kernel_ready = kernel_ready
+        self.inflation = inflation
         self._active: dict[int, _Compile] = {}
         self._lock = threading.Lock()
         self._stop = threading.Event()
@@ -147,6 +162,7 @@ class CompileWatch:
             cpu = self.table.get(name, UNKNOWN_CPU_S)
             if name in self.table and self.kernel_ready(name):
                 cpu = max(cpu - KERNEL_CPU_S, 5.0)
+            cpu *= self.inflation()
             self._active[key] = _Compile(name, self.clock(), self.cpu(), cpu)
         self._wake.set()
 
@@ -185,7 +201,8 @@ class CompileWatch:
 
     def _notice(self, c: _Compile, now: float) -> str:
         wall = max(c.estimate_cpu * self.slowdown(), now - c.wall0)
-        measured = (f"Measured {c.estimate_cpu:.0f} s of CPU" if c.name in self.table else
+        measured = (f"Measured ~{c.estimate_cpu:.0f} s of CPU at this load" if c.name in
+                    self.table else
                     f"Not measured (helpers take ~{c.estimate_cpu:.0f} s of CPU)")
         return (f"{COMPILE_NOTICE} {describe(c.name)} ({c.name}): it is not in numba's "
                 "cache yet (first use since an install or a change of rod_sim/core; compiled "

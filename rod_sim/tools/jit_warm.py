@@ -116,14 +116,14 @@ def warm(log=print, todo=None, jobs: int = 1, clock=time.perf_counter) -> int:
     """Compile the drivers of ``todo`` (default: :func:`drivers`) in ``jobs`` processes (1:
     in this one), logging one line per driver and, while none finishes, one every
     :data:`TICK_S`; returns how many ran (not skipped)."""
-    from .compile_watch import load_slowdown
+    from .compile_watch import cpu_inflation, load_slowdown
 
     todo = drivers() if todo is None else list(todo)
     plan = groups(todo)
     total = len(todo)
     jobs = max(1, min(jobs, len(plan)))
     cpu_left = sum(estimate(g) for g in plan)
-    pace = load_slowdown() * max(1.0, jobs / (os.cpu_count() or 1)) / jobs
+    pace = load_slowdown() * cpu_inflation() * max(1.0, jobs / (os.cpu_count() or 1)) / jobs
     log(f"rod_sim: compiling {total} drivers ({len(plan)} compiled entry points) into "
         f"numba's cache in {jobs} process(es): ~{cpu_left * pace:.0f} s at this load "
         f"(measured {cpu_left:.0f} s of CPU cold; ~1 s when already cached)")
