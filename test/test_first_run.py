@@ -1,5 +1,6 @@
-"""First-run experience: `make` installs quietly and compiles every registered driver into
-numba's cache (rod_sim.tools.jit_warm), whatever the registries hold."""
+"""First-run experience: `make` installs quietly; `make demo` compiles what the demo runs,
+`make test` every registered driver into numba's cache (rod_sim.tools.jit_warm), whatever the
+registries hold, in 2 processes (one model each at a time)."""
 import re
 from pathlib import Path
 
@@ -37,17 +38,75 @@ def test_warm_runs_and_skips_only_refused_combinations(monkeypatch):
     assert sum("skipped" in ln for ln in progress) == total - ran
 
 
-def test_warm_progress_estimates_the_time_left_from_the_mean_so_far():
-    line = jit_warm.progress_line(3, 12, "full x rk4 on x.yaml", 2.0, 30.0)
+def test_warm_progress_line():
+    line = jit_warm.progress_line(3, 12, "full x rk4 on x.yaml", 2.0, 30.0, 90.0)
     assert line == ("rod_sim: [3/12] full x rk4 on x.yaml: 2.0 s (30 s so far, ~90 s left)")
-    assert "~0 s left" in jit_warm.progress_line(12, 12, "a", 1.0, 40.0)
-    assert "skipped" in jit_warm.progress_line(1, 2, "a", 0.0, 0.0, skipped=True)
+    assert "skipped" in jit_warm.progress_line(1, 2, "a", 0.0, 0.0, 0.0, skipped=True)
+
+
+def test_warm_groups_are_models_and_the_costliest_run_first():
+    plan = jit_warm.groups(jit_warm.drivers())
+    models = [g[0][1] for g in plan]
+    assert sorted(models) == sorted(names.MODEL_NAMES), "one group per model"
+    for group, model in zip(plan, models):
+        assert {m for _, m, _ in group} == {model}
+    costs = [jit_warm.estimate(g) for g in plan]
+    assert costs == sorted(costs, reverse=True)
+    assert sum(map(len, plan)) == len(jit_warm.drivers())
+    hinge = jit_warm.SCENES[-1]       # its velocity projection is compiled by one process
+    assert plan[0][0][0] == hinge and all(g[-1][0] == hinge for g in plan[1:])
+    assert all(g[0][0] != hinge for g in plan[1:])
+
+
+def test_warm_in_two_processes_ticks_while_nothing_finishes(monkeypatch):
+    """The parent prints a line every TICK_S while the workers compile (a fake compile that
+    sleeps until the parent has ticked twice: waited for, so load only slows it)."""
+    import multiprocessing
+
+    global _TICKS
+    ticks = _TICKS = multiprocessing.get_context("fork").Event()   # inherited by the workers
+    monkeypatch.setattr(jit_warm, "TICK_S", 0.05)
+    monkeypatch.setattr(jit_warm, "run_group", _fake_group)
+    lines = []
+
+    def log(line):
+        lines.append(line)
+        if sum("compiling" in ln and "so far" in ln for ln in lines) >= 2:
+            ticks.set()
+
+    todo = [("a.yaml", "full", "dop853-jit"), ("a.yaml", "reduced", "dop853-jit")]
+    assert jit_warm.warm(log, todo, jobs=2) == 2
+    assert lines[0].startswith("rod_sim: compiling 2 drivers") and "2 process(es)" in lines[0]
+    assert sum(bool(re.match(r"rod_sim: \[\d/2\] .* x dop853-jit on a.yaml: ", ln))
+               for ln in lines) == 2
+    assert "2 compiled drivers ready" in lines[-1]
+
+
+_TICKS = None
+
+
+def _fake_group(group):
+    """Stands in for run_group in a worker: waits for the parent's ticks."""
+    assert _TICKS.wait(120)
+    return [(f"{m} x {i} on {s}", 0.1, 0.1, False) for s, m, i in group]
 
 
 def test_make_installs_quietly_and_warms_the_cache():
     text = (ROOT / "Makefile").read_text()
     pip_lines = [ln for ln in text.splitlines() if "pip install" in ln]
     assert pip_lines and all(" -q " in ln for ln in pip_lines)
-    assert re.search(r"^venv: .*\$\(WARM\)", text, re.M)
-    assert re.search(r"^\$\(WARM\): .*rod_sim/core/\*\.py", text, re.M)
-    assert "-m rod_sim.tools.jit_warm" in text
+    assert re.search(r"^test: .*\$\(WARM\)", text, re.M)
+    assert re.search(r"^demo: .*\$\(WARM_DEMO\)", text, re.M)
+    assert re.search(r"^COMPILED = .*rod_sim/core/\*\.py", text, re.M)
+    assert re.search(r"^\$\(WARM\): .*\$\(COMPILED\)", text, re.M)
+    assert "-m rod_sim.tools.jit_warm --demo" in text
+
+
+def test_the_demo_warm_up_covers_what_the_demo_runs():
+    """table1 runs both models with dop853-jit, the demo's node the reduced model, compare
+    the full one (the Makefile's demo recipe)."""
+    text = (ROOT / "Makefile").read_text()
+    recipe = text[text.index("\ndemo:"):].split("\n\n")[0]
+    assert "rod-sim table1" in recipe and "rod_sim.ros.demo" in recipe and "compare" in recipe
+    assert set(jit_warm.DEMO) == {("paper_example.yaml", m, "dop853-jit")
+                                  for m in ("full", "reduced")}

@@ -440,6 +440,10 @@ class ScipyIntegrator(Integrator):
                     raise _NonFinite(t, np.array(yy), erk.STATUS_TEXT[erk.STATUS_MAX_STEPS]
                                      + f" (more than {self.max_nfev} derivative evaluations)")
                 out = np.empty(yy.shape[0])
+                # scipy's finite-difference Jacobian (Radau, BDF) passes columns of a 2-D
+                # array: a contiguous copy keeps one compiled specialisation of the kernel
+                # (a strided one compiled the whole kernel again, 66 s of CPU per model)
+                yy = np.ascontiguousarray(yy)
                 kernel(t, yy, chain, extra, loads, held, side, out)
                 if not (np.all(np.isfinite(yy)) and np.all(np.isfinite(out))):
                     raise _NonFinite(t, np.array(yy), erk.STATUS_TEXT[erk.STATUS_NONFINITE])

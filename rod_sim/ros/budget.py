@@ -107,7 +107,7 @@ def measure(sim, period_s: float, seconds: float) -> WorkBudget:
     units, costs = PROBE_UNITS, []
     started = None
     for call in range(1 + CALIBRATION_PERIODS):
-        phase("loading the compiled kernels" if call == 0 else
+        phase("loading the compiled kernels (compiling them if not cached)" if call == 0 else
               f"calibrating the work budget ({call} of {CALIBRATION_PERIODS} timed calls)")
         sim.configure(**{name: units})
         before = WorkBudget.work(sim)

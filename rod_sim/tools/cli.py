@@ -46,6 +46,9 @@ COMMANDS = {
     "urdf": "urdf",                             # a scene's chain as URDF
 }
 """``rod-sim`` subcommand -> the module of ``rod_sim.tools`` that implements it."""
+NEVER_COMPILES = frozenset({"ctl", "repair", "replay", "urdf"})
+"""Subcommands that run no compiled code (the others say what numba compiles when it does:
+:func:`rod_sim.tools.common.watch_compiles`; the node installs its own)."""
 
 
 def command_module(name: str) -> ModuleType:
@@ -142,6 +145,10 @@ def _main(argv: list[str]) -> int:
         return command_module("node").forward(argv[1:])
     parser = build_parser(argv[0] if argv and argv[0] in COMMANDS else None)
     args = parser.parse_args(argv)
+    if args.command not in NEVER_COMPILES:
+        from .common import watch_compiles
+
+        watch_compiles()
     try:
         return run(args)
     except (SceneError, UsageError, FileExistsError, ValueError) as err:   # ModelError too

@@ -13,10 +13,8 @@ Modules import their heavy dependencies (ROS, matplotlib, dask, ...) inside ``ru
 from __future__ import annotations
 
 import argparse
-import contextlib
 import math
 import sys
-import threading
 from pathlib import Path
 
 from ..core.quote import quote
@@ -73,24 +71,15 @@ def new_output_path(text: str, option: str = "--out") -> Path:
     return out
 
 
-COMPILE_NOTICE = "compiling kernels, first run only, ~20 s"
+from .compile_watch import COMPILE_NOTICE  # noqa: E402,F401  (tests filter by it)
 
 
-@contextlib.contextmanager
-def compile_notice(after: float = 2.0, stream=None):
-    """Print one line (COMPILE_NOTICE) on stderr if the block is still running after
-    ``after`` seconds: loading compiled kernels from numba's cache takes ~0.3 s, compiling
-    them (a cold cache: the first run after an install or a change of rod_sim.core) ~20 s."""
-    def notice():
-        print(f"rod-sim: {COMPILE_NOTICE}", file=stream or sys.stderr, flush=True)
+def watch_compiles(prefix: str = "rod-sim"):
+    """Say on stderr what numba compiles, why and how long it takes, when it does (a driver
+    not in the cache compiles on first use): :mod:`rod_sim.tools.compile_watch`."""
+    from .compile_watch import watch_compiles as _watch
 
-    timer = threading.Timer(after, notice)
-    timer.daemon = True
-    timer.start()
-    try:
-        yield
-    finally:
-        timer.cancel()
+    return _watch(lambda line: print(f"{prefix}: {line}", file=sys.stderr, flush=True))
 
 
 def importable(module: str) -> bool:

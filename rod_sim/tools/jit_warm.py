@@ -1,20 +1,37 @@
-"""Compile every compiled driver into numba's on-disk cache: ``python -m rod_sim.tools.jit_warm``.
+"""Compile drivers into numba's on-disk cache ahead of use: ``python -m rod_sim.tools.jit_warm``.
 
-``make`` runs it after installing (and again whenever a module of ``rod_sim/core`` changes,
-which invalidates the cache), so that the first ``rod-sim`` command or node start does not
-spend ~20 s compiling. It iterates over whatever the registries hold: every model of
-``MODEL_NAMES`` with every integrator of ``INTEGRATOR_NAMES`` (rod_sim.core.names), on a
-plain chain and on a chain with hinge features (stops, latches, a locked hinge), so that a
-newly registered model, integrator or hinge driver is covered without editing this file.
+``make demo`` runs it with ``--demo`` (only what the demo needs: the reduced and the full
+model's dop853-jit drivers and the helpers the node's messages use), ``make test`` without
+(every driver), each again whenever a module of ``rod_sim/core`` changes (which invalidates
+the cache). Anything not compiled here compiles on first use with a notice saying what, why
+and how long (:mod:`rod_sim.tools.compile_watch`).
+
+The full set iterates over whatever the registries hold: every model of ``MODEL_NAMES`` with
+every integrator of ``INTEGRATOR_NAMES`` (rod_sim.core.names), on a plain chain and on a
+chain with hinge features (stops, latches, a locked hinge), so that a newly registered model,
+integrator or hinge driver is covered without editing this file. The drivers are grouped by
+model (one group runs in one process, in order, so that the model's kernel is compiled once)
+and the groups run in ``--jobs`` processes, the most expensive first. Processes compiling side
+by side may save different signatures of one shared helper at once: rod_sim.core.jit locks
+numba's cache index for that. A line at least every :data:`TICK_S` seconds says what is
+compiling, how long it has taken and how long the rest should take.
 """
 from __future__ import annotations
 
+import argparse
+import os
 import sys
 import time
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from pathlib import Path
 
 CONFIG = Path(__file__).resolve().parents[2] / "config"
 SCENES = ("paper_example.yaml", "deployment.yaml")     # plain chain; hinge features
+DEMO = (("paper_example.yaml", "full", "dop853-jit"),
+        ("paper_example.yaml", "reduced", "dop853-jit"))
+"""What ``make demo`` runs: table1 (both models), the node (reduced), compare (full)."""
+TICK_S = 8.0
+"""[s] between progress lines while nothing finishes."""
 
 
 def drivers() -> list[tuple[str, str, str]]:
@@ -25,46 +42,148 @@ def drivers() -> list[tuple[str, str, str]]:
             for integrator in INTEGRATOR_NAMES]
 
 
+def entry_point(model: str, integrator: str) -> str:
+    """The name of the compiled function a (model, integrator) pair compiles (scipy's
+    methods share the model's right-hand side; the fixed-step methods one driver)."""
+    from ..core.names import SCIPY_METHODS
+
+    if integrator in SCIPY_METHODS:
+        return f"{model}_rhs"
+    family = {"dop853-jit": "dop853", "radau-jit": "radau"}.get(integrator, "fixed")
+    return f"{family}_{model}"
+
+
+def groups(todo) -> list[list[tuple[str, str, str]]]:
+    """``todo`` grouped by model (its drivers share the model's kernel, compiled once by the
+    group's process), the groups the most expensive first. The first group runs the hinge
+    scene first, the others run it last: a scene with locked hinges or latches compiles the
+    velocity projection (kernels.solve_with, ~70 s of CPU, one for every model) from Python,
+    and two processes reaching it together compiled it twice."""
+    by_model: dict[str, list] = {}
+    for item in todo:
+        by_model.setdefault(item[1], []).append(item)
+    plan = sorted(by_model.values(), key=lambda g: -estimate(g))
+    hinge = SCENES[-1]
+    return [sorted(g, key=lambda item: (item[0] == hinge) == (k > 0)) for k, g in
+            enumerate(plan)]
+
+
+def estimate(group) -> float:
+    """CPU seconds measured for compiling a group's entry points in one process (the
+    model's kernel once: :data:`compile_watch.KERNEL_CPU_S`)."""
+    from .compile_watch import COMPILE_CPU_S, KERNEL_CPU_S, UNKNOWN_CPU_S
+
+    points = {entry_point(m, i) for _, m, i in group}
+    return sum(COMPILE_CPU_S.get(p, UNKNOWN_CPU_S) for p in points) \
+        - KERNEL_CPU_S * (len(points) - 1)
+
+
 def progress_line(done: int, total: int, what: str, took: float, elapsed: float,
-                  skipped: bool = False) -> str:
-    """One progress line: ``[done/total] what: took s (elapsed s, ~left s left)``; the estimate
-    of the time left is the mean time per driver so far times the drivers left [s]."""
-    left = elapsed / done * (total - done) if done else 0.0
+                  left: float, skipped: bool = False) -> str:
+    """One progress line: ``[done/total] what: took s (elapsed s so far, ~left s left)``."""
     status = "skipped (not supported)" if skipped else f"{took:.1f} s"
     return (f"rod_sim: [{done}/{total}] {what}: {status} ({elapsed:.0f} s so far, "
             f"~{left:.0f} s left)")
 
 
-def warm(log=print) -> int:
-    """Run every driver for 1 ms of simulated time, logging one progress line per driver with
-    an estimate of the time left; returns how many ran. A combination the library refuses
-    (e.g. a fixed-step integrator on a scene with hinge events) is skipped."""
+def run_group(group) -> list[tuple[str, float, float, bool]]:
+    """Run each (scene, model, integrator) of ``group`` for 1 ms, then the model's energies
+    and powers (the helpers a node's messages use): per item (label, wall s, CPU s,
+    skipped). A combination the library refuses (ValueError) is skipped."""
     from ..core.integrators import make_integrator
     from ..core.models import make_model
     from ..core.simulator import Simulator
     from ..io.scene_yaml import load_scene
 
-    scenes = {name: load_scene(CONFIG / name) for name in SCENES}
-    ran = 0
-    started = time.perf_counter()
-    todo = drivers()
-    log(f"rod_sim: compiling {len(todo)} drivers into numba's cache (a few minutes cold, "
-        "longer on a loaded machine; ~1 s when already cached)")
-    for done, (scene, model, integrator) in enumerate(todo, 1):
-        t0 = time.perf_counter()
+    out = []
+    for scene, model_name, integrator in group:
+        w0, c0 = time.perf_counter(), time.process_time()
         skipped = False
         try:
-            Simulator(make_model(model, scenes[scene]), make_integrator(integrator)).advance(1e-3)
-            ran += 1
+            model = make_model(model_name, load_scene(CONFIG / scene))
+            sim = Simulator(model, make_integrator(integrator))
+            sim.advance(1e-3)
+            model.energies(sim.t, sim.y, sim.held)
+            model.powers(sim.t, sim.y, sim.held)
         except ValueError:
             skipped = True
-        now = time.perf_counter()
-        log(progress_line(done, len(todo), f"{model} x {integrator} on {scene}", now - t0,
-                          now - started, skipped))
+        out.append((f"{model_name} x {integrator} on {scene}", time.perf_counter() - w0,
+                    time.process_time() - c0, skipped))
+    return out
+
+
+def warm(log=print, todo=None, jobs: int = 1, clock=time.perf_counter) -> int:
+    """Compile the drivers of ``todo`` (default: :func:`drivers`) in ``jobs`` processes (1:
+    in this one), logging one line per driver and, while none finishes, one every
+    :data:`TICK_S`; returns how many ran (not skipped)."""
+    from .compile_watch import cpu_inflation, load_slowdown
+
+    todo = drivers() if todo is None else list(todo)
+    plan = groups(todo)
+    total = len(todo)
+    jobs = max(1, min(jobs, len(plan)))
+    cpu_left = sum(estimate(g) for g in plan)
+    pace = load_slowdown() * cpu_inflation() * max(1.0, jobs / (os.cpu_count() or 1)) / jobs
+    log(f"rod_sim: compiling {total} drivers ({len(plan)} compiled entry points) into "
+        f"numba's cache in {jobs} process(es): ~{cpu_left * pace:.0f} s at this load "
+        f"(measured {cpu_left:.0f} s of CPU cold; ~1 s when already cached)")
+    started = clock()
+    expected_end = started + cpu_left * pace
+    done = ran = 0
+    spent_cpu = spent_est = 0.0
+
+    def report(group, results):
+        nonlocal done, ran, cpu_left, spent_cpu, spent_est, expected_end
+        cpu_left -= estimate(group)
+        spent_est += estimate(group)
+        spent_cpu += sum(r[2] for r in results)
+        now = clock()
+        # the rest at the pace seen so far (wall per estimated CPU second)
+        expected_end = now + max(cpu_left, 0.0) * (now - started) / spent_est
+        for label, took, _cpu, skipped in results:
+            done += 1
+            ran += not skipped
+            log(progress_line(done, total, label, took, now - started, expected_end - now,
+                              skipped))
+
+    if jobs == 1:
+        for group in plan:
+            report(group, run_group(group))
+    else:
+        queue = list(plan)
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            pending = {}
+            while queue or pending:
+                while queue and len(pending) < jobs:   # submitted = running: the ticks say
+                    group = queue.pop(0)               # what really compiles
+                    pending[pool.submit(run_group, group)] = group
+                finished, _ = wait(pending, timeout=TICK_S, return_when=FIRST_COMPLETED)
+                for f in finished:
+                    report(pending.pop(f), f.result())
+                if not finished:
+                    now = clock()
+                    busy = [f"the {g[0][1]} model's drivers" for g in pending.values()]
+                    left = (f"~{expected_end - now:.0f} s left" if expected_end > now else
+                            "past the estimate, should end soon")
+                    log(f"rod_sim: [{done}/{total}] compiling {', '.join(busy) or '...'} "
+                        f"({now - started:.0f} s so far, {left})")
     log(f"rod_sim: {ran} compiled drivers ready in numba's cache "
-        f"({time.perf_counter() - started:.1f} s)")
+        f"({clock() - started:.1f} s, {spent_cpu:.0f} s CPU in the compiling processes)")
     return ran
 
 
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m rod_sim.tools.jit_warm",
+                                     description=__doc__.split("\n\n")[0])
+    parser.add_argument("--demo", action="store_true",
+                        help="only what `make demo` needs (default: every driver)")
+    parser.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1),
+                        help="compiling processes (default: 2, or 1 on one core)")
+    args = parser.parse_args(argv)
+    ran = warm(lambda line: print(line, flush=True), DEMO if args.demo else None,
+               max(1, args.jobs))
+    return 0 if ran else 1
+
+
 if __name__ == "__main__":
-    sys.exit(0 if warm(lambda line: print(line, flush=True)) else 1)
+    sys.exit(main())

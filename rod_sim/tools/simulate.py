@@ -15,7 +15,7 @@ from .. import __version__
 from ..core.names import INTEGRATOR_NAMES as INTEGRATORS
 from ..core.names import MODEL_NAMES
 from . import limits
-from .common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, compile_notice, load_scene, \
+from .common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, load_scene, \
     new_output_path
 from .common import positive_float as _positive_float
 from .signals import done, signals_deferred
@@ -93,11 +93,10 @@ def run(args) -> int:
     limits.check_model_memory(scene.n)
     model = make_model(args.model, scene)
     out = new_output_path(args.out)
-    with compile_notice():
-        try:            # compile (or load) the kernels before the clock starts
-            Simulator(model, make_integrator(args.integrator)).advance(1e-3)
-        except IntegrationError:
-            pass        # the run below meets the same failure and reports it
+    try:                # compile (or load) the kernels before the clock starts
+        Simulator(model, make_integrator(args.integrator)).advance(1e-3)
+    except IntegrationError:
+        pass            # the run below meets the same failure and reports it
     sim = Simulator(model, integrator)
     metadata = {"scene": scene_to_yaml(scene), "model": model.name,
                 "integrator": integrator.describe(), "version": __version__,
