@@ -43,21 +43,16 @@ def _states(scene_name: str, model_name: str, count: int = 3):
 
 
 def _same(a, b) -> bool:
-    """Bitwise equality of arrays and numbers, and of (nested) tuples, dicts, named tuples and
-    dataclasses of them (None equals None)."""
-    if a is None or b is None:
-        return a is None and b is None
+    """Bitwise equality of arrays, floats and (nested) tuples/dataclasses of them."""
     if dataclasses.is_dataclass(a):
-        return type(a) is type(b) and all(
-            _same(getattr(a, f.name), getattr(b, f.name)) for f in dataclasses.fields(a))
+        return _same(dataclasses.astuple(a), dataclasses.astuple(b))
     if isinstance(a, dict):
-        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+        return isinstance(b, dict) and a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
     if isinstance(a, (tuple, list)):
         return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
-    if isinstance(a, str):
-        return a == b
+    if a is None or b is None:
+        return a is b
     a, b = np.asarray(a), np.asarray(b)
-    assert a.dtype != object, "compare objects field by field"
     return a.shape == b.shape and a.dtype == b.dtype and a.tobytes() == b.tobytes()
 
 

@@ -468,3 +468,31 @@ def test_attitude_demo_holds_the_bus(tmp_path):
         assert applied[t][:2].tolist() == [0.0, 0.0] and applied[t][3] == 0.0
         assert applied[t][2] == pytest.approx(moment, rel=1e-12, abs=1e-9), (t, lag)
     assert max(map(abs, psis)) < 0.1 and any(abs(applied[t][2]) > 1.0 for t in applied)
+
+
+@pytest.mark.ros
+@pytest.mark.slow
+@pytest.mark.timeout(900)
+def test_attitude_demo_ends_with_compare_passing(tmp_path):
+    """``python -m rod_sim.ros.demo --scene config/two_wing_deployment.yaml`` (shortened to 3 s)
+    runs ``rod-sim compare`` on its log at the end: compare reads the chain log (left/...,
+    right/...), re-runs it with the logged base wrenches (``/applied_base``) and passes over
+    both chains and the base: exit 0 (it stopped with exit 2 before compare read chain logs)."""
+    import subprocess
+    import sys
+
+    from procs import ros_env
+
+    (domain,) = next_domains(1)
+    log = tmp_path / "attitude.mcap"
+    done = subprocess.run([sys.executable, "-m", "rod_sim.ros.demo", "--scene", str(WINGS),
+                           "--duration", "3", "--out", str(log)], cwd=REPO,
+                          env=ros_env(domain), capture_output=True, text=True, timeout=800)
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    assert "PASS" in done.stdout and "left" in done.stdout and "base: max |psi error|" in \
+        done.stdout, done.stdout[-3000:]
+    from rod_sim.io.log_reader import LogReader
+
+    with LogReader(log) as reader:
+        odom = [m for topic, t, m in reader.messages() if topic == "/base_odometry"]
+    assert len(odom) == 301 and odom[-1].child_frame_id == "base"

@@ -89,8 +89,9 @@ def test_base_odometry_bytes_are_rclpys(path, frame):
     assert len(theirs) >= len(ours)
     differ = [i for i in range(len(ours)) if theirs[i] != ours[i]]
     end = 8 + 4 + len(frame) + 1                       # stamp, frame_id (CDR offsets)
+    padding = list(range(4 + end, 4 + end + (-end % 4)))   # align child_frame_id's length
     end += -end % 4 + 4 + len("base") + 1              # child_frame_id; then align to 8
-    padding = range(4 + end, 4 + end + (-end % 8))
+    padding += range(4 + end, 4 + end + (-end % 8))    # (+4: the encapsulation header)
     assert all(i in padding and ours[i] == 0 for i in differ), differ
     assert ours == cdr.encoder("nav_msgs/msg/Odometry")(topics.base_odometry(snap, frame))
 

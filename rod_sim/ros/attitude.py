@@ -10,14 +10,9 @@ so it drives a lockstep simulator one period per state, as the hinge PD controll
 a zero wrench every ``kickoff_period`` [s] to start it. A state repeated with the same stamp
 (a lockstep node waiting for its first command) is answered once.
 
-The base's attitude is read from the node's outputs: with hinge 0 of a chain measuring
-phi_1 - psi (``joint_states`` position of ``<chain>/hinge_0``, the rigid hinge angle) and
-``rod_states`` giving phi_1 (``<chain>/rod_1``), psi = phi_1 - theta_0 and psi_dot =
-phi_1_dot - theta_0_dot, from the two messages of one stamp.
-
-TODO(lead, after merging sc-out): read psi and psi_dot from ``base_odometry`` instead (one
-message: psi = 2 atan2(q_z, q_w), psi_dot = twist.angular.z) and drop the pairing of
-joint_states and rod_states.
+The base's attitude is read from the node's ``base_odometry`` (nav_msgs/Odometry, one message
+per state): psi = 2 atan2(q_z, q_w) of its pose, psi_dot = ``twist.angular.z``
+(:func:`odometry_angle`).
 
 Gains: the default kp 5000 N m/rad, kd 3000 N m s/rad hold the bus of
 config/two_wing_deployment.yaml (J_B 900 kg m^2, ~6000 kg m^2 with the wings out) within a few
@@ -32,8 +27,8 @@ import sys
 
 import numpy as np
 from geometry_msgs.msg import WrenchStamped
+from nav_msgs.msg import Odometry
 from rclpy.node import Node
-from sensor_msgs.msg import JointState
 
 from rod_sim.ros.controller import _ranged
 from rod_sim.ros.process import parse_cli, run_node
@@ -49,27 +44,15 @@ def attitude_moment(psi: float, psi_rate: float, psi_ref: float, kp: float, kd: 
     return float(np.clip(kp * error - kd * psi_rate, -max_moment, max_moment))
 
 
-def base_angle(joint_names, joint_pos, joint_vel, rod_names, rod_pos, rod_vel,
-               chain_prefix: str = "") -> tuple[float, float] | None:
-    """(psi [rad], psi_dot [rad/s]) from one stamp's ``joint_states`` and ``rod_states``:
-    phi_1 - theta_0 of the chain ``chain_prefix`` ('' = the first chain whose hinge 0 is
-    listed; e.g. 'left/'); None when the names are missing."""
-    joints, rods = list(joint_names), list(rod_names)
-    prefix = chain_prefix
-    if not prefix:
-        roots = [name for name in joints if name.endswith("hinge_0")]
-        if not roots:
-            return None
-        prefix = roots[0][:-len("hinge_0")]
-    try:
-        h, r = joints.index(prefix + "hinge_0"), rods.index(prefix + "rod_1")
-    except ValueError:
-        return None
-    return (float(rod_pos[r]) - float(joint_pos[h]), float(rod_vel[r]) - float(joint_vel[h]))
+def odometry_angle(msg) -> tuple[float, float]:
+    """(psi [rad] in (-pi, pi], psi_dot [rad/s]) of a ``base_odometry`` message."""
+    q = msg.pose.pose.orientation
+    return 2.0 * math.atan2(q.z, q.w), float(msg.twist.twist.angular.z)
 
 
 class AttitudePDController(Node):
-    """The controller node (parameters: kp, kd, target, max_moment, chain, kickoff_period).
+    """The controller node (parameters: kp, kd, target, max_moment, kickoff_period; ``chain``
+    is kept for compatibility and no longer used).
     ``node_kwargs`` go to :class:`rclpy.node.Node`. ``psi_history``: (t [s], psi [rad])
     of every state answered."""
 
@@ -84,52 +67,30 @@ class AttitudePDController(Node):
         self.max_moment = self.declare_parameter("max_moment", 1e4, _ranged(
             0.0, 1e9, "largest base moment asked for [N m]")).value
         self.chain = self.declare_parameter("chain", "", _text_parameter(
-            "chain whose hinge 0 gives psi, e.g. 'left' ('' = the first)")).value
+            "unused (psi comes from base_odometry); kept so that old launch files load")).value
         kickoff = self.declare_parameter("kickoff_period", 0.5, _ranged(
             0.01, 60.0, "[s] between zero commands sent to start a lockstep simulator")).value
         self.commands_sent = 0
         self.psi_history: list[tuple[float, float]] = []
         self._states_seen = 0
-        self._pending: dict[str, dict[tuple[int, int], JointState]] = {"joints": {}, "rods": {}}
         self._answered: tuple[int, int] | None = None
         self._pub = self.create_publisher(WrenchStamped, "base_wrench", 10)
-        self.create_subscription(JointState, "joint_states",
-                                 lambda m: self._on_state("joints", m), 10)
-        self.create_subscription(JointState, "rod_states", lambda m: self._on_state("rods", m),
-                                 10)
+        self.create_subscription(Odometry, "base_odometry", self._on_state, 10)
         self.create_timer(kickoff, self._kickoff)
         self.summary = (
             f"PD on the base angle: kp {self.kp:g} N m/rad, kd {self.kd:g} N m s/rad, target "
             f"{self.target:g} rad, max moment {self.max_moment:g} N m; reads "
-            f"{self.resolve_topic_name('joint_states')} and "
-            f"{self.resolve_topic_name('rod_states')}, writes "
+            f"{self.resolve_topic_name('base_odometry')}, writes "
             f"{self.resolve_topic_name('base_wrench')}")
         self.get_logger().info(self.summary)
 
-    def _on_state(self, kind: str, msg: JointState) -> None:
+    def _on_state(self, msg: Odometry) -> None:
         self._states_seen += 1
         stamp = (msg.header.stamp.sec, msg.header.stamp.nanosec)
         if stamp == self._answered:
             return      # a lockstep node waiting for its first command repeats its state
-        pending = self._pending
-        pending[kind][stamp] = msg
-        other = pending["rods" if kind == "joints" else "joints"].get(stamp)
-        if other is None:
-            return
-        joints, rods = (msg, other) if kind == "joints" else (other, msg)
-        for table in pending.values():        # older unmatched states are never answered
-            for key in [k for k in table if k <= stamp]:
-                del table[key]
         self._answered = stamp
-        prefix = f"{self.chain}/" if self.chain else ""
-        found = base_angle(joints.name, joints.position, joints.velocity, rods.name,
-                           rods.position, rods.velocity, prefix)
-        if found is None:
-            self.get_logger().error(
-                f"no {prefix or '<chain>/'}hinge_0 in joint_states or rod_1 in rod_states: "
-                "cannot read the base angle; no command sent", throttle_duration_sec=2.0)
-            return
-        psi, psi_rate = found
+        psi, psi_rate = odometry_angle(msg)
         self.psi_history.append((stamp[0] + 1e-9 * stamp[1], psi))
         self._send(attitude_moment(psi, psi_rate, self.target, self.kp, self.kd,
                                    self.max_moment))
@@ -155,12 +116,12 @@ def _text_parameter(description: str):
 def build_parser() -> argparse.ArgumentParser:
     return argparse.ArgumentParser(
         prog="attitude_controller", description="rod_sim's demo attitude controller (node "
-        f"{ATTITUDE_NAME}): PD control of a free base's angle (from joint_states and "
-        "rod_states) through base_wrench, one command per state, so it also drives a "
+        f"{ATTITUDE_NAME}): PD control of a free base's angle (from base_odometry) "
+        "through base_wrench, one command per state, so it also drives a "
         "lockstep simulator. Configure it with ROS arguments, e.g. --ros-args -p kp:=5000.0 "
         "-p kd:=3000.0",
         epilog="parameters: kp [N m/rad] (default 5000.0), kd [N m s/rad] (3000.0), target "
-        "[rad] (0.0), max_moment [N m] (1e4), chain ('' = the first), kickoff_period [s] (0.5)")
+        "[rad] (0.0), max_moment [N m] (1e4), kickoff_period [s] (0.5)")
 
 
 def main(argv: list[str] | None = None) -> int:
