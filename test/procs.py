@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import subprocess
+import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
@@ -45,3 +46,24 @@ def terminal_signals() -> None:
     for s in (_signal.SIGINT, _signal.SIGTERM):
         _signal.signal(s, _signal.SIG_DFL)
     _signal.pthread_sigmask(_signal.SIG_UNBLOCK, {_signal.SIGINT, _signal.SIGTERM})
+
+
+def cpu_seconds(pid: int) -> float:
+    """CPU time [s] process ``pid`` has used so far (all threads, waited-for children)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return sum(int(f) for f in fields[11:15]) / os.sysconf("SC_CLK_TCK")
+
+
+def wait_with_usage(proc: subprocess.Popen, timeout: float):
+    """Reap ``proc`` within ``timeout`` [s] of wall time: its resource usage (None: still
+    running, then it is killed)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
+        if pid == proc.pid:
+            proc.returncode = os.waitstatus_to_exitcode(status)
+            return usage
+        time.sleep(0.01)
+    proc.kill()
+    proc.wait()
+    return None

@@ -21,7 +21,7 @@ from rod_sim.core.models import make_model
 from rod_sim.core.simulator import Simulator
 from rod_sim.io.series import read_rod_states
 
-from procs import terminal_signals  # noqa: E402
+from procs import cpu_seconds, terminal_signals, wait_with_usage  # noqa: E402
 from rod_sim.io.scene_yaml import load_scene
 from untimed import untimed_lines
 
@@ -50,27 +50,6 @@ contract is ~1 s (docs/bench.md); measured 0.02-0.16 s at load 3 and up to 0.56 
 beside two busy loops (12 runs), so 3 s leaves a margin of 5 over the worst loaded figure. The
 interpreter's exit after that line is not bounded in wall time: it took up to 4.1 s under that
 load (0.3-0.4 s of CPU), which is what failed the former 2 s bound on exit."""
-
-
-def cpu_seconds(pid: int) -> float:
-    """CPU time [s] process ``pid`` has used so far (all threads, waited-for children)."""
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return sum(int(f) for f in fields[11:15]) / os.sysconf("SC_CLK_TCK")
-
-
-def wait_with_usage(proc: subprocess.Popen, timeout: float):
-    """Reap ``proc`` within ``timeout`` [s] of wall time: its resource usage (None: still
-    running, then it is killed)."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
-        if pid == proc.pid:
-            proc.returncode = os.waitstatus_to_exitcode(status)
-            return usage
-        time.sleep(0.01)
-    proc.kill()
-    proc.wait()
-    return None
 
 
 @pytest.mark.slow
