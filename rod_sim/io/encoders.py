@@ -411,11 +411,16 @@ def force_array(forces: np.ndarray) -> bytes:
     return layout.fill(**({"data": f} if f.size else {}))
 
 
+def labelled_array(values, label: str) -> bytes:
+    """std_msgs/Float64MultiArray of (k,) values with one layout dim ``label``."""
+    v = _f64(values)
+    layout = _multi_array_layout(((label, v.size, v.size),), v.size)
+    return layout.fill(**({"data": v} if v.size else {}))
+
+
 def torque_array(torques) -> bytes:
     """``applied_torques`` of (n,) torques [N m] (see :func:`rod_sim.io.topics.torque_array`)."""
-    t = _f64(torques)
-    layout = _multi_array_layout(((topics.TORQUE_LAYOUT_LABEL, t.size, t.size),), t.size)
-    return layout.fill(**({"data": t} if t.size else {}))
+    return labelled_array(torques, topics.TORQUE_LAYOUT_LABEL)
 
 
 def applied_forces(snapshot: Snapshot, scene: Scene | None = None, frame_id: str = "world"

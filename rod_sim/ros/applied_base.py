@@ -26,10 +26,3 @@ def base_values(loads: np.ndarray) -> np.ndarray:
     """[Fx, Fy, M, T_w] (4,) from a load table (n + 2, 3) (rows n, n + 1)."""
     return np.array([loads[-2, 0], loads[-2, 1], loads[-2, 2], loads[-1, 2]], dtype=float)
 
-
-def base_array(values) -> dict:
-    """The ``applied_base`` message dict of [Fx, Fy, M, T_w]."""
-    data = [float(v) for v in values]
-    return {"layout": {"dim": [{"label": APPLIED_BASE_LABEL, "size": len(data),
-                                "stride": len(data)}], "data_offset": 0}, "data": data}
-

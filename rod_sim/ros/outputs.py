@@ -25,8 +25,7 @@ from rod_sim.core.snapshot import Snapshot
 from rod_sim.io import cdr, encoders, topics
 from rod_sim.io.hinge_events import HINGE_EVENTS_TOPIC, HINGE_EVENTS_TYPE, event_message, \
     event_time_ns
-from rod_sim.ros.applied_base import APPLIED_BASE_TOPIC, APPLIED_BASE_TYPE, base_array, \
-    base_values
+from rod_sim.ros.applied_base import APPLIED_BASE_LABEL, APPLIED_BASE_TOPIC, APPLIED_BASE_TYPE
 
 
 @dataclass(frozen=True)
@@ -203,7 +202,7 @@ class Outputs:
                 ("applied_torques", torques, encoders.torque_array)]
         if base is not None:
             sent.append((APPLIED_BASE_TOPIC, base,
-                         lambda v: cdr.encoder(APPLIED_BASE_TYPE)(base_array(v))))
+                         lambda v: encoders.labelled_array(v, APPLIED_BASE_LABEL)))
         for name, values, encode in sent:
             last = self._applied_last.get(name)
             changed = last is None or not np.array_equal(values, last)
