@@ -20,14 +20,11 @@ from typing import Callable, NamedTuple, Protocol
 import numpy as np
 
 from . import erk, hinges, kernels, radau
+from .loadlaw import Loads, make_loads
 from .kinematics import node_positions
 from .matrices import ChainParams
 from .scene import LOAD_AXES, Scene
 from .snapshot import Snapshot
-
-_SHAPE_CODES = {"raised_cosine_pulse": kernels.SHAPE_PULSE,
-                "constant": kernels.SHAPE_CONSTANT, "step": kernels.SHAPE_STEP}
-
 
 class ModelError(ValueError):
     """The scene cannot be run with the requested model (e.g. a massless rod in the full
@@ -158,7 +155,7 @@ class Model(Protocol):
     scene: Scene
     params: ChainParams
     chain: kernels.Chain
-    loads: tuple
+    loads: Loads
     kernel: Callable
     compiled: Compiled
     has_latches: bool
@@ -189,9 +186,9 @@ class Model(Protocol):
     def snapshot(self, t, y, held=None, mode=None) -> Snapshot: ...
 
 
-def load_table(scene: Scene):
-    """Scripted loads as the kernels' array tuple (row, column, shape, amp, start, dur): rows
-    and columns of Extra.forces."""
+def load_table(scene: Scene) -> Loads:
+    """The scene's scripted loads as the kernels' :class:`~rod_sim.core.loadlaw.Loads` (rows
+    and columns of Extra.forces)."""
     loads = scene.loads
 
     def row(ld):
@@ -200,12 +197,9 @@ def load_table(scene: Scene):
     def col(ld):
         return ld.column if hasattr(ld, "column") else LOAD_AXES.index(ld.axis)
 
-    return (np.array([row(ld) for ld in loads], dtype=np.int64),
-            np.array([col(ld) for ld in loads], dtype=np.int64),
-            np.array([_SHAPE_CODES[ld.shape] for ld in loads], dtype=np.int64),
-            np.array([ld.amplitude for ld in loads], dtype=float),
-            np.array([ld.start for ld in loads], dtype=float),
-            np.array([ld.duration for ld in loads], dtype=float))
+    return make_loads([row(ld) for ld in loads], [col(ld) for ld in loads],
+                      [ld.shape for ld in loads], [ld.amplitude for ld in loads],
+                      [ld.start for ld in loads], [ld.duration for ld in loads])
 
 
 class ChainModel:
