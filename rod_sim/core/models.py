@@ -125,11 +125,48 @@ def base_table(scene) -> tuple[np.ndarray, np.ndarray]:
 class Plan:
     """What the compiled drivers need in one mode: ``extra`` (kernels' argument, see
     :mod:`rod_sim.core.kernels`), ``events`` (:class:`~rod_sim.core.kernels.EventTable`) of
-    :func:`hinges.event_table` and ``locked`` (n,) bool (hinges held rigid)."""
+    :func:`hinges.event_table` and ``locked`` (n,) bool (hinges held rigid).
+
+    A model's own plans (:meth:`ChainModel.plan`) are constants: their ``extra`` has the
+    mode's hinge features and no scratch (its scratch fields are None, so that a compiled
+    call with it fails to type instead of writing into memory shared by every user of the
+    model); :meth:`ModelData.plan` gives the same plan with the data's scratch bound in."""
 
     extra: kernels.Extra
     events: kernels.EventTable
     locked: np.ndarray
+
+
+SCRATCH_FIELDS = ("work", "small", "forces", "tau", "bk", "roots")
+"""The fields of :class:`~rod_sim.core.kernels.Extra` the kernels write (scratch, nothing
+kept from one call to the next): a :class:`ModelData`'s, never a model's."""
+
+
+class ModelData:
+    """The mutable part of running a model (the Model/Data split of Pinocchio): the kernels'
+    scratch arrays (:data:`SCRATCH_FIELDS`: work (n, N_WORK), small (N_SMALL,), forces
+    (n + 2, 3), tau (n + 1,), bk (N_BK,), roots (nc, N_ROOT)) and, per mode, the model's plan
+    with that scratch bound in. A model is immutable after construction and may be shared
+    by any number of simulators (and threads): each owns one ModelData
+    (:meth:`ChainModel.new_data`); a kernel call writes only into its data's scratch."""
+
+    def __init__(self, model: "ChainModel"):
+        self.model = model
+        template = kernels.make_extra(np.zeros((3, model.n)), np.zeros((4, model.n)),
+                                      np.zeros(model.n), np.zeros(model.n, dtype=bool),
+                                      np.zeros(model.n, dtype=bool), kind=model._kind,
+                                      nchains=len(model.seg) - 1)
+        self.scratch = {f: getattr(template, f) for f in SCRATCH_FIELDS}
+        self._bound: dict[int, Plan] = {}
+
+    def plan(self, mode: np.ndarray | None = None, contact: np.ndarray | None = None) -> Plan:
+        """:meth:`ChainModel.plan` of the model with this data's scratch in its ``extra``."""
+        const = self.model.plan(mode, contact)
+        bound = self._bound.get(id(const))
+        if bound is None:
+            bound = Plan(const.extra._replace(**self.scratch), const.events, const.locked)
+            self._bound[id(const)] = bound       # the model keeps ``const``: its id is stable
+        return bound
 
 
 class Compiled(NamedTuple):
@@ -169,6 +206,7 @@ class Model(Protocol):
     def phi_rate(self, y: np.ndarray) -> np.ndarray: ...
     def plan(self, mode: np.ndarray | None = None,
              contact: np.ndarray | None = None) -> Plan: ...
+    def new_data(self) -> "ModelData": ...
     def forces(self, t: float, held=None) -> np.ndarray: ...
     def contact_state(self, y: np.ndarray) -> np.ndarray: ...
     def rhs(self, t: float, y: np.ndarray, held=None, mode=None,
@@ -240,7 +278,12 @@ class ChainModel:
         self._plans: dict = {}
         self.has_latches = bool(np.isfinite(scene.latch_angle).any())
         self._check_base_features()
-        self.extra = self.plan().extra
+        self.extra = self.plan().extra         # the features of the unlatched mode (no scratch)
+
+    def new_data(self) -> ModelData:
+        """Fresh scratch for one user of this model (a simulator, a thread):
+        :class:`ModelData`."""
+        return ModelData(self)
 
     def _check_base_features(self) -> None:
         """A stop or latch at a chain's hinge 0 needs the base's angle as a state or a
@@ -349,7 +392,8 @@ class ChainModel:
     def plan(self, mode: np.ndarray | None = None, contact: np.ndarray | None = None) -> Plan:
         """The kernels' arguments and the event table with the latches ``mode`` (n,) bool
         fired (None: none) and the stop contacts ``contact`` (n,) int (+1 upper, -1 lower,
-        0 free; None: all free)."""
+        0 free; None: all free). Constants, cached per mode (a pure function of it); a
+        compiled call needs them with scratch bound in: :meth:`ModelData.plan`."""
         fast = (b"" if mode is None else np.asarray(mode, dtype=bool).tobytes(),
                 b"" if contact is None else np.asarray(contact, dtype=np.int8).tobytes())
         plan = self._plans.get(fast)
@@ -367,6 +411,7 @@ class ChainModel:
     def _make_plan(self, locked: np.ndarray, side: np.ndarray) -> Plan:
         extra = kernels.make_extra(self._rest, self._stops, side, locked, self._pinned(),
                                    kind=self._kind, nchains=len(self.seg) - 1)
+        extra = extra._replace(**dict.fromkeys(SCRATCH_FIELDS))    # constants only
         other = self.prev.copy()
         offset = None
         if self.base_mode == kernels.MODE_FREE:
@@ -418,12 +463,17 @@ class ChainModel:
             mode: np.ndarray | None = None, contact: np.ndarray | None = None) -> np.ndarray:
         """dy/dt (state_size,) at time t [s] with held inputs (see :meth:`_held`) in ``mode``
         with the stop contacts ``contact`` (None: as implied by y)."""
+        return self._evaluate(t, y, held, mode, contact)[0]
+
+    def _evaluate(self, t, y, held=None, mode=None, contact=None, data=None):
+        """(dy/dt, the kernel's Extra after the call) at (t, y) in scratch of ``data`` (None:
+        fresh scratch, so that a shared model is never written to)."""
         out = np.empty(self.state_size)
         y = np.ascontiguousarray(y, dtype=float)
         side = self.contact_state(y) if contact is None else contact
-        self.kernel(t, y, self.chain, self.plan(mode, side).extra, self.loads, self._held(held),
-                    t, out)
-        return out
+        extra = (self.new_data() if data is None else data).plan(mode, side).extra
+        self.kernel(t, y, self.chain, extra, self.loads, self._held(held), t, out)
+        return out, extra
 
     _kind = kernels.KIND_REDUCED
 
@@ -462,7 +512,7 @@ class ChainModel:
         a basis of the locked hinges' constraints (the reduced model: M = M_r of eq. (15)),
         solved in O(n) by the kernels' chain solve with f = M x'- (a free base moves with
         the chains: momentum is kept)."""
-        plan = self.plan(mode)
+        plan = self.new_data().plan(mode)
         out = np.array(y, dtype=float)
         if not plan.locked.any() and not (self.dof_per_rod == 3 and self._pinned().any()):
             return out
@@ -772,8 +822,7 @@ class ReducedModel(ChainModel):
     def bending(self, t, y, held=None, mode=None):
         """gamma = (alpha, beta) (n,) each [rad] from the quasi-static rows of (14), which the
         kernel solves together with phi'' (left in its work array)."""
-        self.rhs(t, y, held, mode)
-        W = self.plan(mode, self.contact_state(np.asarray(y, dtype=float))).extra.work
+        W = self._evaluate(t, y, held, mode)[1].work
         return W[:, kernels.W_A].copy(), W[:, kernels.W_B].copy()
 
 

@@ -75,7 +75,8 @@ def measure(scene, model_name="full", rtol=3e-6, t_end=2.0) -> dict:
         cpus.append(time.process_time() - started)
     y = traj.y[len(traj.t) // 2].copy()
     held = model._held(None)
-    args = (model.kernel, y, model.chain, model.extra, model.loads, held)
+    extra = model.new_data().plan().extra          # the model's constants with scratch
+    args = (model.kernel, y, model.chain, extra, model.loads, held)
     n = y.size
     work = radau.chain_radau_workspace(model)
     stats = np.zeros(6, dtype=np.int64)
@@ -84,8 +85,8 @@ def measure(scene, model_name="full", rtol=3e-6, t_end=2.0) -> dict:
     h = t_end / max(s.steps, 1)
     unit = {"rhs": _unit_cost(_loop_rhs, 20000, *args, np.empty(n)),
             "jacobian": _unit_cost(_loop_jacobian, 300, *args, f, work, stats),
-            "lu_pair": _unit_cost(_loop_factor, 2000, model.chain, model.extra, work, h, stats),
-            "solve_pair": _unit_cost(_loop_solve, 20000, model.chain, model.extra, work, h,
+            "lu_pair": _unit_cost(_loop_factor, 2000, model.chain, extra, work, h, stats),
+            "solve_pair": _unit_cost(_loop_solve, 20000, model.chain, extra, work, h,
                                      np.random.default_rng(0).random(n), np.empty(n),
                                      np.ones(n, complex), np.empty(n, complex))}
     counts = {"rhs (Newton stages, step ends, error refinements)": (s.nfev, "rhs"),
