@@ -19,6 +19,7 @@ import numpy as np
 from ..core import newton, radau
 from ..core.integrators import make_integrator
 from ..core.jit import njit
+from ..core.kernels import Problem
 from ..core.models import make_model
 from ..core.simulator import Simulator
 from .common import PAPER_EXAMPLE
@@ -32,8 +33,9 @@ def _loop_rhs(reps, rhs, y, chain, extra, loads, held, out):
 
 @njit
 def _loop_jacobian(reps, rhs, y, chain, extra, loads, held, f, work, stats):
+    problem = Problem(chain, extra, loads, held)
     for _ in range(reps):
-        newton.chain_jac(rhs, chain, extra, loads, held, 0.1, 0.1, y, f, work, stats)
+        newton.chain_jac(rhs, problem, 0.1, 0.1, y, f, work, stats)
 
 
 @njit
@@ -47,8 +49,9 @@ def _loop_factor(reps, chain, extra, work, h, stats):
 @njit
 def _loop_solve(reps, chain, extra, work, h, fr, xr, fc, xc):
     for _ in range(reps):
-        newton.chain_solve(chain, extra, work[0], work[1], work[2], radau.MU_REAL / h, fr, xr)
-        newton.chain_solve(chain, extra, work[0], work[3], work[4],
+        newton.chain_solve(chain, extra, work.jac, work.real, work.real_aux,
+                           radau.MU_REAL / h, fr, xr)
+        newton.chain_solve(chain, extra, work.jac, work.cplx, work.cplx_aux,
                            complex(radau.MU_C_RE, radau.MU_C_IM) / h, fc, xc)
 
 
