@@ -530,26 +530,37 @@ def fixed_run(rhs, problem, span, control, tableau, output):
     return y, t, STATUS_OK, i_out
 
 
-# The models' entry points: each driver on the one model dispatch (kernels.model_rhs, which
-# calls the kernel ``problem.extra.rhs`` names), so one compiled driver serves every model.
-# Passing a kernel as an argument from Python would make numba compile (and never cache) a
-# new specialisation in every process; these take only arrays and tuples, so their machine
-# code is cached on disk.
+# Module-level entry points, one per model kernel. Passing a kernel as an argument from
+# Python would make numba compile (and never cache) a new specialisation in every process;
+# these wrappers take only arrays, so their machine code is cached on disk.
 from . import kernels as _k  # noqa: E402
 
 
 @njit
-def dop853_model(problem, span, control, output):
-    """:func:`dop853_run` of the model right-hand side ``problem.extra.rhs`` names."""
-    return dop853_run(_k.model_rhs, problem, span, control, output)
+def dop853_rigid(problem, span, control, output):
+    return dop853_run(_k.rigid_rhs, problem, span, control, output)
 
 
 @njit
-def fixed_model(problem, span, control, tableau, output):
-    """:func:`fixed_run` of the model right-hand side ``problem.extra.rhs`` names."""
-    return fixed_run(_k.model_rhs, problem, span, control, tableau, output)
+def dop853_reduced(problem, span, control, output):
+    return dop853_run(_k.reduced_rhs, problem, span, control, output)
 
 
-# the former per-model drivers' names: one driver serves every model
-dop853_rigid = dop853_reduced = dop853_full = dop853_model
-fixed_rigid = fixed_reduced = fixed_full = fixed_model
+@njit
+def dop853_full(problem, span, control, output):
+    return dop853_run(_k.full_rhs, problem, span, control, output)
+
+
+@njit
+def fixed_rigid(problem, span, control, tableau, output):
+    return fixed_run(_k.rigid_rhs, problem, span, control, tableau, output)
+
+
+@njit
+def fixed_reduced(problem, span, control, tableau, output):
+    return fixed_run(_k.reduced_rhs, problem, span, control, tableau, output)
+
+
+@njit
+def fixed_full(problem, span, control, tableau, output):
+    return fixed_run(_k.full_rhs, problem, span, control, tableau, output)

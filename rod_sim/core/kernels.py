@@ -2,9 +2,6 @@
 
 All kernels share one calling convention so that the compiled integrators can take any of
 them: ``rhs(t, y, chain, extra, loads, held, t_side, out)`` writes dy/dt into ``out``.
-:func:`model_rhs` is the one compiled entry the integrators are built on: it calls the kernel
-of the model ``extra.rhs`` names (``RHS_*``), so that every integrator is compiled once for
-all models (a new model adds a kernel and a branch there, no driver).
 
 - ``chain`` (:class:`Chain`): the scene's constant per-rod arrays (n,).
 - ``extra`` (:class:`Extra`): the hinge features in the current mode and the kernel's
@@ -46,8 +43,6 @@ from .motion import profile_at
 
 # model kinds of chain_solve
 KIND_REDUCED, KIND_FULL = 0, 1
-# the models' right-hand sides (Extra.rhs; :func:`model_rhs`)
-RHS_RIGID, RHS_REDUCED, RHS_FULL = 0, 1, 2
 
 # columns of Extra.work (n, N_WORK)
 W_C, W_S, W_GP, W_GA, W_FP, W_FA, W_FB, W_X, W_A, W_B, W_COR = range(11)
@@ -115,8 +110,7 @@ class Extra(NamedTuple):
     base's Fx, Fy [N] at its centre of mass and moment [N m]; row n + 1: the wheel's motor
     torque in column 2) and tau (n + 1,) scratch; kind: KIND_REDUCED (rigid and reduced
     models) or KIND_FULL; bk (N_BK,): the base's pose, rates and accelerations and the base
-    rows of the solve (indices ``BK_*``); roots (nc, N_ROOT): each chain's root map; rhs: the
-    model's right-hand side (``RHS_*``) that :func:`model_rhs` calls."""
+    rows of the solve (indices ``BK_*``); roots (nc, N_ROOT): each chain's root map."""
 
     rest_phi: np.ndarray
     rest_alpha: np.ndarray
@@ -138,7 +132,6 @@ class Extra(NamedTuple):
     kind: int
     bk: np.ndarray
     roots: np.ndarray
-    rhs: int = RHS_REDUCED
 
 
 # base modes and the indices of Chain.base
@@ -191,12 +184,12 @@ def make_chain(l, m, mu, EI, kappa, nu, seg=None, attach=None, base=None,
 
 
 def make_extra(rest, stops, contact, locked, pinned, comp=None, kind=KIND_REDUCED,
-               dtype=float, nchains=1, rhs=RHS_REDUCED) -> Extra:
+               dtype=float, nchains=1) -> Extra:
     """:class:`Extra` for n rods: ``rest`` (3, n) [N m], ``stops`` (4, n) = lower, upper [rad],
     stiffness, damping; ``contact`` (n,) int; ``locked``, ``pinned`` (n,) bool; ``comp``
     (n,) compliance of the locked hinges (default 0: rigid); ``dtype`` of the solve's
     scratch and compliances (complex for Radau's complex Newton system); ``nchains`` the
-    number of chains (Chain.seg); ``rhs`` the model's right-hand side (RHS_*)."""
+    number of chains (Chain.seg)."""
     n = len(locked)
     f = lambda a: np.ascontiguousarray(a, dtype=float)  # noqa: E731
     i = lambda a: np.ascontiguousarray(a, dtype=np.int64)  # noqa: E731
@@ -207,8 +200,7 @@ def make_extra(rest, stops, contact, locked, pinned, comp=None, kind=KIND_REDUCE
                  np.array(np.zeros(n) if comp is None else comp, dtype=dtype),
                  np.zeros(n, dtype=dtype), i(pinned), flags, np.zeros((n, N_WORK), dtype=dtype),
                  np.zeros(N_SMALL, dtype=dtype), np.zeros((n + 2, 3)), np.zeros(n + 1), int(kind),
-                 np.zeros(N_BK, dtype=dtype), np.zeros((nchains, N_ROOT), dtype=dtype),
-                 int(rhs))
+                 np.zeros(N_BK, dtype=dtype), np.zeros((nchains, N_ROOT), dtype=dtype))
 
 
 class Problem(NamedTuple):
@@ -1054,19 +1046,6 @@ def full_rhs(t, y, chain, extra, loads, held, t_side, out):
         out[dof + n + k] = W[k, W_A]
         out[dof + 2 * n + k] = W[k, W_B]
     _finish_base(i0, dof, y, extra, out)
-
-
-@njit
-def model_rhs(t, y, chain, extra, loads, held, t_side, out):
-    """dy/dt of the model ``extra.rhs`` names (RHS_RIGID, RHS_REDUCED, RHS_FULL) into
-    ``out``: the one dispatch from the integrators to the models' kernels (same arguments as
-    every kernel), so that each compiled integrator exists once for all models."""
-    if extra.rhs == RHS_FULL:
-        full_rhs(t, y, chain, extra, loads, held, t_side, out)
-    elif extra.rhs == RHS_REDUCED:
-        reduced_rhs(t, y, chain, extra, loads, held, t_side, out)
-    else:
-        rigid_rhs(t, y, chain, extra, loads, held, t_side, out)
 
 
 @njit(inline="always")

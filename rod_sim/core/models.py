@@ -170,10 +170,9 @@ class ModelData:
 
 
 class Compiled(NamedTuple):
-    """The compiled drivers (cached on disk), the same for every model: each runs the model
-    right-hand side its plan's ``extra.rhs`` names (``kernels.model_rhs``): ``dop853``
-    (erk.dop853_run), ``fixed`` (erk.fixed_run), ``radau`` (radau.radau_run_work with the
-    O(n) Newton solve)."""
+    """A model's compiled drivers (one specialisation per model kernel, cached on disk):
+    ``dop853`` (erk.dop853_run), ``fixed`` (erk.fixed_run), ``radau`` (radau.radau_run_work
+    with the O(n) Newton solve)."""
 
     dop853: Callable
     fixed: Callable
@@ -241,15 +240,9 @@ def load_table(scene: Scene) -> Loads:
                       [ld.start for ld in loads], [ld.duration for ld in loads])
 
 
-DRIVERS = Compiled(erk.dop853_model, erk.fixed_model, radau.radau_model)
-"""The compiled drivers of every model (one per integrator, not one per model and
-integrator)."""
-
-
 class ChainModel:
-    """Shared machinery (implements :class:`Model`); a subclass sets ``name``, ``kernel`` and
-    its code ``rhs_code`` (kernels.RHS_*: the branch of kernels.model_rhs the compiled
-    drivers take) and the state layout, and is registered in :data:`MODELS`.
+    """Shared machinery (implements :class:`Model`); a subclass sets ``name``, ``kernel``,
+    ``compiled`` and the state layout, and is registered in :data:`MODELS`.
 
     Several chains and a base: the rods of every chain are concatenated in scene order (n
     rods in all, ``seg`` marks each chain's first rod), and a free base adds its coordinates
@@ -258,8 +251,7 @@ class ChainModel:
 
     name = "chain"
     kernel = None
-    rhs_code = kernels.RHS_REDUCED
-    compiled: Compiled = DRIVERS
+    compiled: Compiled
     dof_per_rod = 1
 
     def __init__(self, scene: Scene):
@@ -418,8 +410,7 @@ class ChainModel:
 
     def _make_plan(self, locked: np.ndarray, side: np.ndarray) -> Plan:
         extra = kernels.make_extra(self._rest, self._stops, side, locked, self._pinned(),
-                                   kind=self._kind, nchains=len(self.seg) - 1,
-                                   rhs=self.rhs_code)
+                                   kind=self._kind, nchains=len(self.seg) - 1)
         extra = extra._replace(**dict.fromkeys(SCRATCH_FIELDS))    # constants only
         other = self.prev.copy()
         offset = None
@@ -811,7 +802,7 @@ class RigidModel(ChainModel):
 
     name = "rigid"
     kernel = staticmethod(kernels.rigid_rhs)
-    rhs_code = kernels.RHS_RIGID
+    compiled = Compiled(erk.dop853_rigid, erk.fixed_rigid, radau.radau_rigid)
 
     def _pinned(self) -> np.ndarray:
         return np.ones(self.n, dtype=bool)
@@ -826,7 +817,7 @@ class ReducedModel(ChainModel):
 
     name = "reduced"
     kernel = staticmethod(kernels.reduced_rhs)
-    rhs_code = kernels.RHS_REDUCED
+    compiled = Compiled(erk.dop853_reduced, erk.fixed_reduced, radau.radau_reduced)
 
     def bending(self, t, y, held=None, mode=None):
         """gamma = (alpha, beta) (n,) each [rad] from the quasi-static rows of (14), which the
@@ -840,7 +831,7 @@ class FullModel(ChainModel):
 
     name = "full"
     kernel = staticmethod(kernels.full_rhs)
-    rhs_code = kernels.RHS_FULL
+    compiled = Compiled(erk.dop853_full, erk.fixed_full, radau.radau_full)
     dof_per_rod = 3
 
     def __init__(self, scene: Scene):

@@ -26,10 +26,8 @@ Interfaces:
   step's ends and a crossing is located on the step's cubic collocation polynomial, written
   into DOP853's nested dense form so that erk's bracketing and Illinois search are reused
   (:func:`_nested_form`).
-- :func:`radau_model`: the models' cached entry point on the one model dispatch
-  (``kernels.model_rhs``) with the O(n) Newton systems, like ``erk.dop853_model`` (every
-  model's ``compiled.radau``; ``radau_rigid``, ``radau_reduced``, ``radau_full`` are its
-  former names).
+- ``radau_rigid``, ``radau_reduced``, ``radau_full``: per-model cached wrappers, like
+  ``erk.dop853_rigid`` (the models' ``compiled`` drivers).
 
 ``stats`` = [rhs evaluations (Jacobian columns included), accepted steps, rejected steps];
 when it has 6 entries, also [Jacobian evaluations, LU factorisation pairs, Newton iterations].
@@ -630,15 +628,22 @@ def chain_radau_workspace(model):
                      model.state_size)
 
 
-# The models' entry point (see erk.py: one driver for every model, cached on disk).
+# Module-level entry points, one per model kernel (see erk.py: cached on disk).
 
 
 @njit
-def radau_model(problem, span, control, output, work):
-    """:func:`radau_run_work` of the model right-hand side ``problem.extra.rhs`` names, with
-    the chains' O(n) Newton systems (:mod:`rod_sim.core.newton`)."""
-    return radau_run_work(RadauFns(_k.model_rhs, _nw.chain_jac, _nw.chain_factor,
+def radau_rigid(problem, span, control, output, work):
+    return radau_run_work(RadauFns(_k.rigid_rhs, _nw.chain_jac, _nw.chain_factor,
                                    _nw.chain_solve), problem, span, control, output, work)
 
 
-radau_rigid = radau_reduced = radau_full = radau_model     # the former per-model names
+@njit
+def radau_reduced(problem, span, control, output, work):
+    return radau_run_work(RadauFns(_k.reduced_rhs, _nw.chain_jac, _nw.chain_factor,
+                                   _nw.chain_solve), problem, span, control, output, work)
+
+
+@njit
+def radau_full(problem, span, control, output, work):
+    return radau_run_work(RadauFns(_k.full_rhs, _nw.chain_jac, _nw.chain_factor,
+                                   _nw.chain_solve), problem, span, control, output, work)
