@@ -185,3 +185,22 @@ def test_the_slowdown_and_the_cpu_estimate_grow_with_the_load():
     assert compile_watch.load_slowdown(5.0, 2) == 3.0
     assert compile_watch.cpu_inflation(1.0, 2) == 1.0
     assert compile_watch.cpu_inflation(8.0, 2) == pytest.approx(1.6)
+
+
+def test_warming_prunes_shared_cache_directories_unused_for_a_month(tmp_path):
+    import os
+
+    from rod_sim.tools.jit_warm import prune_shared_cache
+
+    now = 1_800_000_000.0
+    current, fresh, stale = (tmp_path / name for name in ("cur", "fresh", "stale"))
+    for d in (current, fresh, stale):
+        d.mkdir()
+        (d / "x.nbi").write_bytes(b"x")
+    os.utime(current, (now - 90 * 86400, now - 90 * 86400))   # old, but in use: stays
+    os.utime(fresh, (now - 29 * 86400, now - 29 * 86400))
+    os.utime(stale, (now - 31 * 86400, now - 31 * 86400))
+    assert prune_shared_cache(current, now=now) == [stale]
+    assert current.is_dir() and fresh.is_dir() and not stale.exists()
+    assert current.stat().st_mtime == now
+    assert prune_shared_cache(None) == [] and prune_shared_cache(tmp_path / "nope") == []

@@ -4,7 +4,9 @@ changed (numba alone looks only at the integrator's own file), and an edit of a 
 module (models, scene, ...) must not recompile anything."""
 from __future__ import annotations
 
+import os
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -112,3 +114,72 @@ def test_scipy_jacobians_hand_the_kernel_contiguous_states(method):
     Simulator(model, make_integrator(method)).advance(0.01)
     assert len(layouts) > 2 * model.state_size        # a Jacobian was computed
     assert all(layouts)
+
+
+SHARED_PROBE = """
+import json, sys
+import numpy as np
+from rod_sim.core import dense_lu, jit
+A = np.array([[2.0, 1.0], [1.0, 3.0]]); piv = np.zeros(2, dtype=np.int64)
+dense_lu.lu_inplace(A, piv)
+fn = dense_lu.lu_inplace
+print(json.dumps({"path": fn._cache._impl.locator.get_cache_path(),
+                  "hits": sum(fn.stats.cache_hits.values()),
+                  "misses": sum(fn.stats.cache_misses.values()),
+                  "file": jit.__file__}))
+"""
+
+
+def _probe(package_root, cache_root):
+    import json
+    import subprocess
+    import sys
+
+    env = {**os.environ, "PYTHONPATH": str(package_root), "ROD_SIM_CACHE_DIR": str(cache_root)}
+    env.pop("NUMBA_CACHE_DIR", None)
+    done = subprocess.run([sys.executable, "-c", SHARED_PROBE], env=env, capture_output=True,
+                          text=True, timeout=300, cwd=package_root)
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.skipif(not jit.CORE_LOCATORS, reason="this numba has no cache locator API")
+def test_a_fresh_copy_of_the_sources_loads_the_machine_code_another_copy_compiled(tmp_path):
+    """Two checkouts at different paths (a fresh clone beside the first) with the same
+    sources: the second loads from the shared cache what the first compiled, and the
+    cache's directory is named after the sources, not the path."""
+    import shutil
+
+    repo = Path(jit.__file__).resolve().parents[2]
+    copies = []
+    for name in ("clone_a", "clone_b"):
+        dst = tmp_path / name / "rod_sim"
+        shutil.copytree(repo / "rod_sim", dst,
+                        ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+        copies.append(dst.parent)
+    cache = tmp_path / "cache"
+    first = _probe(copies[0], cache)
+    second = _probe(copies[1], cache)
+    assert first["file"].startswith(str(copies[0])) and second["file"].startswith(str(copies[1]))
+    assert first["path"] == second["path"]
+    assert Path(first["path"]).parent == cache
+    assert first["misses"] >= 1 and first["hits"] == 0
+    assert second["hits"] >= 1 and second["misses"] == 0
+    assert not list((copies[1] / "rod_sim" / "core" / "__pycache__").glob("*.nbi"))
+
+
+def test_the_shared_cache_root_comes_from_the_environment(tmp_path):
+    assert jit.shared_cache_root({"ROD_SIM_CACHE_DIR": str(tmp_path)}) == tmp_path
+    for off in ("", "off", "0", "no", " OFF "):
+        assert jit.shared_cache_root({"ROD_SIM_CACHE_DIR": off}) is None
+    assert jit.shared_cache_root({"XDG_CACHE_HOME": "/x"}) == Path("/x/rod_sim/numba")
+    a = jit.shared_cache_dir("a" * 64, {"ROD_SIM_CACHE_DIR": str(tmp_path)})
+    b = jit.shared_cache_dir("b" * 64, {"ROD_SIM_CACHE_DIR": str(tmp_path)})
+    assert a.parent == b.parent == tmp_path and a != b
+
+
+@pytest.mark.skipif(not jit.CORE_LOCATORS, reason="this numba has no cache locator API")
+def test_the_shared_cache_switched_off_keeps_the_package_cache():
+    repo = Path(jit.__file__).resolve().parents[2]
+    got = _probe(repo, "off")
+    assert got["path"] == str(repo / "rod_sim" / "core" / "__pycache__")

@@ -256,8 +256,12 @@ def _hermite_form(y, y_new, f, f_new, h, F):
 
 
 @njit
-def _initial_step(rhs, chain, extra, loads, held, t_side, t0, y0, f0, t_bound, rtol, atol, stats):
-    """Hairer's starting step (Solving ODEs I, II.4), as scipy's select_initial_step."""
+def _initial_step(rhs, problem, t_side, t0, y0, f0, t_bound, control, stats):
+    """Hairer's starting step (Solving ODEs I, II.4), as scipy's select_initial_step, for
+    ``rhs`` on ``problem`` from (t0, y0) with f0 = rhs(t0, y0), at most to ``t_bound`` [s],
+    with the tolerances of ``control``."""
+    chain, extra, loads, held = problem
+    rtol, atol = control.rtol, control.atol
     n = y0.shape[0]
     scale = atol + np.abs(y0) * rtol
     d0 = _rms(y0, scale)
@@ -334,8 +338,7 @@ def dop853_run(rhs, problem, span, control, output):
         rhs(t, y, chain, extra, loads, held, t_side, f)
         stats[0] += 1
         if h <= 0.0:
-            h = _initial_step(rhs, chain, extra, loads, held, t_side, t, y, f, seg_end,
-                              rtol, atol, stats)
+            h = _initial_step(rhs, problem, t_side, t, y, f, seg_end, control, stats)
         rejected = False
         while t < seg_end:
             if m_ev > 0 and events.count[0] + m_ev > cap:

@@ -256,9 +256,9 @@ class Integrator:
         return Carry()
 
     def advance(self, carry: Carry, model, plan, y0, t0, t_out, held, breaks) -> Stretch:
-        """Integrate from (t0, y0) in the mode of ``plan`` through the sorted ``t_out`` until
-        the end, a terminal event or the call's work budget, updating ``carry``. Raises
-        IntegrationError."""
+        """Integrate from (t0, y0) in the mode of ``plan`` (with the caller's scratch bound
+        in: ``ModelData.plan``) through the sorted ``t_out`` until the end, a terminal event
+        or the call's work budget, updating ``carry``. Raises IntegrationError."""
         raise NotImplementedError
 
     def integrate(self, model, y0, t0, t_out, held=None, mode=None, events=None,
@@ -512,7 +512,8 @@ class DriveResult:
 
 
 def drive(model, integrator: Integrator, y0, t0: float, t_out, held=None, mode=None,
-          events: list | None = None, contact=None, carry: Carry | None = None) -> DriveResult:
+          events: list | None = None, contact=None, carry: Carry | None = None,
+          data=None) -> DriveResult:
     """The integration driver: states at the sorted times ``t_out`` [s] from (t0, y0) with
     held nodal forces (n, 2) [N], the latches ``mode`` (n,) bool already fired (None: none)
     and the stop contacts ``contact`` (n,) int (None: as implied by y0), appending
@@ -524,8 +525,9 @@ def drive(model, integrator: Integrator, y0, t0: float, t_out, held=None, mode=N
     called again, so that signals (Ctrl-C) are handled within a fraction of a second; a call
     that spent its whole budget with a mean step below :data:`COLLAPSE_STEP` raises
     IntegrationError (the step size collapsed). ``carry`` is the integrator's state from
-    the previous call (step size, workspace, counters; None: a fresh one) and is updated.
-    Raises IntegrationError, ValueError (bad output times)."""
+    the previous call (step size, workspace, counters; None: a fresh one) and is updated;
+    ``data`` the caller's scratch for the model's kernels (``model.new_data()``; None: a
+    fresh one). Raises IntegrationError, ValueError (bad output times)."""
     t_out = np.atleast_1d(np.asarray(t_out, dtype=float))
     if t_out.size == 0:
         raise ValueError("t_out: at least one output time is needed")
@@ -548,9 +550,10 @@ def drive(model, integrator: Integrator, y0, t0: float, t_out, held=None, mode=N
     marks = set(scene.load_breakpoints()) | set(getattr(scene, "motion_breakpoints", tuple)())
     breaks = np.array(sorted(b for b in marks if t < b < t_out[-1]), dtype=float)
     carry = integrator.init(model) if carry is None else carry
+    data = model.new_data() if data is None else data
     carry.steps0 = carry.stats.steps
     while done < t_out.size:
-        plan = model.plan(mode, contact)
+        plan = data.plan(mode, contact)
         steps0, t0_call = carry.stats.steps, t
         s = integrator.advance(carry, model, plan, y, t, t_out[done:], held, breaks)
         Y[done:done + s.written] = s.Y[:s.written]

@@ -11,7 +11,10 @@ this package are therefore cached under a stamp of every module of ``rod_sim.cor
 holds compiled code (:func:`compiled_sources`: the modules that name ``njit``, including a
 plain-Python function compiled elsewhere, as motion.py's ``profile_at``), so that a change to
 any of them recompiles them all, and an edit of the pure-Python modules (models, scene,
-validity, ...) recompiles nothing.
+validity, ...) recompiles nothing. The machine code is kept in a cache that every
+checkout on the machine shares (:func:`shared_cache_dir`: ``~/.cache/rod_sim/numba/<stamp>``,
+``ROD_SIM_CACHE_DIR`` to move it, ``off`` for the package's ``__pycache__``): a fresh clone of
+sources compiled before starts warm.
 
 Compile-time settings (measured with ``python -m rod_sim.tools.jit_profile``; README,
 "Compile time"): numba's LLVM optimisation level :data:`OPT_LEVEL` (``ROD_SIM_NUMBA_OPT``, or
@@ -26,6 +29,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import sys
 from pathlib import Path
 
 CORE_DIR = Path(__file__).resolve().parent
@@ -62,11 +66,52 @@ def sources_stamp(directory: Path = CORE_DIR, opt: str | None = None) -> str:
     return digest.hexdigest()
 
 
+SHARED_CACHE_ENV = "ROD_SIM_CACHE_DIR"
+"""Environment variable naming the shared compile cache's root; empty or ``off``: none (the
+package's own ``__pycache__`` only)."""
+
+
+def shared_cache_root(environ=os.environ) -> Path | None:
+    """The root of the compile cache that every checkout of this package on the machine
+    shares (:data:`SHARED_CACHE_ENV`, else ``$XDG_CACHE_HOME/rod_sim/numba``, else
+    ``~/.cache/rod_sim/numba``); None when switched off or no home directory is known."""
+    text = environ.get(SHARED_CACHE_ENV)
+    if text is not None:
+        return None if text.strip().lower() in ("", "off", "0", "no") else Path(text)
+    xdg = environ.get("XDG_CACHE_HOME")
+    if xdg:
+        return Path(xdg) / "rod_sim" / "numba"
+    try:
+        return Path.home() / ".cache" / "rod_sim" / "numba"
+    except RuntimeError:
+        return None
+
+
+def shared_cache_dir(stamp: str, environ=os.environ) -> Path | None:
+    """The shared cache's directory for the sources of ``stamp`` (and this numba and Python):
+    two checkouts with the same compiled sources load each other's machine code, checkouts
+    that differ never meet (their stamps differ)."""
+    root = shared_cache_root(environ)
+    if root is None:
+        return None
+    try:
+        import numba
+        numba_version = numba.__version__
+    except ImportError:
+        numba_version = "none"
+    py = f"py{sys.version_info.major}{sys.version_info.minor}"
+    return root / f"{stamp[:20]}-numba{numba_version}-{py}"
+
+
 def _install_core_locators(caching) -> tuple:
     """Put cache locators stamped with :func:`sources_stamp` in front of numba's own for the
     functions defined in this package (numba's locator classes are internal API: when they
-    are missing nothing is installed and numba's defaults apply)."""
+    are missing nothing is installed and numba's defaults apply). In order: ``NUMBA_CACHE_DIR``
+    when the user sets it; :func:`shared_cache_dir` (named by the sources' content, not their
+    path or time: a fresh clone of the same sources finds its machine code compiled); where
+    that cannot be written, the package's ``__pycache__``, then numba's user-wide place."""
     stamp = sources_stamp()
+    shared = shared_cache_dir(stamp)
 
     class CoreSources:
         @classmethod
@@ -85,6 +130,24 @@ def _install_core_locators(caching) -> tuple:
         return ()
     mine = tuple(type(f"CoreSources{b.__name__}", (CoreSources, b), {"__module__": __name__})
                  for b in bases)
+    mixin = getattr(caching, "_SourceFileBackedLocatorMixin", None)
+    if shared is not None and mixin is not None:
+
+        class CoreSharedCacheLocator(CoreSources, bases[0]):
+            """numba's locator protocol with :func:`shared_cache_dir` as the directory."""
+
+            def __init__(self, py_func, py_file):
+                self._py_file = py_file
+                self._lineno = py_func.__code__.co_firstlineno
+                self._cache_path = str(shared)
+
+            @classmethod
+            def from_function(cls, py_func, py_file):
+                if Path(py_file).resolve().parent != CORE_DIR:
+                    return None
+                return mixin.from_function.__func__(cls, py_func, py_file)
+
+        mine = (mine[0], CoreSharedCacheLocator, *mine[1:])
     impl._locator_classes = [*mine, *[c for c in impl._locator_classes
                                       if not issubclass(c, CoreSources)]]
     return mine

@@ -7,7 +7,8 @@ them: ``rhs(t, y, chain, extra, loads, held, t_side, out)`` writes dy/dt into ``
 - ``extra`` (:class:`Extra`): the hinge features in the current mode and the kernel's
   scratch (a call allocates nothing, so the kernels are not re-entrant: one model instance per
   thread). A plain chain (no rest angle, stop or lock) runs exactly the paper's equations.
-- ``loads`` = (node, axis, shape, amplitude, start, duration) arrays describing scripted loads;
+- ``loads`` (:class:`~rod_sim.core.loadlaw.Loads`): the scripted loads' table (row, column,
+  shape, amplitude, start, duration arrays);
   ``held`` (n, 3): the held (commanded) nodal forces X, Y [N] at nodes 1..n and motor moments
   T [N m] at hinges 0..n-1 (T_h acts +T on rod h and -T on rod h-1, like a hinge spring whose
   moment is -T); ``t_side`` a time strictly inside the current segment between load
@@ -35,10 +36,10 @@ from typing import NamedTuple
 
 import numpy as np
 
+from . import loadlaw
 from .jit import njit
+from .loadlaw import SHAPE_CONSTANT, SHAPE_PULSE, SHAPE_STEP, Loads  # noqa: F401
 from .motion import profile_at
-
-SHAPE_PULSE, SHAPE_CONSTANT, SHAPE_STEP = 0, 1, 2
 
 # model kinds of chain_solve
 KIND_REDUCED, KIND_FULL = 0, 1
@@ -204,13 +205,13 @@ def make_extra(rest, stops, contact, locked, pinned, comp=None, kind=KIND_REDUCE
 
 class Problem(NamedTuple):
     """What a right-hand side needs besides (t, y): ``chain`` (:class:`Chain`), ``extra``
-    (:class:`Extra` of the current mode), ``loads`` (the scripted loads' arrays,
-    ``models.load_table``) and ``held`` (n, 3): nodal forces X, Y [N] and hinge moments T
-    [N m] held by the caller."""
+    (:class:`Extra` of the current mode), ``loads`` (the scripted loads,
+    :class:`~rod_sim.core.loadlaw.Loads` of ``models.load_table``) and ``held`` (n + 2, 3): the
+    held inputs (nodal forces X, Y [N], hinge motor moments T [N m]; base and wheel rows)."""
 
     chain: Chain
     extra: Extra
-    loads: tuple
+    loads: Loads
     held: np.ndarray
 
 
@@ -281,27 +282,17 @@ class Output(NamedTuple):
 @njit(inline="always")
 def load_forces(t, loads, held, t_side, out):
     """Applied loads (n + 2, 3) at time t: the held inputs (n + 2, 3) plus the scripted loads
-    (rows and columns as Extra.forces). The one scripted-load law: the Python side
-    (:func:`scripted_value`) calls the same code."""
-    row, col, shape, amp, start, dur = loads
+    ``loads`` (:class:`~rod_sim.core.loadlaw.Loads`; rows and columns as Extra.forces), each
+    by :func:`scripted_value`."""
     out[:, :] = held
-    for i in range(row.shape[0]):
-        out[row[i], col[i]] += scripted_value(t, shape[i], amp[i], start[i], dur[i], t_side)
+    for i in range(loads.row.shape[0]):
+        out[loads.row[i], loads.col[i]] += scripted_value(t, loads.shape[i], loads.amp[i],
+                                                          loads.start[i], loads.dur[i], t_side)
 
 
-@njit(inline="always")
-def scripted_value(t, shape, amp, start, dur, t_side):
-    """One scripted load's value at time t (which side of a jump: the side of ``t_side``)."""
-    if t_side < start:
-        return 0.0
-    tau = t - start
-    if shape == SHAPE_CONSTANT:
-        return amp
-    if shape == SHAPE_STEP:
-        return amp if t_side < start + dur else 0.0
-    if t_side > start + dur:
-        return 0.0
-    return amp * (0.5 - 0.5 * math.cos(2.0 * math.pi * tau / dur))
+scripted_value = njit(inline="always")(loadlaw.scripted_value)
+"""One scripted load's value: :func:`rod_sim.core.loadlaw.scripted_value` compiled, the one
+scripted-load law of Python and kernels."""
 
 
 _profile_at = njit(inline="always")(profile_at)

@@ -24,13 +24,10 @@ from .scipy_tables import light_dop853_tables
 with light_dop853_tables():     # erk's tables without scipy.integrate's import
     from . import erk, hinges, kernels, radau
 from .kinematics import chain_node_positions, node_positions
+from .loadlaw import Loads, make_loads
 from .matrices import ChainParams
 from .scene import LOAD_AXES, Scene
 from .snapshot import Snapshot
-
-_SHAPE_CODES = {"raised_cosine_pulse": kernels.SHAPE_PULSE,
-                "constant": kernels.SHAPE_CONSTANT, "step": kernels.SHAPE_STEP}
-
 
 class ModelError(ValueError):
     """The scene cannot be run with the requested model (e.g. a massless rod in the full
@@ -131,11 +128,48 @@ def base_table(scene) -> tuple[np.ndarray, np.ndarray]:
 class Plan:
     """What the compiled drivers need in one mode: ``extra`` (kernels' argument, see
     :mod:`rod_sim.core.kernels`), ``events`` (:class:`~rod_sim.core.kernels.EventTable`) of
-    :func:`hinges.event_table` and ``locked`` (n,) bool (hinges held rigid)."""
+    :func:`hinges.event_table` and ``locked`` (n,) bool (hinges held rigid).
+
+    A model's own plans (:meth:`ChainModel.plan`) are constants: their ``extra`` has the
+    mode's hinge features and no scratch (its scratch fields are None, so that a compiled
+    call with it fails to type instead of writing into memory shared by every user of the
+    model); :meth:`ModelData.plan` gives the same plan with the data's scratch bound in."""
 
     extra: kernels.Extra
     events: kernels.EventTable
     locked: np.ndarray
+
+
+SCRATCH_FIELDS = ("work", "small", "forces", "tau", "bk", "roots")
+"""The fields of :class:`~rod_sim.core.kernels.Extra` the kernels write (scratch, nothing
+kept from one call to the next): a :class:`ModelData`'s, never a model's."""
+
+
+class ModelData:
+    """The mutable part of running a model (the Model/Data split of Pinocchio): the kernels'
+    scratch arrays (:data:`SCRATCH_FIELDS`: work (n, N_WORK), small (N_SMALL,), forces
+    (n + 2, 3), tau (n + 1,), bk (N_BK,), roots (nc, N_ROOT)) and, per mode, the model's plan
+    with that scratch bound in. A model is immutable after construction and may be shared
+    by any number of simulators (and threads): each owns one ModelData
+    (:meth:`ChainModel.new_data`); a kernel call writes only into its data's scratch."""
+
+    def __init__(self, model: "ChainModel"):
+        self.model = model
+        template = kernels.make_extra(np.zeros((3, model.n)), np.zeros((4, model.n)),
+                                      np.zeros(model.n), np.zeros(model.n, dtype=bool),
+                                      np.zeros(model.n, dtype=bool), kind=model._kind,
+                                      nchains=len(model.seg) - 1)
+        self.scratch = {f: getattr(template, f) for f in SCRATCH_FIELDS}
+        self._bound: dict[int, Plan] = {}
+
+    def plan(self, mode: np.ndarray | None = None, contact: np.ndarray | None = None) -> Plan:
+        """:meth:`ChainModel.plan` of the model with this data's scratch in its ``extra``."""
+        const = self.model.plan(mode, contact)
+        bound = self._bound.get(id(const))
+        if bound is None:
+            bound = Plan(const.extra._replace(**self.scratch), const.events, const.locked)
+            self._bound[id(const)] = bound       # the model keeps ``const``: its id is stable
+        return bound
 
 
 class Compiled(NamedTuple):
@@ -161,7 +195,7 @@ class Model(Protocol):
     scene: Scene
     params: ChainParams
     chain: kernels.Chain
-    loads: tuple
+    loads: Loads
     kernel: Callable
     compiled: Compiled
     has_latches: bool
@@ -175,6 +209,7 @@ class Model(Protocol):
     def phi_rate(self, y: np.ndarray) -> np.ndarray: ...
     def plan(self, mode: np.ndarray | None = None,
              contact: np.ndarray | None = None) -> Plan: ...
+    def new_data(self) -> "ModelData": ...
     def forces(self, t: float, held=None) -> np.ndarray: ...
     def contact_state(self, y: np.ndarray) -> np.ndarray: ...
     def rhs(self, t: float, y: np.ndarray, held=None, mode=None,
@@ -193,9 +228,9 @@ class Model(Protocol):
     def snapshot(self, t, y, held=None, mode=None, bending=None) -> Snapshot: ...
 
 
-def load_table(scene: Scene):
-    """Scripted loads as the kernels' array tuple (row, column, shape, amp, start, dur): rows
-    and columns of Extra.forces."""
+def load_table(scene: Scene) -> Loads:
+    """The scene's scripted loads as the kernels' :class:`~rod_sim.core.loadlaw.Loads` (rows
+    and columns of Extra.forces)."""
     loads = scene.loads
 
     def row(ld):
@@ -204,12 +239,9 @@ def load_table(scene: Scene):
     def col(ld):
         return ld.column if hasattr(ld, "column") else LOAD_AXES.index(ld.axis)
 
-    return (np.array([row(ld) for ld in loads], dtype=np.int64),
-            np.array([col(ld) for ld in loads], dtype=np.int64),
-            np.array([_SHAPE_CODES[ld.shape] for ld in loads], dtype=np.int64),
-            np.array([ld.amplitude for ld in loads], dtype=float),
-            np.array([ld.start for ld in loads], dtype=float),
-            np.array([ld.duration for ld in loads], dtype=float))
+    return make_loads([row(ld) for ld in loads], [col(ld) for ld in loads],
+                      [ld.shape for ld in loads], [ld.amplitude for ld in loads],
+                      [ld.start for ld in loads], [ld.duration for ld in loads])
 
 
 class ChainModel:
@@ -253,7 +285,12 @@ class ChainModel:
                                      | np.isfinite(scene.stop_upper)))
         """Whether any hinge has a finite stop (else no contact ever: contact_state is 0)."""
         self._check_base_features()
-        self.extra = self.plan().extra
+        self.extra = self.plan().extra         # the features of the unlatched mode (no scratch)
+
+    def new_data(self) -> ModelData:
+        """Fresh scratch for one user of this model (a simulator, a thread):
+        :class:`ModelData`."""
+        return ModelData(self)
 
     def _check_base_features(self) -> None:
         """A stop or latch at a chain's hinge 0 needs the base's angle as a state or a
@@ -362,7 +399,8 @@ class ChainModel:
     def plan(self, mode: np.ndarray | None = None, contact: np.ndarray | None = None) -> Plan:
         """The kernels' arguments and the event table with the latches ``mode`` (n,) bool
         fired (None: none) and the stop contacts ``contact`` (n,) int (+1 upper, -1 lower,
-        0 free; None: all free)."""
+        0 free; None: all free). Constants, cached per mode (a pure function of it); a
+        compiled call needs them with scratch bound in: :meth:`ModelData.plan`."""
         fast = (b"" if mode is None else np.asarray(mode, dtype=bool).tobytes(),
                 b"" if contact is None else np.asarray(contact, dtype=np.int8).tobytes())
         plan = self._plans.get(fast)
@@ -380,6 +418,7 @@ class ChainModel:
     def _make_plan(self, locked: np.ndarray, side: np.ndarray) -> Plan:
         extra = kernels.make_extra(self._rest, self._stops, side, locked, self._pinned(),
                                    kind=self._kind, nchains=len(self.seg) - 1)
+        extra = extra._replace(**dict.fromkeys(SCRATCH_FIELDS))    # constants only
         other = self.prev.copy()
         offset = None
         if self.base_mode == kernels.MODE_FREE:
@@ -433,15 +472,20 @@ class ChainModel:
             mode: np.ndarray | None = None, contact: np.ndarray | None = None) -> np.ndarray:
         """dy/dt (state_size,) at time t [s] with held inputs (see :meth:`_held`) in ``mode``
         with the stop contacts ``contact`` (None: as implied by y)."""
+        return self._evaluate(t, y, held, mode, contact)[0]
+
+    def _evaluate(self, t, y, held=None, mode=None, contact=None, data=None):
+        """(dy/dt, the kernel's Extra after the call) at (t, y) in scratch of ``data`` (None:
+        fresh scratch, so that a shared model is never written to)."""
         out = np.empty(self.state_size)
         y = np.ascontiguousarray(y, dtype=float)
         if y.shape != out.shape:        # the kernel does not check its bounds
             raise ValueError(f"y: a state of {self.name} model has {self.state_size} "
                              f"components, got shape {y.shape}")
         side = self.contact_state(y) if contact is None else contact
-        self.kernel(t, y, self.chain, self.plan(mode, side).extra, self.loads, self._held(held),
-                    t, out)
-        return out
+        extra = (self.new_data() if data is None else data).plan(mode, side).extra
+        self.kernel(t, y, self.chain, extra, self.loads, self._held(held), t, out)
+        return out, extra
 
     _kind = kernels.KIND_REDUCED
 
@@ -480,7 +524,7 @@ class ChainModel:
         a basis of the locked hinges' constraints (the reduced model: M = M_r of eq. (15)),
         solved in O(n) by the kernels' chain solve with f = M x'- (a free base moves with
         the chains: momentum is kept)."""
-        plan = self.plan(mode)
+        plan = self.new_data().plan(mode)
         out = np.array(y, dtype=float)
         if not plan.locked.any() and not (self.dof_per_rod == 3 and self._pinned().any()):
             return out
@@ -834,10 +878,8 @@ class ReducedModel(ChainModel):
 
     def rhs_bending(self, t, y, held=None, mode=None):
         """dy/dt and gamma = (alpha, beta) from one right-hand side (its work array)."""
-        y = np.ascontiguousarray(y, dtype=float)
-        side = self.contact_state(y)
-        f = self.rhs(t, y, held, mode, side)
-        W = self.plan(mode, side).extra.work
+        f, extra = self._evaluate(t, y, held, mode)
+        W = extra.work
         return f, (W[:, kernels.W_A].copy(), W[:, kernels.W_B].copy())
 
 

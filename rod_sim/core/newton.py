@@ -18,8 +18,9 @@ accelerations, the load's dependence on phi, and in the full model the stop cont
 slows the simplified Newton iteration down: docs/bench.md ("radau-jit") gives the measured
 effect.
 
-``work[0:5]`` of the Radau workspace: phi_J (n,) [rad], the real Newton Extra and Chain, the
-complex Newton Extra and Chain (:func:`chain_workspace`).
+The Newton part of the Radau workspace (:class:`rod_sim.core.radau.RadauWork`): ``jac`` phi_J
+(n + 1,) [rad], ``real``, ``real_aux`` the real Newton Extra and Chain, ``cplx``,
+``cplx_aux`` the complex Newton Extra and Chain (:func:`chain_workspace`).
 """
 from __future__ import annotations
 
@@ -32,7 +33,8 @@ from .jit import njit
 
 
 def chain_workspace(chain, extra, size):
-    """The Newton part (work[0:5]) of the Radau workspace for a chain model."""
+    """The Newton part of the Radau workspace for a chain model: (jac, real, real_aux, cplx,
+    cplx_aux) of :class:`rod_sim.core.radau.RadauWork`."""
     n = chain.l.shape[0]
     zeros3, zeros4 = np.zeros((3, n)), np.zeros((4, n))
     parts = [np.zeros(n + 1)]                   # phi_J and the base angle psi_J
@@ -46,9 +48,10 @@ def chain_workspace(chain, extra, size):
 
 
 @njit
-def chain_jac(rhs, chain, extra, loads, held, t_side, t, y, f, work, stats):
+def chain_jac(rhs, problem, t_side, t, y, f, work, stats):
     """The "Jacobian" update: the inertia is taken at the current angles."""
-    phi_j = work[0]
+    chain = problem.chain
+    phi_j = work.jac
     n = phi_j.shape[0] - 1
     for k in range(n):
         phi_j[k] = y[k]
@@ -93,8 +96,8 @@ def _setup(chain, extra, g, nex, nch):
 @njit
 def chain_factor(chain, extra, work, g_real, g_cplx, stats):
     """Set up the real and complex Newton systems (O(n)); always succeeds."""
-    _setup(chain, extra, g_real, work[1], work[2])
-    _setup(chain, extra, g_cplx, work[3], work[4])
+    _setup(chain, extra, g_real, work.real, work.real_aux)
+    _setup(chain, extra, g_cplx, work.cplx, work.cplx_aux)
     return True
 
 

@@ -17,8 +17,9 @@ which makes each LU factorisation 8x cheaper than on the N x N matrix.
 
 Interfaces:
 
-- :func:`radau_step`: one accepted step (the building block for drivers with event
-  location); :func:`radau_dense` evaluates its dense output.
+- :func:`advance_step`: one accepted step (the building block for drivers with event
+  location; :func:`radau_step` takes its parts loose); :func:`radau_dense` evaluates its
+  dense output. The workspace is a :class:`RadauWork`, the functions a :class:`RadauFns`.
 - :func:`radau_run`: the whole output grid in one call, with exactly the arguments and the
   return of :func:`rod_sim.core.erk.dop853_run` (status codes of :mod:`rod_sim.core.erk`),
   hinge events included: after every accepted step the event functions are compared at the
@@ -34,6 +35,7 @@ when it has 6 entries, also [Jacobian evaluations, LU factorisation pairs, Newto
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -75,6 +77,55 @@ NEWTON_FAILURES = 30
 """Newton non-convergences in a row (each halving the step) after which a step gives up
 (STATUS_NEWTON_FAILED) instead of shrinking further."""
 JAC_RATE = 0.1      # recompute the Jacobian after a step whose Newton rate exceeded this
+# rows of RadauWork.V (real scratch (8, N)) and RadauWork.CV (complex scratch (2, N))
+V_YY, V_FD, V_FR, V_XR, V_SCALE, V_RHS_ERR, V_ERR = 0, 1, 2, 3, 4, 5, 6
+CV_FC, CV_XC = 0, 1
+
+
+class RadauWork(NamedTuple):
+    """Radau's workspace, kept between steps and calls (allocated once per run, nothing per
+    step). The Newton systems' part depends on the algebra (:func:`radau_workspace`: dense;
+    :func:`rod_sim.core.newton.chain_workspace`: the chains' O(n) solve), read only by its
+    own ``jac``, ``factor`` and ``solve`` functions (:class:`RadauFns`):
+
+    - ``jac``: what the Jacobian update keeps (dense: J = [da/dq, da/dv] (m, 2m); chain: the
+      angles phi_J (n + 1,) [rad] the inertia is taken at);
+    - ``real``, ``real_aux``: the system at the real shift (dense: LU (m, m) and pivots
+      (m,); chain: the Newton Extra and Chain), ``cplx``, ``cplx_aux`` the same at the
+      complex shift;
+
+    then the step's arrays: ``Z`` (3, N) stage increments, ``W`` (3, N) transformed
+    increments, ``F`` (3, N) stage derivatives, ``Q`` (N, 3) dense-output coefficients,
+    ``V`` (8, N) real scratch (rows ``V_*``), ``CV`` (2, N) complex scratch (rows ``CV_*``),
+    ``ctl`` (N_CTL,) the controller memory (indices H_OLD ... RESUME_T). Q is ``work[8]``
+    for readers by position."""
+
+    jac: object
+    real: object
+    real_aux: object
+    cplx: object
+    cplx_aux: object
+    Z: np.ndarray
+    W: np.ndarray
+    F: np.ndarray
+    Q: np.ndarray
+    V: np.ndarray
+    CV: np.ndarray
+    ctl: np.ndarray
+
+
+class RadauFns(NamedTuple):
+    """The functions a Radau run is built from: ``rhs`` (the kernels' calling convention,
+    :mod:`rod_sim.core.kernels`) and the Newton systems' ``jac`` (rhs, problem, t_side, t,
+    y, f, work, stats), ``factor`` (chain, extra, work, g_real, g_cplx, stats) -> ok and
+    ``solve`` (chain, extra, jac, sys, sys_aux, gamma, r, out): dense (:func:`dense_jac`,
+    :func:`dense_factor`, :func:`dense_solve`) or the chains' O(n) ones
+    (:mod:`rod_sim.core.newton`)."""
+
+    rhs: object
+    jac: object
+    factor: object
+    solve: object
 
 
 # ----------------------------------------------------------------- dense linear algebra
@@ -107,10 +158,9 @@ def _solve_reduced(LU, piv, J, gamma, r, out):
 @njit
 def dense_factor(chain, extra, work, g_real, g_cplx, stats):
     """Dense Newton matrices: LU of gamma^2 I - gamma D - K at the real and complex shifts."""
-    J, LUr, pivr, LUc, pivc = work[0], work[1], work[2], work[3], work[4]
-    _form(J, g_real, LUr)
-    _form(J, g_cplx, LUc)
-    return lu_inplace(LUr, pivr) and lu_inplace(LUc, pivc)
+    _form(work.jac, g_real, work.real)
+    _form(work.jac, g_cplx, work.cplx)
+    return lu_inplace(work.real, work.real_aux) and lu_inplace(work.cplx, work.cplx_aux)
 
 
 @njit
@@ -120,22 +170,25 @@ def dense_solve(chain, extra, J, LU, piv, gamma, r, out):
 
 
 @njit(inline="always")
-def _factor(factor_fn, chain, extra, work, h, stats):
+def _factor(fns, problem, work, h, stats):
     """Set up the real and complex iteration matrices for step h [s]; False if singular."""
-    ctl = work[11]
+    ctl = work.ctl
     if stats.shape[0] > 4:
         stats[4] += 1
-    ok = factor_fn(chain, extra, work, MU_REAL / h, complex(MU_C_RE, MU_C_IM) / h, stats)
+    ok = fns.factor(problem.chain, problem.extra, work, MU_REAL / h,
+                    complex(MU_C_RE, MU_C_IM) / h, stats)
     ctl[LU_H] = h if ok else 0.0
     return ok
 
 
 @njit
-def dense_jac(rhs, chain, extra, loads, held, t_side, t, y, f, work, stats):
-    """J = [da/dq, da/dv] (m, 2m) at (t, y) by forward differences (f = rhs(t, y))."""
-    J = work[0]
-    yy = work[9][0]
-    fd = work[9][1]
+def dense_jac(rhs, problem, t_side, t, y, f, work, stats):
+    """J = [da/dq, da/dv] (m, 2m) at (t, y) by forward differences (f = rhs(t, y)) of
+    ``rhs`` on ``problem`` (:class:`~rod_sim.core.kernels.Problem`)."""
+    chain, extra, loads, held = problem
+    J = work.jac
+    yy = work.V[V_YY]
+    fd = work.V[V_FD]
     N = y.shape[0]
     m = N // 2
     yy[:] = y
@@ -153,10 +206,10 @@ def dense_jac(rhs, chain, extra, loads, held, t_side, t, y, f, work, stats):
 
 
 @njit(inline="always")
-def _jacobian(jac_fn, rhs, chain, extra, loads, held, t_side, t, y, f, work, stats):
+def _jacobian(fns, problem, t_side, t, y, f, work, stats):
     """Renew the Newton matrices' Jacobian at (t, y) and mark the factors stale."""
-    jac_fn(rhs, chain, extra, loads, held, t_side, t, y, f, work, stats)
-    ctl = work[11]
+    fns.jac(fns.rhs, problem, t_side, t, y, f, work, stats)
+    ctl = work.ctl
     ctl[HAVE_JAC] = 1.0
     ctl[CURRENT_JAC] = 1.0
     ctl[LU_H] = 0.0
@@ -164,27 +217,25 @@ def _jacobian(jac_fn, rhs, chain, extra, loads, held, t_side, t, y, f, work, sta
 
 # ----------------------------------------------------------------- workspace
 @njit
-def _step_arrays(size):
-    """The step's arrays, work[5:12]: Z (3, size) stage increments, W (3, size), F (3, size)
-    stage derivatives, Q (size, 3) dense-output coefficients, V (8, size) real scratch,
-    CV (2, size) complex scratch, ctl (N_CTL,) controller memory."""
+def make_work(jac, real, real_aux, cplx, cplx_aux, size):
+    """:class:`RadauWork` from the Newton systems' part and fresh step arrays for a state of
+    ``size``."""
     ctl = np.zeros(N_CTL)
     ctl[FACCON] = 1.0
     ctl[RESUME_T] = np.nan
-    return (np.zeros((3, size)), np.zeros((3, size)), np.zeros((3, size)), np.zeros((size, 3)),
-            np.zeros((8, size)), np.zeros((2, size), dtype=np.complex128), ctl)
+    return RadauWork(jac, real, real_aux, cplx, cplx_aux, np.zeros((3, size)),
+                     np.zeros((3, size)), np.zeros((3, size)), np.zeros((size, 3)),
+                     np.zeros((8, size)), np.zeros((2, size), dtype=np.complex128), ctl)
 
 
 @njit
 def radau_workspace(size):
-    """Workspace of the stepper with dense Newton algebra (:data:`DENSE`) for a state of
-    ``size`` = 2m: (J (m, 2m), LU_real (m, m), piv_real (m,), LU_complex (m, m) complex,
-    piv_complex (m,)) and the step's arrays (:func:`_step_arrays`). Allocated once per run;
-    nothing is allocated per step."""
+    """:class:`RadauWork` of the stepper with dense Newton algebra for a state of ``size`` =
+    2m: jac J (m, 2m), real LU (m, m) and pivots (m,), cplx LU (m, m) complex and pivots
+    (m,)."""
     m = size // 2
-    return (np.zeros((m, 2 * m)), np.zeros((m, m)), np.zeros(m, dtype=np.int64),
-            np.zeros((m, m), dtype=np.complex128), np.zeros(m, dtype=np.int64)) + \
-        _step_arrays(size)
+    return make_work(np.zeros((m, 2 * m)), np.zeros((m, m)), np.zeros(m, dtype=np.int64),
+                     np.zeros((m, m), dtype=np.complex128), np.zeros(m, dtype=np.int64), size)
 
 
 @njit
@@ -192,7 +243,7 @@ def radau_restart(work):
     """Forget the step history (after a jump of the forcing or of the state: event, latch):
     no predictor from the last polynomial, no controller memory. The Jacobian is kept but
     marked stale, so that slow Newton convergence recomputes it."""
-    ctl = work[11]
+    ctl = work.ctl
     ctl[H_OLD] = 0.0
     ctl[ERR_OLD] = 0.0
     ctl[HAVE_DENSE] = 0.0
@@ -202,29 +253,30 @@ def radau_restart(work):
 
 # ----------------------------------------------------------------- one step
 @njit
-def _newton(rhs, solve_fn, chain, extra, loads, held, t_side, t, y, h, scale, tol, work,
-            stats):
+def _newton(fns, problem, t_side, t, y, h, scale, tol, work, stats):
     """Simplified Newton on the collocation system (scipy's solve_collocation_system, with
     RADAU5's convergence test: |dW| rate / (1 - rate) < tol, the rate of the previous step
     standing in until one is measured, so that one iteration can suffice).
 
-    Z (work[5], (3, N)) holds the starting guess on entry and the stage increments on exit.
+    ``work.Z`` (3, N) holds the starting guess on entry and the stage increments on exit.
     Returns (converged, iterations, convergence rate; -1 when unknown)."""
-    Z, W, F = work[5], work[6], work[7]
-    V = work[9]
-    CV = work[10]
+    chain, extra, loads, held = problem
+    rhs, solve_fn = fns.rhs, fns.solve
+    Z, W, F = work.Z, work.W, work.F
+    V = work.V
+    CV = work.CV
     N = y.shape[0]
-    yy = V[0]
-    fr = V[2]
-    xr = V[3]
-    fc = CV[0]
-    xc = CV[1]
+    yy = V[V_YY]
+    fr = V[V_FR]
+    xr = V[V_XR]
+    fc = CV[CV_FC]
+    xc = CV[CV_XC]
     m_real = MU_REAL / h
     m_cplx = complex(MU_C_RE, MU_C_IM) / h
     for i in range(3):
         for j in range(N):
             W[i, j] = TI[i, 0] * Z[0, j] + TI[i, 1] * Z[1, j] + TI[i, 2] * Z[2, j]
-    ctl = work[11]
+    ctl = work.ctl
     faccon = max(ctl[FACCON], EPS) ** 0.8
     dw_old = -1.0
     rate = -1.0
@@ -248,8 +300,8 @@ def _newton(rhs, solve_fn, chain, extra, loads, held, t_side, t, y, h, scale, to
             fc[j] = (complex(TI[1, 0] * f0 + TI[1, 1] * f1 + TI[1, 2] * f2,
                              TI[2, 0] * f0 + TI[2, 1] * f1 + TI[2, 2] * f2)
                      - m_cplx * complex(W[1, j], W[2, j]))
-        solve_fn(chain, extra, work[0], work[1], work[2], m_real, fr, xr)
-        solve_fn(chain, extra, work[0], work[3], work[4], m_cplx, fc, xc)
+        solve_fn(chain, extra, work.jac, work.real, work.real_aux, m_real, fr, xr)
+        solve_fn(chain, extra, work.jac, work.cplx, work.cplx_aux, m_cplx, fc, xc)
         acc = 0.0
         for j in range(N):
             a = xr[j] / scale[j]
@@ -301,32 +353,47 @@ def _rms_scaled(x, y, y_new, rtol, atol):
 
 
 @njit
-def radau_step(rhs, jac_fn, factor_fn, solve_fn, chain, extra, loads, held, t_side, t, y, f, h, t_bound, rtol, atol,
-               work, y_new, f_new, stats):
-    """One accepted Radau IIA step from time t [s], state y (N,), f = rhs(t, y) (N,).
+def radau_step(rhs, jac_fn, factor_fn, solve_fn, chain, extra, loads, held, t_side, t, y, f, h,
+               t_bound, rtol, atol, work, y_new, f_new, stats):
+    """:func:`advance_step` with its parts spelled out (the functions, the problem, the
+    tolerances) for callers that have them loose; returns as advance_step."""
+    return advance_step(RadauFns(rhs, jac_fn, factor_fn, solve_fn),
+                        _k.Problem(chain, extra, loads, held), t_side, t, y, f, h, t_bound,
+                        _k.Control(rtol, atol, 0.0, np.inf, 0, 0), work, y_new, f_new, stats)
+
+
+@njit
+def advance_step(fns, problem, t_side, t, y, f, h, t_bound, control, work, y_new, f_new,
+                 stats):
+    """One accepted Radau IIA step of ``fns.rhs`` on ``problem``
+    (:class:`~rod_sim.core.kernels.Problem`) from time t [s], state y (N,), f = rhs(t, y)
+    (N,), with the tolerances ``control.rtol``, ``control.atol``.
 
     ``h`` [s] > 0 is the proposed step; the step ends at ``t_bound`` if it would reach it
-    (within 1e-14 relative). ``work`` is :func:`radau_workspace` (N), kept between steps:
-    it carries the Jacobian, the factorisations, the controller memory and the predictor.
+    (within 1e-14 relative). ``work`` (:class:`RadauWork`) is kept between steps: it carries
+    the Jacobian, the factorisations, the controller memory and the predictor.
     ``t_side`` is passed to the kernel (a time inside the current smooth segment).
 
     On success writes y_new = y(t_new) (N,), f_new = rhs(t_new, y_new) (N,) and the dense
-    output coefficients Q = work[8] (N, 3): for x in [0, 1],
+    output coefficients ``work.Q`` (N, 3): for x in [0, 1],
     y(t + x (t_new - t)) = y + Q[:, 0] x + Q[:, 1] x^2 + Q[:, 2] x^3 (:func:`radau_dense`).
     Returns (status, t_new, h_next): STATUS_OK, or STATUS_STEP_UNDERFLOW (t_new = t) when
     the step fell below 10 ulp of t, STATUS_NEWTON_FAILED (t_new = t) after
     :data:`NEWTON_FAILURES` Newton failures in a row, or STATUS_NONFINITE when y_new is not
     finite."""
-    Z, Q, V, ctl = work[5], work[8], work[9], work[11]
+    chain, extra, loads, held = problem
+    rhs, solve_fn = fns.rhs, fns.solve
+    rtol, atol = control.rtol, control.atol
+    Z, Q, V, ctl = work.Z, work.Q, work.V, work.ctl
     N = y.shape[0]
-    scale = V[4]
-    rhs_err = V[5]
-    err = V[6]
-    yy = V[0]
+    scale = V[V_SCALE]
+    rhs_err = V[V_RHS_ERR]
+    err = V[V_ERR]
+    yy = V[V_YY]
     newton_tol = max(10.0 * EPS / rtol, min(0.03, math.sqrt(rtol)))
     min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
     if ctl[HAVE_JAC] == 0.0:
-        _jacobian(jac_fn, rhs, chain, extra, loads, held, t_side, t, y, f, work, stats)
+        _jacobian(fns, problem, t_side, t, y, f, work, stats)
     h_abs = h
     h_old = ctl[H_OLD]
     err_old = ctl[ERR_OLD]
@@ -360,14 +427,13 @@ def radau_step(rhs, jac_fn, factor_fn, solve_fn, chain, extra, loads, held, t_si
         while True:
             ok = True
             if abs(ctl[LU_H] - hs) > 1e-9 * hs:
-                ok = _factor(factor_fn, chain, extra, work, hs, stats)
+                ok = _factor(fns, problem, work, hs, stats)
             if ok:
-                converged, n_iter, rate = _newton(rhs, solve_fn, chain, extra, loads, held,
-                                                  t_side, t, y, hs, scale, newton_tol, work,
-                                                  stats)
+                converged, n_iter, rate = _newton(fns, problem, t_side, t, y, hs, scale,
+                                                  newton_tol, work, stats)
             if converged or ctl[CURRENT_JAC] != 0.0:
                 break
-            _jacobian(jac_fn, rhs, chain, extra, loads, held, t_side, t, y, f, work, stats)
+            _jacobian(fns, problem, t_side, t, y, f, work, stats)
         if not converged:
             h_abs = 0.5 * hs
             stats[2] += 1
@@ -380,7 +446,7 @@ def radau_step(rhs, jac_fn, factor_fn, solve_fn, chain, extra, loads, held, t_si
         for j in range(N):
             y_new[j] = y[j] + Z[2, j]
             rhs_err[j] = f[j] + (Z[0, j] * E[0] + Z[1, j] * E[1] + Z[2, j] * E[2]) / hs
-        solve_fn(chain, extra, work[0], work[1], work[2], MU_REAL / hl, rhs_err, err)
+        solve_fn(chain, extra, work.jac, work.real, work.real_aux, MU_REAL / hl, rhs_err, err)
         error_norm = _rms_scaled(err, y, y_new, rtol, atol)
         safety = 0.9 * (2 * NEWTON_MAXITER + 1) / (2 * NEWTON_MAXITER + n_iter)
         if rejected and error_norm > 1.0:
@@ -390,7 +456,7 @@ def radau_step(rhs, jac_fn, factor_fn, solve_fn, chain, extra, loads, held, t_si
             stats[0] += 1
             for j in range(N):
                 rhs_err[j] += err[j] - f[j]
-            solve_fn(chain, extra, work[0], work[1], work[2], MU_REAL / hl, rhs_err, err)
+            solve_fn(chain, extra, work.jac, work.real, work.real_aux, MU_REAL / hl, rhs_err, err)
             error_norm = _rms_scaled(err, y, y_new, rtol, atol)
         if not error_norm <= 1.0:
             if math.isfinite(error_norm):
@@ -414,8 +480,7 @@ def radau_step(rhs, jac_fn, factor_fn, solve_fn, chain, extra, loads, held, t_si
     rhs(t_new, y_new, chain, extra, loads, held, t_side, f_new)
     stats[0] += 1
     if recompute_jac:
-        _jacobian(jac_fn, rhs, chain, extra, loads, held, t_side, t_new, y_new, f_new, work,
-                  stats)
+        _jacobian(fns, problem, t_side, t_new, y_new, f_new, work, stats)
     else:
         ctl[CURRENT_JAC] = 0.0
     for j in range(N):
@@ -446,8 +511,8 @@ def radau_run(rhs, problem, span, control, output):
     history is forgotten (:func:`radau_restart`). Writes y(t_out[i]) into Y_out[i] by dense
     output. ``events``: see :mod:`rod_sim.core.erk` (located on the collocation polynomial).
     Returns (y_end, t_end, h_next, status, number of outputs written)."""
-    return radau_run_work(rhs, dense_jac, dense_factor, dense_solve, problem, span, control,
-                          output, radau_workspace(span.y0.shape[0]))
+    return radau_run_work(RadauFns(rhs, dense_jac, dense_factor, dense_solve), problem, span,
+                          control, output, radau_workspace(span.y0.shape[0]))
 
 
 @njit
@@ -465,20 +530,21 @@ def _nested_form(Q, F):
 
 
 @njit
-def radau_run_work(rhs, jac_fn, factor_fn, solve_fn, problem, span, control, output, work):
-    """:func:`radau_run` with the workspace ``work`` (:func:`radau_workspace`) given, so that
+def radau_run_work(fns, problem, span, control, output, work):
+    """:func:`radau_run` of ``fns`` (:class:`RadauFns`: the rhs and the Newton systems'
+    functions) with the workspace ``work`` (:class:`RadauWork`) given, so that
     a caller stepping one model period by period keeps its Jacobian between calls (it is
     kept stale: slow Newton convergence still renews it). At an event the history is
     forgotten and the Jacobian dropped (the caller changes the mode: a latch jumps the
     velocity, a stop contact switches the rhs), so the next call starts afresh. After
     ``budget`` right-hand side evaluations (Jacobian columns included) it returns
     STATUS_BUDGET after an accepted step, keeping the step history in ``work``: a call from
-    the returned (y_end, t_end, h_next) with the same ``work`` continues the same integration.
-    ``jac_fn``, ``factor_fn``, ``solve_fn``: the Newton systems' Jacobian, factorisation and
-    solve (dense, or the chain's O(n) ones of :mod:`rod_sim.core.newton`)."""
+    the returned (y_end, t_end, h_next) with the same ``work`` continues the same integration."""
     chain, extra, loads, held = problem
+    rhs = fns.rhs
     y0, t0, t_out, breaks = span
-    rtol, atol, h_init, max_step, max_steps, budget = control
+    h_init, max_step, max_steps, budget = (control.h_init, control.max_step,
+                                           control.max_steps, control.budget)
     Y_out, stats, events = output
     n = y0.shape[0]
     n_out = t_out.shape[0]
@@ -493,14 +559,14 @@ def radau_run_work(rhs, jac_fn, factor_fn, solve_fn, problem, span, control, out
         return y, t, h_init, STATUS_OK, i_out
     m_ev, g0, g1, cap = _event_start(y, events)
     F = np.zeros((7, n))
-    Q = work[8]
+    Q = work.Q
     f = np.empty(n)
     y_new = np.empty(n)
     f_new = np.empty(n)
     h = h_init
     n_steps = 0
     nfev0 = stats[0]
-    ctl = work[11]
+    ctl = work.ctl
     resume = ctl[RESUME_T] == t0 and h > 0.0
     ctl[RESUME_T] = np.nan
     while t < t_final:
@@ -509,8 +575,7 @@ def radau_run_work(rhs, jac_fn, factor_fn, solve_fn, problem, span, control, out
         rhs(t, y, chain, extra, loads, held, t_side, f)
         stats[0] += 1
         if h <= 0.0:
-            h = _initial_step(rhs, chain, extra, loads, held, t_side, t, y, f, seg_end,
-                              rtol, atol, stats)
+            h = _initial_step(rhs, problem, t_side, t, y, f, seg_end, control, stats)
         if not resume:
             radau_restart(work)
         resume = False
@@ -518,9 +583,8 @@ def radau_run_work(rhs, jac_fn, factor_fn, solve_fn, problem, span, control, out
             if m_ev > 0 and events.count[0] + m_ev > cap:
                 return y, t, h, STATUS_EVENTS_FULL, i_out
             h = min(h, max_step)
-            status, t_new, h_next = radau_step(rhs, jac_fn, factor_fn, solve_fn, chain, extra, loads, held, t_side, t,
-                                               y, f, h, seg_end, rtol, atol, work, y_new,
-                                               f_new, stats)
+            status, t_new, h_next = advance_step(fns, problem, t_side, t, y, f, h, seg_end,
+                                                 control, work, y_new, f_new, stats)
             if status != STATUS_OK:
                 return y, t, h_next, status, i_out
             hs = t_new - t
@@ -541,7 +605,7 @@ def radau_run_work(rhs, jac_fn, factor_fn, solve_fn, problem, span, control, out
                 if x_stop < 1.0:
                     radau_dense(y, Q, x_stop, y_new)
                 radau_restart(work)
-                work[11][HAVE_JAC] = 0.0
+                ctl[HAVE_JAC] = 0.0
                 return y_new.copy(), t_last, h_next, STATUS_EVENT, i_out
             g0[:] = g1
             t = t_new
@@ -558,9 +622,10 @@ def radau_run_work(rhs, jac_fn, factor_fn, solve_fn, problem, span, control, out
 
 
 def chain_radau_workspace(model):
-    """The Radau workspace of a chain model: the O(n) Newton part and the step's arrays."""
-    return _nw.chain_workspace(model.chain, model.extra, model.state_size) + \
-        _step_arrays(model.state_size)
+    """The :class:`RadauWork` of a chain model: the O(n) Newton part
+    (:func:`rod_sim.core.newton.chain_workspace`) and the step's arrays."""
+    return make_work(*_nw.chain_workspace(model.chain, model.extra, model.state_size),
+                     model.state_size)
 
 
 # Module-level entry points, one per model kernel (see erk.py: cached on disk).
@@ -568,17 +633,17 @@ def chain_radau_workspace(model):
 
 @njit
 def radau_rigid(problem, span, control, output, work):
-    return radau_run_work(_k.rigid_rhs, _nw.chain_jac, _nw.chain_factor, _nw.chain_solve,
-                          problem, span, control, output, work)
+    return radau_run_work(RadauFns(_k.rigid_rhs, _nw.chain_jac, _nw.chain_factor,
+                                   _nw.chain_solve), problem, span, control, output, work)
 
 
 @njit
 def radau_reduced(problem, span, control, output, work):
-    return radau_run_work(_k.reduced_rhs, _nw.chain_jac, _nw.chain_factor, _nw.chain_solve,
-                          problem, span, control, output, work)
+    return radau_run_work(RadauFns(_k.reduced_rhs, _nw.chain_jac, _nw.chain_factor,
+                                   _nw.chain_solve), problem, span, control, output, work)
 
 
 @njit
 def radau_full(problem, span, control, output, work):
-    return radau_run_work(_k.full_rhs, _nw.chain_jac, _nw.chain_factor, _nw.chain_solve,
-                          problem, span, control, output, work)
+    return radau_run_work(RadauFns(_k.full_rhs, _nw.chain_jac, _nw.chain_factor,
+                                   _nw.chain_solve), problem, span, control, output, work)

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from .loadlaw import SHAPE_CODES, scripted_value
 from .motion import MOTION_SHAPES, MotionProfile
 from .quote import quote
 from .scene_error import (MAX_MAGNITUDE, MAX_RODS, MIN_POSITIVE, SceneError, _is_number, _num,
@@ -37,7 +38,7 @@ __all__ = ["BASE_MODES", "LOAD_AXES", "LOAD_SHAPES", "MAX_MAGNITUDE", "MAX_RODS"
            "MOTION_SHAPES", "BaseSpec", "ChainSpec", "Load", "MotionProfile", "Scene",
            "SceneError", "WheelSpec"]
 
-LOAD_SHAPES = ("raised_cosine_pulse", "constant", "step")
+LOAD_SHAPES = tuple(SHAPE_CODES)      # raised_cosine_pulse, constant, step
 LOAD_AXES = ("x", "y")                 # a chain node's force components
 LOAD_COLUMNS = ("x", "y", "moment")    # columns of the kernels' load table (Load.column)
 BASE_LOAD_AXES = ("x", "y", "moment")
@@ -70,17 +71,11 @@ class Load:
     chain: int = 0
 
     def value(self, t: float) -> float:
-        """Force component [N] (or moment [N m]) at simulated time ``t`` [s]."""
-        tau = t - self.start
-        if tau < 0.0:
-            return 0.0
-        if self.shape == "constant":
-            return self.amplitude
-        if self.shape == "step":
-            return self.amplitude if tau < self.duration else 0.0
-        if tau > self.duration:
-            return 0.0
-        return self.amplitude * (0.5 - 0.5 * math.cos(2.0 * math.pi * tau / self.duration))
+        """Force component [N] (or moment [N m]) at simulated time ``t`` [s]: the one
+        scripted-load law, :func:`rod_sim.core.loadlaw.scripted_value` (which the kernels
+        compile)."""
+        return scripted_value(t, SHAPE_CODES[self.shape], self.amplitude, self.start,
+                              self.duration, t)
 
     def breakpoints(self) -> tuple[float, ...]:
         """Times [s] where the force or one of its derivatives jumps."""

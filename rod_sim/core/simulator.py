@@ -55,14 +55,16 @@ class Trajectory:
 
 
 class Simulator:
-    """Steps one model with one integrator; nodal forces are held between calls. The
-    integrator is settings only: what it carries between calls (step size, workspace, work
-    counters) is the simulator's :attr:`carry`, so two simulators may share one model and
-    one integrator."""
+    """Steps one model with one integrator; nodal forces are held between calls. The model
+    and the integrator are constants (scene, compiled parameters; settings): the kernels'
+    scratch is the simulator's :attr:`data` (``model.new_data()``) and what the integrator
+    carries between calls (step size, workspace, work counters) its :attr:`carry`, so any
+    number of simulators may share one model and one integrator."""
 
     def __init__(self, model: ChainModel, integrator: Integrator | None = None):
         self.model = model
         self.integrator = integrator if integrator is not None else make_integrator()
+        self.data = model.new_data()
         self.carry: Carry = self.integrator.init(model)
         self.reset()
 
@@ -154,7 +156,7 @@ class Simulator:
         n_events = len(self.events)
         try:
             out = drive(self.model, self.integrator, self.y, self.t, t_out, self.held,
-                        self.mode, self.events, self.contact, self.carry)
+                        self.mode, self.events, self.contact, self.carry, self.data)
             self._check_finite(np.asarray(t_out, dtype=float), out.Y)
         except BaseException:
             del self.events[n_events:]

@@ -172,6 +172,31 @@ def warm(log=print, todo=None, jobs: int = 1, clock=time.perf_counter) -> int:
     return ran
 
 
+PRUNE_AFTER_DAYS = 30.0
+"""A directory of the shared compile cache not warmed for this many days is removed."""
+
+
+def prune_shared_cache(current: Path | None, now: float | None = None,
+                       max_age_days: float = PRUNE_AFTER_DAYS) -> list[Path]:
+    """Mark ``current`` (this checkout's directory of the shared compile cache,
+    rod_sim.core.jit.shared_cache_dir) as used now and remove its siblings not warmed for
+    ``max_age_days`` (sources edited since, other numba versions); returns those removed."""
+    import shutil
+
+    if current is None or not current.is_dir():
+        return []
+    now = time.time() if now is None else now
+    os.utime(current, (now, now))
+    removed = []
+    for other in current.parent.iterdir():
+        if other == current or not other.is_dir():
+            continue
+        if now - other.stat().st_mtime > max_age_days * 86400.0:
+            shutil.rmtree(other, ignore_errors=True)
+            removed.append(other)
+    return removed
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m rod_sim.tools.jit_warm",
                                      description=__doc__.split("\n\n")[0])
@@ -182,6 +207,12 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     ran = warm(lambda line: print(line, flush=True), DEMO if args.demo else None,
                max(1, args.jobs))
+    from ..core.jit import shared_cache_dir, sources_stamp
+
+    current = shared_cache_dir(sources_stamp())
+    for gone in prune_shared_cache(current):
+        print(f"rod_sim: removed {gone} (a compile cache unused for "
+              f"{PRUNE_AFTER_DAYS:.0f} days)", flush=True)
     return 0 if ran else 1
 
 

@@ -19,6 +19,7 @@ import numpy as np
 from ..core import newton, radau
 from ..core.integrators import make_integrator
 from ..core.jit import njit
+from ..core.kernels import Problem
 from ..core.models import make_model
 from ..core.simulator import Simulator
 from .common import PAPER_EXAMPLE
@@ -32,8 +33,9 @@ def _loop_rhs(reps, rhs, y, chain, extra, loads, held, out):
 
 @njit
 def _loop_jacobian(reps, rhs, y, chain, extra, loads, held, f, work, stats):
+    problem = Problem(chain, extra, loads, held)
     for _ in range(reps):
-        newton.chain_jac(rhs, chain, extra, loads, held, 0.1, 0.1, y, f, work, stats)
+        newton.chain_jac(rhs, problem, 0.1, 0.1, y, f, work, stats)
 
 
 @njit
@@ -47,8 +49,9 @@ def _loop_factor(reps, chain, extra, work, h, stats):
 @njit
 def _loop_solve(reps, chain, extra, work, h, fr, xr, fc, xc):
     for _ in range(reps):
-        newton.chain_solve(chain, extra, work[0], work[1], work[2], radau.MU_REAL / h, fr, xr)
-        newton.chain_solve(chain, extra, work[0], work[3], work[4],
+        newton.chain_solve(chain, extra, work.jac, work.real, work.real_aux,
+                           radau.MU_REAL / h, fr, xr)
+        newton.chain_solve(chain, extra, work.jac, work.cplx, work.cplx_aux,
                            complex(radau.MU_C_RE, radau.MU_C_IM) / h, fc, xc)
 
 
@@ -75,7 +78,8 @@ def measure(scene, model_name="full", rtol=3e-6, t_end=2.0) -> dict:
         cpus.append(time.process_time() - started)
     y = traj.y[len(traj.t) // 2].copy()
     held = model._held(None)
-    args = (model.kernel, y, model.chain, model.extra, model.loads, held)
+    extra = model.new_data().plan().extra          # the model's constants with scratch
+    args = (model.kernel, y, model.chain, extra, model.loads, held)
     n = y.size
     work = radau.chain_radau_workspace(model)
     stats = np.zeros(6, dtype=np.int64)
@@ -84,8 +88,8 @@ def measure(scene, model_name="full", rtol=3e-6, t_end=2.0) -> dict:
     h = t_end / max(s.steps, 1)
     unit = {"rhs": _unit_cost(_loop_rhs, 20000, *args, np.empty(n)),
             "jacobian": _unit_cost(_loop_jacobian, 300, *args, f, work, stats),
-            "lu_pair": _unit_cost(_loop_factor, 2000, model.chain, model.extra, work, h, stats),
-            "solve_pair": _unit_cost(_loop_solve, 20000, model.chain, model.extra, work, h,
+            "lu_pair": _unit_cost(_loop_factor, 2000, model.chain, extra, work, h, stats),
+            "solve_pair": _unit_cost(_loop_solve, 20000, model.chain, extra, work, h,
                                      np.random.default_rng(0).random(n), np.empty(n),
                                      np.ones(n, complex), np.empty(n, complex))}
     counts = {"rhs (Newton stages, step ends, error refinements)": (s.nfev, "rhs"),
