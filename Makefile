@@ -37,9 +37,9 @@ $(STAMP): setup.py | $(VPY)
 # Compile drivers into numba's cache ahead of use, in 2 processes, with a line at least every
 # 10 s; again whenever a module of rod_sim/core that holds compiled code changes
 # (rod_sim/core/jit.py: the modules that name njit). `make demo` compiles only what it runs
-# (warm-demo, ~1-2 min cold); `make test` every registered model x integrator (warm, ~4 min
-# cold). Anything not compiled ahead compiles on first use, with a notice saying what, why
-# and how long (README, "Compile time").
+# (warm-demo: 387 s cold at load 6-8, 214 s of CPU); `make test` every registered model x
+# integrator (warm: 966 s cold at load 4-6, 933 s of CPU). Anything not compiled ahead compiles on first use, with a notice saying what, why
+# and how long (docs/install.md; measured times: docs/benchmarks.md).
 COMPILED = $(shell grep -l njit rod_sim/core/*.py)
 
 warm: $(WARM)
@@ -54,7 +54,8 @@ $(WARM_DEMO): $(STAMP) $(COMPILED)
 	$(VPY) -m rod_sim.tools.jit_warm --demo
 	touch $(WARM_DEMO)
 
-# Every test not marked slow (README, "Testing": the time it takes); test-slow runs the rest.
+# Every test not marked slow (docs/testing.md; the time it takes: docs/benchmarks.md); test-slow
+# runs the rest.
 test: venv $(WARM)
 	$(ROS_ENV) $(VPY) -m pytest -m "not slow" $(PYTEST_ARGS)
 

@@ -1,7 +1,7 @@
 """The torque <-> force helpers of rod_sim.ros.controller as a public API (issue 20 item 2's
 independent part): hinge_torques is the virtual work of nodal forces per hinge angle (checked
 against finite differences of the node positions, not against the formula), hinge_forces
-realises given hinge torques, and the README's example runs."""
+realises given hinge torques, and the example of docs/node.md runs."""
 from __future__ import annotations
 
 import re
@@ -53,11 +53,11 @@ def test_hinge_forces_realise_the_torques_and_chord_forces_have_none():
     np.testing.assert_allclose(hinge_forces([2.0], [0.0], [4.0]), [[0.0, 0.5]])
 
 
-def test_the_readme_example_runs():
-    text = (REPO / "README.md").read_text()
+def test_the_documented_example_runs():
+    text = (REPO / "docs" / "node.md").read_text()
     block = re.search(r"^```python\n(from rod_sim\.ros\.controller import.*?)^```", text,
                       re.M | re.S)
-    assert block, "the README shows the helpers"
+    assert block, "docs/node.md shows the helpers"
     namespace: dict = {}
-    exec(compile(block.group(1), "README.md", "exec"), namespace)      # its asserts hold
+    exec(compile(block.group(1), "docs/node.md", "exec"), namespace)      # its asserts hold
     assert list(namespace["command"].data) == namespace["forces"].ravel().tolist()

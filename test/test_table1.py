@@ -1,6 +1,6 @@
-"""Table 1 of the paper against our recomputation (README explains every gap).
+"""Table 1 of the paper against our recomputation (docs/verification.md explains every gap).
 
-The tolerances below are the agreement we measured and document in the README, not knobs:
+The tolerances below are the agreement we measured and document in docs/verification.md, not knobs:
 our models are the printed equations, verified independently (test_lagrangian.py); the
 paper's numbers come from a MathCAD AdamsBDF run with a 1e-4 s step.
 """

@@ -23,7 +23,7 @@ Pure (numpy only). Three checks, each giving :class:`Finding` records:
   :func:`unpaired_power`). The integral is the trapezoid rule over the samples corrected by the
   powers' time derivatives, split at the hinge events where the power jumps, and by parts for
   the unpaired term where the samples do not resolve the first bending mode, so the residual is
-  integration and quadrature error (README, "Reliability": figures of the shipped scenes). The
+  integration and quadrature error (docs/energy.md: figures of the shipped scenes). The
   reduced model conserves E only to first order in the bending (see test_physics), so there a
   growing residual also means the bending is no longer small.
 
@@ -320,7 +320,7 @@ def unpaired_power(model, y) -> float:
 
     The phi rows of eqs. (9)-(10) carry the Coriolis term 2 [g^{phi alpha}] Lambda alpha_dot
     (and its beta twin) without the partner a Lagrangian with the same kinetic energy would
-    have (README, "Verification"); its net power is
+    have (docs/verification.md); its net power is
     -sum_{k<j} l_k C_j phi_k' phi_j' (alpha_j' - beta_j') sin(phi_k - phi_j), C_j = m_j l_j^2 / 12,
     which is not small when a latch or a stop starts bending vibration: its rates
     alpha' ~ alpha omega_1 do not fall with EI (measured on config/deployment.yaml: the

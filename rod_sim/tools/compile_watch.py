@@ -39,7 +39,7 @@ COMPILE_CPU_S = {
     "mass_times": 2.0, "load_forces": 1.0, "solve_with": 70.0,
 }
 """Process CPU seconds to compile each compiled entry point from a cold cache, its model's
-kernel included, on the 2-core development machine (numba 0.68, NUMBA_OPT 3; README,
+kernel included, on the 2-core development machine (numba 0.68, NUMBA_OPT 3; docs/benchmarks.md,
 "Compile time"): a kernel alone ~66 s (measured: scipy's Radau compiling it again for a
 strided state), dop853 drivers 79-94 s, radau-jit after its kernel 43-189 s, fixed-step
 after it 7-8 s (15 s with the kernel loaded from the cache: rk4 on the paper example, reduced,

@@ -1,5 +1,6 @@
-"""The energy balance residual of scenes, per model, sample rate and tolerance: the figure the
-README's reliability section and docs/hinges.md state.
+"""The energy balance residual of scenes, per model, sample rate and tolerance.
+
+The figures docs/energy.md and docs/hinges.md state.
 
 ``python -m rod_sim.tools.energy_balance [SCENE ...] [--models rigid,reduced,full]
 [--rates 100,1000] [--rtols 1e-8] [--t-end 3]`` prints a Markdown table of the largest

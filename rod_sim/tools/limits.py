@@ -1,6 +1,6 @@
 """Resource limits of the command line: what ``rod-sim`` refuses before it allocates.
 
-Every figure here is stated in docs/interface.md ("Limits") and the README ("Reliability").
+Every figure here is stated in docs/interface.md ("Limits") and docs/reliability.md.
 A refusal is a :class:`~rod_sim.tools.common.UsageError` naming the option or scene key.
 """
 from __future__ import annotations

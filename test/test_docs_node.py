@@ -1,4 +1,4 @@
-"""Every runnable code block of the README's node section, run as a user would (issue 13):
+"""Every runnable code block of docs/node.md, run as a user would:
 the shell commands (real-time node with the shipped params file, the same in a namespace in
 lockstep, the one-process demo) and the lockstep Python client against the namespaced node.
 Only the domain id (from ros_domains) and the output directory are replaced (LOCALHOST)."""
@@ -22,16 +22,13 @@ from rod_sim.io.log_reader import LogReader  # noqa: E402
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]
 
 REPO = Path(__file__).resolve().parents[1]
-SECTION = "## The ROS 2 node"
+PAGE = REPO / "docs" / "node.md"
 DOMAIN_REALTIME, DOMAIN_LOCKSTEP, DOMAIN_DEMO, DOMAIN_TORQUES = next_domains(4)
 STARTUP_S = 60.0
 
 
 def node_section() -> str:
-    text = (REPO / "README.md").read_text(encoding="utf-8")
-    start = text.index(SECTION)
-    end = text.find("\n## ", start + len(SECTION))
-    return text[start:end if end >= 0 else len(text)]
+    return PAGE.read_text(encoding="utf-8")
 
 
 def code_blocks(language: str) -> list[str]:
@@ -50,14 +47,14 @@ def shell_commands() -> list[str]:
 
 
 def localized(command: str, domain: int, out_dir: Path) -> str:
-    """The README command with this test's domain id and output directory."""
+    """The page's command with this test's domain id and output directory."""
     assert "out/" in command, command
     return (command.replace("ROS_DOMAIN_ID=7", f"ROS_DOMAIN_ID={domain}")
             .replace("out/", f"{out_dir}/"))
 
 
 class Shell(Child):
-    """One README command under bash (``exec env``: signals reach the program itself)."""
+    """One command of the page under bash (``exec env``: signals reach the program itself)."""
 
     def __init__(self, command: str, domain: int, tmp_path: Path, name: str):
         super().__init__(["bash", "-c", "exec env " + command], domain,
@@ -89,7 +86,7 @@ def shell(tmp_path):
 
 
 def ctl_commands() -> list[str]:
-    """The section's `rod-sim ctl` lines (run against the real-time node)."""
+    """The page's `rod-sim ctl` lines (run against the real-time node)."""
     return [c for c in shell_commands() if "rod-sim ctl" in c]
 
 
@@ -109,7 +106,7 @@ def test_realtime_node_with_the_params_file_records_and_answers_ctl(shell, tmp_p
     node = shell(shell_commands()[0], DOMAIN_REALTIME, "realtime")
     node.wait_for("recording to")
     time.sleep(1.0)
-    for command in ctl_commands():         # as the README shows them, each a process
+    for command in ctl_commands():         # as the page shows them, each a process
         done = subprocess.run(["bash", "-c", "exec env " + command.replace(
             "ROS_DOMAIN_ID=7", f"ROS_DOMAIN_ID={DOMAIN_REALTIME}")], cwd=REPO,
             env=ros_env(DOMAIN_REALTIME), capture_output=True, text=True, timeout=60)
@@ -157,7 +154,7 @@ def test_demo_command_runs(shell, tmp_path):
 
 
 def test_hinge_torque_controller_drives_the_namespaced_node(shell, tmp_path):
-    """The README's joint-space controller: 300 hinge_torques commands, one lockstep period
+    """The page's joint-space controller: 300 hinge_torques commands, one lockstep period
     each, recorded with the applied torques of every period; the PD law damps the chain."""
     node = shell(shell_commands()[1], DOMAIN_TORQUES, "lockstep")
     node.wait_for("/arm1/hinge_torques")
