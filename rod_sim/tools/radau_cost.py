@@ -21,7 +21,7 @@ from ..core.integrators import make_integrator
 from ..core.jit import njit
 from ..core.models import make_model
 from ..core.simulator import Simulator
-from .common import PAPER_EXAMPLE
+from rod_sim.app.common import PAPER_EXAMPLE
 
 
 @njit

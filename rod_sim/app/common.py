@@ -17,7 +17,7 @@ import math
 import sys
 from pathlib import Path
 
-from ..core.quote import quote
+from rod_sim.core.quote import quote
 
 EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 PAPER_EXAMPLE = Path(__file__).resolve().parents[2] / "config" / "paper_example.yaml"
@@ -52,32 +52,32 @@ def positive_float(text: str) -> float:
 
 def load_scene(path: str):
     """Read a scene YAML file (raises SceneError/UsageError with a one-line reason)."""
-    from ..io.scene_yaml import load_scene as _load
+    from rod_sim.io.scene_yaml import load_scene as _load
 
     return _load(path)
 
 
 def new_output_path(text: str, option: str = "--out") -> Path:
     """A file path that does not exist yet, in an existing directory (UsageError otherwise),
-    registered as this command's unfinished output (:func:`rod_sim.tools.signals.done`)."""
+    registered as this command's unfinished output (:func:`rod_sim.app.signals.done`)."""
     out = Path(text)
     if out.exists():
         raise UsageError(f"{option}: {out} exists; refusing to overwrite it")
     if not out.parent.is_dir():
         raise UsageError(f"{option}: directory {out.parent} does not exist")
-    from .signals import unfinished
+    from rod_sim.app.signals import unfinished
 
     unfinished(out)         # removed if a signal's watchdog must end the command before done()
     return out
 
 
-from .compile_watch import COMPILE_NOTICE  # noqa: E402,F401  (tests filter by it)
+from rod_sim.core.compile_watch import COMPILE_NOTICE  # noqa: E402,F401  (tests filter by it)
 
 
 def watch_compiles(prefix: str = "rod-sim"):
     """Say on stderr what numba compiles, why and how long it takes, when it does (a driver
-    not in the cache compiles on first use): :mod:`rod_sim.tools.compile_watch`."""
-    from .compile_watch import watch_compiles as _watch
+    not in the cache compiles on first use): :mod:`rod_sim.core.compile_watch`."""
+    from rod_sim.core.compile_watch import watch_compiles as _watch
 
     return _watch(lambda line: print(f"{prefix}: {line}", file=sys.stderr, flush=True))
 

@@ -8,8 +8,8 @@ import json
 import math
 from pathlib import Path
 
-from .config import HINGE_COST_LIMIT, BenchRow
-from .plots import plots
+from rod_sim.bench.config import HINGE_COST_LIMIT, BenchRow, cell
+from rod_sim.bench.plots import plots
 
 
 def format_rows(rows) -> str:
@@ -38,11 +38,6 @@ def write_report(out_dir: Path, data: dict) -> list[Path]:
     written.append(md)
     written += plots(out_dir, rows, data.get("scaling"))
     return written
-
-
-def cell(x, fmt=".3g") -> str:
-    """A table cell: ``x`` formatted with ``fmt``, "-" for None or a non-finite number."""
-    return "-" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, fmt)
 
 
 TARGET_TABLE = (
@@ -178,7 +173,7 @@ def markdown(rows, data) -> str:
                 lines.append(f"| {scene} | {m} | {cell(r['gap_rad'], '.2g')} | "
                              f"{cell(r['wall_s'], '.3g')} | {'yes' if r['ok'] else r['message']} |")
     if data.get("long_chains"):
-        from .long_chains import markdown_lines
+        from rod_sim.bench.long_chains import markdown_lines
 
         lines += markdown_lines(data["long_chains"])
     sc = data.get("scaling")
