@@ -433,7 +433,8 @@ def test_sigint_stops_the_process_pool(tmp_path):
                 "linspace": [50.0, 150.0, 400]}}}
     out = tmp_path / "partial.csv"
     proc = subprocess.Popen([sys.executable, "-m", "rod_sim.tools.cli", "sweep",
-                             str(write_spec(tmp_path, spec)), "--out", str(out), "--workers", "2"], cwd=tmp_path,
+                             str(write_spec(tmp_path, spec)), "--out", str(out),
+                             "--workers", "2"], cwd=tmp_path,
                             stderr=subprocess.PIPE, text=True, preexec_fn=terminal_signals)
     first = proc.stderr.readline()
     assert "400 runs" in first

@@ -1,6 +1,7 @@
 """What every ``rod-sim`` subcommand shares: exit statuses, the usage error, argument types.
 
-A subcommand lives in its own module under ``rod_sim/tools``, listed in
+A subcommand lives in its own module (under ``rod_sim/tools``, or the ``command`` module of
+``rod_sim/compare``, ``rod_sim/sweep``, ``rod_sim/bench``), listed in
 :data:`rod_sim.tools.cli.COMMANDS`, and defines
 
 - ``HELP`` (one line for ``rod-sim --help``) and optionally ``DESCRIPTION``,
@@ -65,7 +66,7 @@ def new_output_path(text: str, option: str = "--out") -> Path:
         raise UsageError(f"{option}: {out} exists; refusing to overwrite it")
     if not out.parent.is_dir():
         raise UsageError(f"{option}: directory {out.parent} does not exist")
-    from rod_sim.app.signals import unfinished
+    from .signals import unfinished
 
     unfinished(out)         # removed if a signal's watchdog must end the command before done()
     return out

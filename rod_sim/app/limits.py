@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import math
 
-from rod_sim.app.common import UsageError
-# the memory check, shared with the node: rod_sim.core.memory (a SceneError keyed rods.count)
-from rod_sim.core.memory import MODEL_MEMORY, check_model_memory, gib, model_memory  # noqa: F401
+from rod_sim.core.memory import gib
+
+from .common import UsageError
 
 MAX_T_END = 1e6                     # [s] of simulated time (--t-end)
 MAX_RATE = 1e9                      # [Hz]: log times are whole nanoseconds

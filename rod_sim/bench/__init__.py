@@ -32,17 +32,17 @@ The names below are the bench's API (tests, notebooks).
 """
 from __future__ import annotations
 
-from rod_sim.bench.config import (BENCH_CHECK_RTOL, BENCH_REFERENCE_RTOL, HINGE_COST_LIMIT, MODELS,
+from .config import (BENCH_CHECK_RTOL, BENCH_REFERENCE_RTOL, HINGE_COST_LIMIT, MODELS,
                      QUICK_SCENES, RADAU_RTOLS, RADAU_RTOLS_QUICK, RATE_HZ, REFERENCE_GAP,
                      SCENE_T_END, SCENES, T_END, TARGET_ERROR, BenchConfig, BenchRow, Reference,
                      describe_setting, load_bench_scene, settings_grid, simulate_args)
-from rod_sim.bench.micro import full_model_bound, hinge_rhs_cost, paper_chain, rhs_cost, scaling
-from rod_sim.bench.report import (TARGET_TABLE, _bound_lines, format_rows, format_targets, markdown,
+from .micro import full_model_bound, hinge_rhs_cost, paper_chain, rhs_cost, scaling
+from .report import (TARGET_TABLE, _bound_lines, format_rows, format_targets, markdown,
                      write_report)
-from rod_sim.bench.plots import plots
-from rod_sim.bench.runs import (RunTimeout, bench_scene, measure_setting, mujoco_rows, peer_rows, reference,
+from .plots import plots
+from .runs import (RunTimeout, bench_scene, measure_setting, mujoco_rows, peer_rows, reference,
                    run_phi, time_run)
-from rod_sim.bench.summary import as_json, best_at, environment, targets
+from .summary import as_json, best_at, environment, targets
 
 __all__ = ["BENCH_CHECK_RTOL", "BENCH_REFERENCE_RTOL", "HINGE_COST_LIMIT", "MODELS",
            "QUICK_SCENES", "RADAU_RTOLS", "RADAU_RTOLS_QUICK", "RATE_HZ", "REFERENCE_GAP",

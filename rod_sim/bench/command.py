@@ -8,11 +8,11 @@ from pathlib import Path
 
 from rod_sim.core.names import INTEGRATOR_NAMES
 from rod_sim.app.common import EXIT_CHECK_FAILED, EXIT_OK, UsageError
-from rod_sim.bench.config import MODELS, QUICK_SCENES, SCENES, BenchConfig
-from rod_sim.bench.micro import full_model_bound, hinge_rhs_cost, scaling
-from rod_sim.bench.report import format_rows, format_targets, write_report
-from rod_sim.bench.runs import bench_scene
-from rod_sim.bench.summary import as_json
+from .config import MODELS, QUICK_SCENES, SCENES, BenchConfig
+from .micro import full_model_bound, hinge_rhs_cost, scaling
+from .report import format_rows, format_targets, write_report
+from .runs import bench_scene
+from .summary import as_json
 
 HELP = "speed against error of every model and integrator (docs/bench.md)"
 
@@ -54,7 +54,7 @@ def run(args) -> int:
     if out_dir is not None and out_dir.exists() and not out_dir.is_dir():
         raise UsageError(f"--out: {out_dir} is not a directory")
     if args.spacecraft:
-        from rod_sim.bench import spacecraft
+        from . import spacecraft
 
         res = spacecraft.run_all(log=lambda s: print(s, file=sys.stderr, flush=True))
         if out_dir is not None:
@@ -82,7 +82,7 @@ def run(args) -> int:
         scale = scaling(log=cfg.log)
     long = None
     if out_dir is not None and not args.no_long and not args.quick:
-        from rod_sim.bench import long_chains
+        from . import long_chains
 
         long = long_chains.run_all(log=cfg.log)
     hinge_cost = bound = None

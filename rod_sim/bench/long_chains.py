@@ -19,10 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
-from rod_sim.bench import pinocchio_peer
-from rod_sim.bench.config import TARGET_ERROR
-from rod_sim.bench.micro import rhs_cost
-from rod_sim.bench.config import cell
+from . import pinocchio_peer
+from .config import TARGET_ERROR
+from .micro import rhs_cost
+from .config import cell
 
 SCALING_NS = (8, 16, 32, 64, 128, 256, 512, 1024, 2048, 4096)
 STARTUP_NS = (8, 256, 1024, 2048, 4096)

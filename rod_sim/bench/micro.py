@@ -9,8 +9,8 @@ import time
 
 import numpy as np
 
-from rod_sim.bench.config import MODELS, RATE_HZ, SCENE_T_END, T_END, load_bench_scene
-from rod_sim.bench.runs import _core
+from .config import MODELS, RATE_HZ, SCENE_T_END, T_END, load_bench_scene
+from .runs import _core
 
 
 def rhs_cost(model_name: str, scene, budget_s: float = 0.05) -> float:
@@ -90,7 +90,7 @@ def full_model_bound(rows, scene_key: str = "paper_example", samples: int = 21) 
     and CPU per step. None when the scene's full-model rows are missing."""
     from rod_sim.core import erk
     from rod_sim.core.stability import spectral_radius, stability_limit
-    from rod_sim.bench.summary import best_at
+    from .summary import best_at
 
     best = {integ: best_at([r for r in rows if r.integrator == integ], "full", scene=scene_key)
             for integ in ("dop853-jit", "radau-jit")}

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rod_sim.bench.config import SCENE_T_END, T_END, TARGET_ERROR
+from .config import SCENE_T_END, T_END, TARGET_ERROR
 
 
 def plots(out_dir: Path, rows, scaling_data) -> list[Path]:

@@ -8,8 +8,8 @@ import json
 import math
 from pathlib import Path
 
-from rod_sim.bench.config import HINGE_COST_LIMIT, BenchRow, cell
-from rod_sim.bench.plots import plots
+from .config import HINGE_COST_LIMIT, BenchRow, cell
+from .plots import plots
 
 
 def format_rows(rows) -> str:
@@ -173,7 +173,7 @@ def markdown(rows, data) -> str:
                 lines.append(f"| {scene} | {m} | {cell(r['gap_rad'], '.2g')} | "
                              f"{cell(r['wall_s'], '.3g')} | {'yes' if r['ok'] else r['message']} |")
     if data.get("long_chains"):
-        from rod_sim.bench.long_chains import markdown_lines
+        from .long_chains import markdown_lines
 
         lines += markdown_lines(data["long_chains"])
     sc = data.get("scaling")

@@ -14,7 +14,7 @@ import time
 import numpy as np
 
 from rod_sim.core.names import SCIPY_METHODS
-from rod_sim.bench.config import (BENCH_CHECK_RTOL, BENCH_REFERENCE_RTOL, FAST_BUDGET_S, MAX_REPEATS,
+from .config import (BENCH_CHECK_RTOL, BENCH_REFERENCE_RTOL, FAST_BUDGET_S, MAX_REPEATS,
                      PILOT_FRACTION, RATE_HZ, REFERENCE_GAP, SCENE_T_END, SCENES, T_END,
                      BenchConfig, BenchRow, Reference, describe_setting, load_bench_scene,
                      settings_grid, simulate_args)
@@ -194,7 +194,7 @@ def measure_setting(key, scene, model_name, integrator, settings, ref: Reference
 def mujoco_rows(key, scene, refs, full_ref, cfg) -> list[BenchRow]:
     """MuJoCo's rigid chain (the peer) at several time steps; listed as not run when the
     ``mujoco`` package is missing."""
-    from rod_sim.bench import mujoco_peer
+    from . import mujoco_peer
 
     return peer_rows(mujoco_peer, key, scene, refs, full_ref, cfg)
 

@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rod_sim.bench.config import CONFIG, FAST_BUDGET_S, MAX_REPEATS, MODELS, RATE_HZ, TARGET_ERROR
+from .config import CONFIG, FAST_BUDGET_S, MAX_REPEATS, MODELS, RATE_HZ, TARGET_ERROR
 
 RHS_RATIO_TARGET = 1.1
 RTF_TARGET = 1000.0
@@ -209,7 +209,7 @@ def peer_spacecraft(n_panels: int):
     at 0.1 rad/s: panel i (10 kg, 3 m, hinge spring 400 N m/rad, damper 2 N m s/rad) hinged
     at radius 1 m in the direction a_i = 2 pi i / N, pointing outwards, with initial hinge
     angle 0.05 sin(i + 1) rad and rate 0.1 cos(i) rad/s."""
-    from rod_sim.bench.basilisk_peer import Panel, Spacecraft
+    from .basilisk_peer import Panel, Spacecraft
 
     panels = []
     for i in range(n_panels):
@@ -263,7 +263,7 @@ def basilisk_comparison(ns=PEER_NS, t_end: float = PEER_T_END, error: float = PE
                         repeats: int = 3, log=None) -> dict:
     """Simulated seconds per wall second of Basilisk and of rod_sim's rigid model at matched
     accuracy (module docstring); ``available`` False when Basilisk is not installed."""
-    from rod_sim.bench import basilisk_peer as peer
+    from . import basilisk_peer as peer
 
     if not peer.available():
         return {"available": False, "reason": "Basilisk is not installed (pip install bsk)"}

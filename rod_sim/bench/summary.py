@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from rod_sim.version import __version__
-from rod_sim.bench.config import (BENCH_CHECK_RTOL, BENCH_REFERENCE_RTOL, HINGE_COST_LIMIT, MODELS, RATE_HZ,
+from .config import (BENCH_CHECK_RTOL, BENCH_REFERENCE_RTOL, HINGE_COST_LIMIT, MODELS, RATE_HZ,
                      REFERENCE_GAP, SCENE_T_END, T_END, TARGET_ERROR, BenchConfig)
 
 

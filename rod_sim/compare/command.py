@@ -19,7 +19,7 @@ from pathlib import Path
 from rod_sim.io.quote import quote
 
 from rod_sim.app.common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, positive_float
-from rod_sim.compare.verdict import Cause, Verdict
+from .verdict import Cause, Verdict
 
 HELP = "check a log against a converged re-run of the full model (predictability horizon)"
 
@@ -283,7 +283,7 @@ def run(args) -> int:
     from rod_sim.io.log_format import LogFormatError
     from rod_sim.io.log_source import read_log
     from rod_sim.app.common import new_output_path
-    from rod_sim.compare.comparison import DEFAULT_TOLERANCE, CompareInputError, compare_log
+    from .comparison import DEFAULT_TOLERANCE, CompareInputError, compare_log
 
     plot = new_output_path(args.plot, "--plot") if args.plot else None
     try:

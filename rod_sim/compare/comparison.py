@@ -53,15 +53,15 @@ from rod_sim.core.kinematics import node_positions
 from rod_sim.core.scene import Scene
 from rod_sim.core.units import NS_PER_S
 
-from rod_sim.compare.chaos import CONVERGED_FRACTION, ChaosTracker
-from rod_sim.compare.chaos import ONSET_GAIN, TWIN_DELTA  # noqa: F401  (documented constants)
-from rod_sim.compare.inputs import CompareInputError, HeldInputs, SampleTimeline
-from rod_sim.compare.spacecraft import SpacecraftCheck
-from rod_sim.compare.runs import (COMPARE_CHECK_RTOL, COMPARE_REFERENCE_RTOL, References,
-                           reference_model)
-from rod_sim.compare.stats import (QUANTITIES, BeyondHorizon, Decimated, QuantityStats,
-                            WithinHorizon)
-from rod_sim.compare.verdict import Judgement, judge
+from .chaos import CONVERGED_FRACTION, ChaosTracker
+from .chaos import ONSET_GAIN, TWIN_DELTA  # noqa: F401  (documented constants)
+from .inputs import CompareInputError, HeldInputs, SampleTimeline
+from .spacecraft import SpacecraftCheck
+from .runs import (COMPARE_CHECK_RTOL, COMPARE_REFERENCE_RTOL, References,
+                   reference_model)
+from .stats import (QUANTITIES, BeyondHorizon, Decimated, QuantityStats,
+                    WithinHorizon)
+from .verdict import Judgement, judge
 
 if TYPE_CHECKING:
     from rod_sim.io.log_source import LogStream

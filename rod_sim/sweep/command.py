@@ -77,7 +77,7 @@ def _progress(total: int, desc: str):
 
 def run_serial(tasks: list[dict], on_row=None) -> dict:
     """Every task in this process, in order. Returns {index: row}."""
-    from rod_sim.sweep.worker import run_one
+    from .worker import run_one
 
     rows: dict = {}
     try:
@@ -94,7 +94,7 @@ def _worker_init() -> None:
     """Initializer of a pool worker: Ctrl-C is the parent's to handle, and the worker dies with
     its parent (the forkserver, which dies with the sweep: :mod:`.forkserver`; or the
     sweep, for spawned workers) even when that is SIGKILLed (issue 27, item 8)."""
-    from rod_sim.sweep.parent_death import die_with_parent
+    from .parent_death import die_with_parent
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     die_with_parent()
@@ -117,7 +117,7 @@ def _pool_context():
 def _collect(futures: dict, finished, rows: dict, on_row=None) -> None:
     """Rows of ``futures`` ({future: task}) into ``rows`` ({index: row}) in the order
     ``finished(futures)`` yields them; a future that raised becomes a failed row."""
-    from rod_sim.sweep.worker import failed_row
+    from .worker import failed_row
 
     for future in finished(futures):
         task = futures[future]
@@ -155,7 +155,7 @@ def _pool_round(tasks: list[dict], workers: int, function, marker_dir: str, rows
     from concurrent.futures.process import BrokenProcessPool
     from functools import partial
 
-    from rod_sim.sweep.worker import failed_row
+    from .worker import failed_row
 
     executor = ProcessPoolExecutor(max_workers=workers, initializer=_worker_init,
                                    mp_context=_pool_context())
@@ -205,7 +205,7 @@ def run_local(tasks: list[dict], workers: int, on_row=None, function=None) -> di
     """
     import tempfile
 
-    from rod_sim.sweep.worker import failed_row, run_one
+    from .worker import failed_row, run_one
 
     function = function or run_one
     rows: dict = {}
@@ -241,7 +241,7 @@ def run_dask(tasks: list[dict], address: str, on_row=None) -> dict:
         from dask.distributed import Client, as_completed
     except ImportError:
         raise UsageError("--scheduler needs dask.distributed: pip install 'rod_sim[sweep]'") from None
-    from rod_sim.sweep.worker import run_one
+    from .worker import run_one
 
     try:
         client = Client(address, timeout="10s")
@@ -303,7 +303,7 @@ def execute(tasks: list[dict], workers: int | None = None, scheduler: str | None
 # ----- the command -----
 
 def result_columns(spec) -> list[str]:
-    from rod_sim.sweep.worker import OUTPUTS
+    from .worker import OUTPUTS
 
     return ["run", *(p.path for p in spec.parameters), *OUTPUTS]
 
@@ -327,8 +327,8 @@ def _summary(rows: list[dict], total: int) -> str:
 
 
 def run(args) -> int:
-    from rod_sim.sweep.spec import expand, load_spec
-    from rod_sim.sweep.table import table_format, write_table
+    from .spec import expand, load_spec
+    from .table import table_format, write_table
 
     spec = load_spec(args.spec, seed=args.seed)
     out = new_output_path(args.out or f"{spec.name}.csv")
@@ -376,7 +376,7 @@ def run(args) -> int:
     write_table(rows, out, result_columns(spec), metadata(spec))
     done(out)
     if plot is not None:
-        from rod_sim.sweep.plot import plot_sweep
+        from .plot import plot_sweep
 
         plot_sweep(rows, [p.path for p in spec.parameters],
                    {p.path for p in spec.parameters if p.random}, plot,

@@ -1,8 +1,8 @@
 """The ``rod-sim`` command line: one entry point, one subcommand per job.
 
 :data:`COMMANDS` is the list of subcommands: each is a module (of ``rod_sim.tools``, or the
-``command`` module of the packages ``rod_sim.compare``, ``rod_sim.sweep``, ``rod_sim.bench``), imported
-only when the parser is built or the command runs, with
+``command`` module of the packages ``rod_sim.compare``, ``rod_sim.sweep``, ``rod_sim.bench``),
+imported only when the parser is built or the command runs, with
 
 - ``HELP`` (one line for ``rod-sim --help``; ``DESCRIPTION``, if defined, for its own --help),
 - ``configure(parser)`` adding its arguments to an ``argparse`` subparser,
@@ -23,7 +23,8 @@ from types import ModuleType
 from ..version import __version__
 
 from rod_sim.app import signals
-from rod_sim.app.common import EXIT_BAD_INPUT, EXIT_CHECK_FAILED, EXIT_OK, PAPER_EXAMPLE, UsageError
+from rod_sim.app.common import (EXIT_BAD_INPUT, EXIT_CHECK_FAILED, EXIT_OK, PAPER_EXAMPLE,
+                                UsageError)
 from rod_sim.app.signals import Terminated, handle_sigterm
 from rod_sim.app.signals import reset as reset_signals
 
