@@ -18,9 +18,10 @@ from rod_sim.core.models import make_model
 from rod_sim.core.simulator import Simulator
 from rod_sim.io.series import read_rod_states
 from rod_sim.io.scene_yaml import load_scene
-from rod_sim.tools import bench, cli
-from rod_sim.tools.bench import mujoco_peer
-from rod_sim.tools.common import PAPER_EXAMPLE
+from rod_sim import bench
+from rod_sim.tools import cli
+from rod_sim.bench import mujoco_peer
+from rod_sim.app.common import PAPER_EXAMPLE
 
 SPEC_KEYS = {"scene", "n", "model", "integrator", "setting", "simulate_args", "wall_s", "sim_s",
              "rtf", "max_phi_error"}

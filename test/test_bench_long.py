@@ -1,4 +1,4 @@
-"""The long-chain bench (rod_sim.tools.bench_long) on small n: it verifies before it times
+"""The long-chain bench (rod_sim.bench.long_chains) on small n: it verifies before it times
 (Pinocchio's accelerations against the rigid model), its rows are complete and its targets
 and report lines follow from the numbers."""
 from __future__ import annotations
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from rod_sim.core.models import make_model
-from rod_sim.tools.bench import long_chains as bench_long
-from rod_sim.tools.bench import pinocchio_peer
+from rod_sim.bench import long_chains as bench_long
+from rod_sim.bench import pinocchio_peer
 
 
 def test_scenes_are_what_the_docs_say():

@@ -1,6 +1,6 @@
 """Bad or extreme input to ``rod-sim simulate`` and the scene loader: one line naming the option
 or key, exit status 2 (1 when a started run stops), no traceback, no file left behind, and
-the resource limits of rod_sim/tools/limits.py."""
+the resource limits of rod_sim/app/limits.py."""
 import errno
 import io
 import os
@@ -17,8 +17,10 @@ from rod_sim.core.scene import Scene, SceneError
 from rod_sim.io import log_writer as mcap_log
 from rod_sim.io.series import read_rod_states
 from rod_sim.io.scene_yaml import MAX_SCENE_BYTES, load_scene
-from rod_sim.tools import cli, limits
-from rod_sim.tools.common import COMPILE_NOTICE, UsageError
+from rod_sim.app import limits
+from rod_sim.core import memory
+from rod_sim.tools import cli
+from rod_sim.app.common import COMPILE_NOTICE, UsageError
 from untimed import untimed_lines
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -73,18 +75,18 @@ def test_extreme_scene_values_are_refused_with_the_key(tmp_path, capsys, key, va
 
 def test_a_chain_too_large_for_memory_is_refused_with_the_figure(tmp_path, capsys,
                                                                  monkeypatch):
-    monkeypatch.setattr(limits, "available_memory", lambda: 1024 ** 3)
+    monkeypatch.setattr(memory, "available_memory", lambda: 1024 ** 3)
     scene = scene_yaml(tmp_path, key="count", value="100000")
     assert simulate(tmp_path, scene, "--t-end", "0.1") == 2
     line = one_line_error(capsys)
     assert "rods.count" in line and "1.92 GiB" in line           # linear: 400 MiB + 16 KiB/rod
     assert not (tmp_path / "run.mcap").exists()
-    limits.check_model_memory(1000, available=10 ** 9)            # 0.41 GiB: fits
-    with pytest.raises(UsageError, match="0.406 GiB"):
-        limits.check_model_memory(1000, available=10 ** 8)
+    memory.check_model_memory(1000, available=10 ** 9)            # 0.41 GiB: fits
+    with pytest.raises(SceneError, match="0.406 GiB"):
+        memory.check_model_memory(1000, available=10 ** 8)
     # linear in n, not quadratic
-    assert limits.model_memory(200_000) - limits.model_memory(100_000) == \
-        limits.model_memory(100_000) - limits.model_memory(0)
+    assert memory.model_memory(200_000) - memory.model_memory(100_000) == \
+        memory.model_memory(100_000) - memory.model_memory(0)
 
 
 @pytest.mark.timing
@@ -273,15 +275,15 @@ def test_the_memory_check_honours_the_cgroup_limit(tmp_path, monkeypatch, versio
         (group / "memory.usage_in_bytes").write_text(f"{1024 ** 3}\n")
         proc = "4:memory:/jobs/rod\n1:cpu:/\n"
     (tmp_path / "cgroup.txt").write_text(proc)
-    monkeypatch.setattr(limits, "PROC_CGROUP", str(tmp_path / "cgroup.txt"))
-    monkeypatch.setattr(limits, "CGROUP_ROOT", str(root))
-    assert limits._cgroup_memory() == 2 * 1024 ** 3
-    with pytest.raises(UsageError, match=r"2 GiB under the cgroup memory limit"):
-        limits.check_model_memory(200_000)                       # 3.45 GiB
-    limits.check_model_memory(50_000)                            # 1.15 GiB: fits
+    monkeypatch.setattr(memory, "PROC_CGROUP", str(tmp_path / "cgroup.txt"))
+    monkeypatch.setattr(memory, "CGROUP_ROOT", str(root))
+    assert memory._cgroup_memory() == 2 * 1024 ** 3
+    with pytest.raises(SceneError, match=r"2 GiB under the cgroup memory limit"):
+        memory.check_model_memory(200_000)                       # 3.45 GiB
+    memory.check_model_memory(50_000)                            # 1.15 GiB: fits
     (group / ("memory.max" if version == 2 else "memory.limit_in_bytes")).write_text(
         "max\n" if version == 2 else "9223372036854771712\n")
-    assert limits._cgroup_memory() is None
+    assert memory._cgroup_memory() is None
 
 
 def test_compare_over_a_folder_of_many_logs_is_refused_up_front(tmp_path):

@@ -28,8 +28,8 @@ from rod_sim.io.log_source import read_log
 from rod_sim.io.log_writer import LogWriter
 from rod_sim.io.scene_yaml import load_scene, scene_to_yaml
 from rod_sim.tools import cli
-from rod_sim.tools.compare_stats import significant_digits
-from rod_sim.tools.comparison import DEFAULT_TOLERANCE, compare_log
+from rod_sim.compare.stats import significant_digits
+from rod_sim.compare.comparison import DEFAULT_TOLERANCE, compare_log
 from ros_domains import next_domain
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -609,7 +609,7 @@ def test_validity_warnings_name_slopes_beyond_small_bending_and_fast_loads():
     from types import SimpleNamespace
 
     from rod_sim.core.validity import SMALL_BENDING_RAD
-    from rod_sim.tools.compare import validity_messages
+    from rod_sim.compare.command import validity_messages
 
     paper = load_scene(PAPER)
     small = SimpleNamespace(quantities={"alpha": SimpleNamespace(ref_max=0.01),

@@ -20,8 +20,9 @@ import pytest
 from rod_sim.io.log_source import read_log
 from rod_sim.io.log_writer import LogWriter
 from rod_sim.io.scene_yaml import load_scene, scene_to_yaml
-from rod_sim.tools import cli, comparison
-from rod_sim.tools.comparison import compare_log
+from rod_sim.compare import comparison
+from rod_sim.tools import cli
+from rod_sim.compare.comparison import compare_log
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "config" / "paper_example.yaml"

@@ -1,4 +1,4 @@
-"""The verdict of rod-sim compare as data (rod_sim.tools.compare_verdict): the enum and the
+"""The verdict of rod-sim compare as data (rod_sim.compare.verdict): the enum and the
 numbers decide, the sentences of the text report and of the JSON come from the same records."""
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from rod_sim.tools.compare_verdict import Cause, Judgement, Reason, Verdict, judge
+from rod_sim.compare.verdict import Cause, Judgement, Reason, Verdict, judge
 
 CLEAN = dict(tolerance=1e-2, max_error=1e-4, horizon=None, within_max=1e-4,
              within_where=(3, 0.25), first_exceeded=None, gap_count=0, first_gap=None,
@@ -65,8 +65,8 @@ def test_the_json_and_the_report_come_from_the_same_judgement(tmp_path, toleranc
 
     from rod_sim.core.scene import Scene
     from rod_sim.io.log_source import read_log
-    from rod_sim.tools.compare import verdict_line
-    from rod_sim.tools.comparison import compare_log
+    from rod_sim.compare.command import verdict_line
+    from rod_sim.compare.comparison import compare_log
 
     log = synthetic_log(tmp_path / "rest.mcap", 0.05)
     with read_log(log) as source:

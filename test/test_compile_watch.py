@@ -10,8 +10,9 @@ import threading
 import pytest
 
 from rod_sim.core import jit, models, names
-from rod_sim.tools import compile_watch, jit_warm
-from rod_sim.tools.compile_watch import COMPILE_NOTICE, CompileWatch
+from rod_sim.core import compile_watch
+from rod_sim.tools import jit_warm
+from rod_sim.core.compile_watch import COMPILE_NOTICE, CompileWatch
 
 
 class Clocks:

@@ -303,7 +303,7 @@ def test_a_chain_at_rest_is_not_reported(monkeypatch):
     residual's ratio to it is ~1 and meaningless; below the chain's reference energy times
     ENERGY_FLOOR nothing is reported. Without the floor the same run is reported."""
     from rod_sim.core import validity
-    from rod_sim.tools.bench.long_chains import uniform_chain
+    from rod_sim.bench.long_chains import uniform_chain
 
     sc = uniform_chain(256)
     sim = Simulator(make_model("reduced", sc), make_integrator("rk4", step=1e-4))

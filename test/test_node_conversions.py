@@ -153,7 +153,7 @@ def test_a_long_chain_is_drawn_as_one_strip_through_its_nodes():
 
     from rod_sim.core.models import make_model
     from rod_sim.io import topics
-    from rod_sim.tools.bench.long_chains import uniform_chain
+    from rod_sim.bench.long_chains import uniform_chain
 
     for n, strips in ((topics.MARKER_MAX_STRIPS, topics.MARKER_MAX_STRIPS), (300, 1)):
         scene = uniform_chain(n)

@@ -375,7 +375,7 @@ def test_node_runs_radau_jit(monkeypatch):
 
 
 def test_bench_times_radau_jit_for_every_model_and_filters_by_integrator():
-    from rod_sim.tools import bench
+    from rod_sim import bench
 
     for model_name in bench.MODELS:
         for quick in (True, False):

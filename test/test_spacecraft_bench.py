@@ -25,7 +25,7 @@ from rod_sim.core.integrators import make_integrator
 from rod_sim.core.models import make_model
 from rod_sim.core.scene import Scene
 from rod_sim.core.simulator import Simulator
-from rod_sim.tools.bench import basilisk_peer, spacecraft
+from rod_sim.bench import basilisk_peer, spacecraft
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -76,7 +76,7 @@ import json, resource, sys
 from rod_sim.core.integrators import make_integrator
 from rod_sim.core.models import make_model
 from rod_sim.core.simulator import Simulator
-from rod_sim.tools.bench.spacecraft import two_chain_scene
+from rod_sim.bench.spacecraft import two_chain_scene
 model_name, integrator, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
 kw = {"step": 1e-5} if integrator == "rk4" else {"rtol": 1e-6, "atol": 1e-6}
 small = make_model(model_name, two_chain_scene(8, "free"))        # load the kernels

@@ -19,7 +19,7 @@ from rod_sim.core.models import make_model
 from rod_sim.core.scene import Scene
 from rod_sim.core.simulator import Simulator
 from rod_sim.io.scene_yaml import load_scene
-from rod_sim.tools.common import PAPER_EXAMPLE
+from rod_sim.app.common import PAPER_EXAMPLE
 
 RK4_A = np.array([[0, 0, 0, 0], [0.5, 0, 0, 0], [0, 0.5, 0, 0], [0, 0, 1, 0]], dtype=float)
 RK4_B = np.array([1, 2, 2, 1], dtype=float) / 6.0

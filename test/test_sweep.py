@@ -24,9 +24,10 @@ from rod_sim.core.scene import Load
 from rod_sim.core.simulator import Simulator
 from rod_sim.core.validity import balance_run
 from rod_sim.io.scene_yaml import load_scene
-from rod_sim.tools import cli, sweep_worker
-from rod_sim.tools.sweep_spec import SweepSpecError, apply_path, expand, load_spec, parse_path
-from rod_sim.tools.sweep_table import read_metadata, read_table, write_table
+from rod_sim.sweep import worker as sweep_worker
+from rod_sim.tools import cli
+from rod_sim.sweep.spec import SweepSpecError, apply_path, expand, load_spec, parse_path
+from rod_sim.sweep.table import read_metadata, read_table, write_table
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = ROOT / "config" / "small_chain.yaml"
@@ -124,7 +125,7 @@ def test_overflowing_draws_are_refused_without_runtime_warnings(tmp_path):
 
 
 def test_the_run_limit_is_inclusive(tmp_path):
-    from rod_sim.tools.sweep_spec import MAX_RUNS
+    from rod_sim.sweep.spec import MAX_RUNS
     spec = {**TINY, "parameters": {"hinges.stiffness": {"linspace": [1, 2, MAX_RUNS]}}}
     assert len(load_spec(write_spec(tmp_path, spec)).parameters[0].values) == MAX_RUNS
 
@@ -431,8 +432,9 @@ def test_sigint_stops_the_process_pool(tmp_path):
             "rtol": 1e-10, "t_end": 2.0, "parameters": {"hinges.stiffness": {
                 "linspace": [50.0, 150.0, 400]}}}
     out = tmp_path / "partial.csv"
-    proc = subprocess.Popen([sys.executable, "-m", "rod_sim.tools.sweep", str(write_spec(tmp_path, spec)),
-                             "--out", str(out), "--workers", "2"], cwd=tmp_path,
+    proc = subprocess.Popen([sys.executable, "-m", "rod_sim.tools.cli", "sweep",
+                             str(write_spec(tmp_path, spec)), "--out", str(out),
+                             "--workers", "2"], cwd=tmp_path,
                             stderr=subprocess.PIPE, text=True, preexec_fn=terminal_signals)
     first = proc.stderr.readline()
     assert "400 runs" in first
@@ -452,7 +454,7 @@ def test_a_killed_worker_loses_no_run_of_the_other_workers():
     # issue 19 item 8: a worker killed (SIGKILL) in the middle of a run broke the pool and
     # failed the runs of the other worker too; now the lost runs are retried
     import sweep_crash
-    from rod_sim.tools.sweep import run_local
+    from rod_sim.sweep.command import run_local
 
     with sweep_crash.flag_dir() as flags:
         tasks = [{"index": i, "flags": str(flags), "params": {}, "model": "rigid"}
@@ -466,7 +468,7 @@ def test_a_killed_worker_loses_no_run_of_the_other_workers():
 
 def test_a_run_that_kills_its_worker_every_time_is_one_failed_row():
     import sweep_crash
-    from rod_sim.tools.sweep import run_local
+    from rod_sim.sweep.command import run_local
 
     with sweep_crash.flag_dir() as flags:
         tasks = [{"index": i, "flags": str(flags), "params": {}, "model": "rigid", "t_end": 1.0}
@@ -485,7 +487,7 @@ def test_inline_scene_and_text_values():
     base = load_scene(SMALL).to_dict()
     spec = {**TINY, "scene": base, "models": "rigid",
             "parameters": {"loads[0].shape": ["constant", "step"], "loads[0].duration": [0.05]}}
-    from rod_sim.tools.sweep_spec import parse_spec
+    from rod_sim.sweep.spec import parse_spec
 
     runs = expand(parse_spec(spec))
     assert [r.params for r in runs] == [{"loads[0].shape": "constant", "loads[0].duration": 0.05},
@@ -497,7 +499,7 @@ def test_inline_scene_and_text_values():
 def test_plot_legend_names_the_other_parameters_levels_and_axes_carry_units(tmp_path,
                                                                           monkeypatch):
     import matplotlib.pyplot as plt
-    from rod_sim.tools.sweep_plot import plot_sweep
+    from rod_sim.sweep.plot import plot_sweep
     rows = [{"model": "reduced", "status": "ok", "hinges.stiffness": k, "loads[0].amplitude": a,
              "max_tip_displacement": k * a, "max_abs_phi": 1.0, "max_abs_alpha": 0.1,
              "max_abs_beta": 0.2, "nfev": 10} for k in (30.0, 80.0) for a in (5.0, 9.0)]
@@ -515,7 +517,7 @@ def test_plot_legend_names_the_other_parameters_levels_and_axes_carry_units(tmp_
 
 def test_default_workers_leave_a_core_and_the_design_is_worded(monkeypatch):
     from types import SimpleNamespace as NS
-    from rod_sim.tools import sweep
+    from rod_sim.sweep import command as sweep
     monkeypatch.setattr(os, "cpu_count", lambda: 2)
     assert sweep.local_workers(None, 100) == 1
     monkeypatch.setattr(os, "cpu_count", lambda: 8)

@@ -4,7 +4,7 @@ compiling its kernels takes more than 2 s of wall time, which a loaded machine r
 warm cache too; a test that counts the lines of stderr counts them without it."""
 from __future__ import annotations
 
-from rod_sim.tools.common import COMPILE_NOTICE
+from rod_sim.app.common import COMPILE_NOTICE
 
 
 def untimed_lines(text: str) -> list[str]:

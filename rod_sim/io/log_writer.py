@@ -27,7 +27,7 @@ import numpy as np
 from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
 
-from rod_sim import __version__
+from rod_sim.version import __version__
 from rod_sim.core.scene import Scene
 from rod_sim.core.snapshot import Snapshot
 from rod_sim.io import cdr, encoders, msgdefs, topics as topic_msgs

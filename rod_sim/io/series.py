@@ -1,5 +1,6 @@
 """Time series of one topic of a log, as arrays: :func:`read_rod_states` (the rod angles and
-rates) and :func:`read_applied_forces`. The log is any that :func:`rod_sim.io.log_open.open_log`
+rates), :func:`read_joint_states` (the hinge angles), :func:`read_base_odometry` and
+:func:`read_applied_forces`. The log is any that :func:`rod_sim.io.log_open.open_log`
 opens (an MCAP file, complete or truncated, or a rosbag2 bag); topics are found under any one
 namespace. Errors: LogFormatError (one line).
 """
@@ -35,7 +36,8 @@ def read_base_odometry(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]
     return np.asarray(times, dtype=np.int64) / 1e9, base
 
 
-def _joint_series(path, topic: str, prefix: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _joint_series(path, topic: str, prefix: str | None
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
     times, position, velocity = [], [], []
     names = None
     with open_log(path) as log:
@@ -44,7 +46,8 @@ def _joint_series(path, topic: str, prefix: str) -> tuple[np.ndarray, np.ndarray
             if names is None:
                 names = list(msg.name)
                 expected = [f"{prefix}{k}" for k in range(1, len(names) + 1)]
-                if names != expected and not (prefix == "rod_" and valid_rod_names(names)):
+                if prefix is not None and names != expected and not (
+                        prefix == "rod_" and valid_rod_names(names)):
                     raise LogFormatError(f"{path}: {topic} names {names} are not {prefix}1..")
             elif list(msg.name) != names:
                 raise LogFormatError(f"{path}: {topic} changes its joint names at {t_ns} ns")
@@ -54,14 +57,24 @@ def _joint_series(path, topic: str, prefix: str) -> tuple[np.ndarray, np.ndarray
     if not times:
         raise LogFormatError(f"{path} has no {topic} messages")
     return (np.asarray(times, dtype=np.int64) / 1e9, np.asarray(position, dtype=float),
-            np.asarray(velocity, dtype=float))
+            np.asarray(velocity, dtype=float), names)
 
 
 def read_rod_states(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(t (N,) [s], phi (N, n) [rad], phi_rate (N, n) [rad/s])`` from the ``rod_states`` topic
     of a log (complete or truncated; under any one namespace). Raises LogFormatError if it has
     none."""
-    return _joint_series(path, "/rod_states", "rod_")
+    return _joint_series(path, "/rod_states", "rod_")[:3]
+
+
+def read_joint_states(path: str | os.PathLike
+                      ) -> tuple[np.ndarray, list[str], np.ndarray, np.ndarray]:
+    """``(t (N,) [s], names (m,), position (N, m), velocity (N, m))`` from ``joint_states``: the
+    hinges' relative angles [rad] and rates [rad/s] (``hinge_0`` .. in the order of the
+    scene's chains), then on a moving base its joints (docs/interface.md section 3). Raises
+    LogFormatError if the log has none or the names change."""
+    t, position, velocity, names = _joint_series(path, "/joint_states", None)
+    return t, names, position, velocity
 
 
 def read_applied_forces(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:

@@ -12,7 +12,6 @@ import time
 from collections import deque
 
 import rclpy
-import yaml
 from rcl_interfaces.msg import Parameter as ParameterMsg
 from rcl_interfaces.msg import ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, SetParameters
@@ -20,6 +19,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import SetBool, Trigger
 
+from rod_sim.io import yaml_text
 from rod_sim.ros.conversions import message_class, message_to_dict
 from rod_sim.ros.parameters import NODE_NAME
 
@@ -186,7 +186,7 @@ class CtlClient:
             if count and seen[0] >= count:
                 return
             seen[0] += 1
-            out.write("---\n" + yaml.safe_dump(message_to_dict(msg), sort_keys=False,
+            out.write("---\n" + yaml_text.dump(message_to_dict(msg), sort_keys=False,
                                               default_flow_style=None, width=100))
             out.flush()
 
@@ -229,8 +229,8 @@ def parse_value(text: str):
     """A parameter value from the command line as ``ros2 param set`` reads it: a YAML scalar
     (``1.0`` double, ``1`` integer, ``true`` bool, anything else a string)."""
     try:
-        value = yaml.safe_load(text)
-    except yaml.YAMLError:
+        value = yaml_text.load(text)
+    except yaml_text.YAMLError:
         return text
     return value if isinstance(value, (bool, int, float, str)) else text
 

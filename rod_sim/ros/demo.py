@@ -134,7 +134,7 @@ def run(args: argparse.Namespace) -> int:
     from rod_sim.ros.node import NodeConfigError, RodSimNode
     from rod_sim.ros.process import StopRequest, spin_until
 
-    from rod_sim.tools.common import watch_compiles
+    from rod_sim.app.common import watch_compiles
 
     watch_compiles("demo")      # a driver not in numba's cache: what, why, how long
     rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)

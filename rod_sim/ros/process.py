@@ -97,7 +97,7 @@ def run_node(prog: str, make_node, args: list[str], config_errors) -> int:
     and shut rclpy down. Returns 0, or 2 with a one-line reason on stderr when creating the
     node raises one of ``config_errors``, or 130 / 143 (SIGINT / SIGTERM) with one line when a
     signal stops the start-up (which prints what it is doing after 2 s: :mod:`startup`)."""
-    from rod_sim.tools.common import watch_compiles
+    from rod_sim.app.common import watch_compiles
 
     watch_compiles(prog)        # a driver not in numba's cache: what, why, how long
     rclpy.init(args=[prog, *args], signal_handler_options=SignalHandlerOptions.NO)

@@ -27,7 +27,7 @@ figure a loaded machine disturbs least). ``--keep-log`` keeps the node's log (``
 versions for the same inputs).
 
 ``--spacecraft`` runs two chains of ``--rods`` rods each (default 512) on a free base instead
-(:func:`rod_sim.tools.bench.spacecraft.two_chain_scene`: the base turning, the chains bent and
+(:func:`rod_sim.bench.spacecraft.two_chain_scene`: the base turning, the chains bent and
 moving), the case of issue 28: 2 x 512 rods at 100 Hz with recording.
 
 With ``--period-cost K`` no ROS graph is started: this process builds the node's simulation
@@ -101,7 +101,7 @@ def scene_file(args, tmp: Path) -> Path:
     from rod_sim.core.scene import Scene
 
     if args.spacecraft:
-        from rod_sim.tools.bench.spacecraft import two_chain_scene
+        from rod_sim.bench.spacecraft import two_chain_scene
 
         scene = two_chain_scene(args.rods or 512)
         path = tmp / f"{scene.name}.yaml"

@@ -122,7 +122,7 @@ class NodeRecording:
 def node_log_metadata(scene_yaml: str, model: str, integrator: str, settings, mode: str,
                       node: str) -> dict[str, str]:
     """The ``rod_sim`` metadata record of a node's log (docs/interface.md section 4)."""
-    from rod_sim import __version__
+    from rod_sim.version import __version__
 
     return {"scene": scene_yaml, "model": model, "integrator": integrator,
             "version": __version__, "rtol": repr(settings.rtol),

@@ -14,7 +14,8 @@ import re
 import sys
 from pathlib import Path
 
-import yaml
+from rod_sim.io import yaml_text
+
 
 PACKAGE_SCHEME = "package://"
 PACKAGE_NAME = "rod_sim"
@@ -50,8 +51,8 @@ def params_file_value(path: str | os.PathLike, full_name: str, key: str):
     """The value of parameter ``key`` that params file ``path`` gives the node ``full_name``
     (e.g. '/arm1/rod_sim'); None when it gives none or cannot be read. Later entries win."""
     try:
-        tree = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, yaml.YAMLError):
+        tree = yaml_text.load(Path(path).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, yaml_text.YAMLError):
         return None
     found = None
     for node_key, params in _entries(tree):

@@ -11,20 +11,15 @@ from pathlib import Path
 
 import numpy as np
 
-from rod_sim.core.integrators import IntegrationError, make_integrator
-from rod_sim.core.models import ModelError, make_model
-from rod_sim.core.scene import Scene, SceneError
-from rod_sim.core.simulator import Simulator
+from rod_sim.api import (IntegrationError, ModelError, Scene, SceneError, Simulator, load_scene,
+                         make_integrator, make_model)
 from rod_sim.core.units import NS_PER_S
-from rod_sim.io.scene_yaml import load_scene
 from rod_sim.ros import budget
 from rod_sim.ros.errors import NodeConfigError, one_line
 from rod_sim.ros.outputs import BY_NAME, STATE_TOPICS
 from rod_sim.ros.pacing import period_ns as control_period_ns
 from rod_sim.ros.period import PeriodRunner
 from rod_sim.ros.scene_path import ScenePathError, resolve_scene_file
-from rod_sim.tools.common import UsageError
-from rod_sim.tools.limits import check_model_memory
 
 
 @dataclass
@@ -52,13 +47,12 @@ def build(settings, full_name: str, params_files: tuple[str, ...]) -> Simulation
         raise NodeConfigError(f"scene_file {exc}") from None
     try:
         scene = load_scene(path)
-        check_model_memory(scene.n)      # simulate's estimate, before allocating
-        model = make_model(s.model, scene)
+        model = make_model(s.model, scene)      # simulate's memory estimate first
         integrator = make_integrator(s.integrator, rtol=s.rtol)
         period = control_period_ns(s.rate_hz)
     except SceneError as exc:
         raise NodeConfigError(f"scene_file {s.scene_file}: {one_line(exc)}") from None
-    except (ModelError, ValueError, UsageError) as exc:
+    except (ModelError, ValueError) as exc:
         raise NodeConfigError(one_line(exc)) from None
     except MemoryError:          # beyond the estimate: still one line, not a traceback
         raise NodeConfigError(f"scene_file {s.scene_file}: out of memory building the "

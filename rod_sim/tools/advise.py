@@ -36,7 +36,7 @@ RATE_HZ = 100.0
 
 
 def configure(parser) -> None:
-    from .common import positive_float, positive_int
+    from rod_sim.app.common import positive_float, positive_int
 
     parser.add_argument("scene", help="scene YAML file")
     parser.add_argument("--tolerance", type=positive_float, required=True,
@@ -51,9 +51,7 @@ def configure(parser) -> None:
 def _run(scene, model_name: str, rtol: float, t_end: float, repeats: int = 1):
     """(angles (N, n) or on a free base (N, n + 1): phi and then psi [rad], best wall time [s],
     nfev) of one model/tolerance over [0, t_end]."""
-    from ..core.integrators import make_integrator
-    from ..core.models import make_model
-    from ..core.simulator import Simulator
+    from ..api import Simulator, make_integrator, make_model
 
     model = make_model(model_name, scene)
     Simulator(model, make_integrator(rtol=rtol)).advance(1e-4)       # compile outside timing
@@ -143,7 +141,7 @@ def format_text(res: dict) -> str:
 
 
 def run(args) -> int:
-    from .common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, load_scene
+    from rod_sim.app.common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, load_scene
 
     if args.t_end > 100.0:
         raise UsageError("--t-end: a trial longer than 100 s is not a short trial")

@@ -1,7 +1,8 @@
 """The ``rod-sim`` command line: one entry point, one subcommand per job.
 
-:data:`COMMANDS` is the list of subcommands: each is a module of ``rod_sim.tools``, imported
-only when the parser is built or the command runs, with
+:data:`COMMANDS` is the list of subcommands: each is a module (of ``rod_sim.tools``, or the
+``command`` module of the packages ``rod_sim.compare``, ``rod_sim.sweep``, ``rod_sim.bench``),
+imported only when the parser is built or the command runs, with
 
 - ``HELP`` (one line for ``rod-sim --help``; ``DESCRIPTION``, if defined, for its own --help),
 - ``configure(parser)`` adding its arguments to an ``argparse`` subparser,
@@ -19,41 +20,45 @@ import signal
 import sys
 from types import ModuleType
 
-from .. import __version__
+from ..version import __version__
 
-from . import signals
-from .common import EXIT_BAD_INPUT, EXIT_CHECK_FAILED, EXIT_OK, PAPER_EXAMPLE, UsageError
-from .signals import Terminated, handle_sigterm
-from .signals import reset as reset_signals
+from rod_sim.app import signals
+from rod_sim.app.common import (EXIT_BAD_INPUT, EXIT_CHECK_FAILED, EXIT_OK, PAPER_EXAMPLE,
+                                UsageError)
+from rod_sim.app.signals import Terminated, handle_sigterm
+from rod_sim.app.signals import reset as reset_signals
 
 __all__ = ["EXIT_OK", "EXIT_CHECK_FAILED", "EXIT_BAD_INPUT", "PAPER_EXAMPLE", "UsageError",
            "COMMANDS", "command_module", "build_parser", "run", "main"]
 
 
 COMMANDS = {
-    # rod-sim NAME: module of rod_sim.tools (in the order of `rod-sim --help`)
+    # rod-sim NAME: module (in the order of `rod-sim --help`)
     "simulate": "simulate",                     # offline run -> MCAP log
     "table1": "table1",                         # Table 1 of the paper
     "node": "node",                             # the ROS 2 node (rod_sim.ros.node)
     "advise": "advise",                         # cheapest model/integrator for a tolerance
-    "bench": "bench.command",                   # speed against error (docs/bench.md)
-    "compare": "compare",                       # a log against the full model
+    "bench": "rod_sim.bench.command",           # speed against error (docs/bench.md)
+    "compare": "rod_sim.compare.command",       # a log against the full model
     "ctl": "ctl",                               # the node's services, parameters, topics
     "deployment-figure": "deployment_figure",   # snapshots of a logged chain
     "repair": "repair",                         # rewrite a damaged log
     "replay": "replay",                         # republish a log on a ROS graph
-    "sweep": "sweep",                           # batch runs over parameter grids
+    "sweep": "rod_sim.sweep.command",           # batch runs over parameter grids
     "urdf": "urdf",                             # a scene's chain as URDF
 }
-"""``rod-sim`` subcommand -> the module of ``rod_sim.tools`` that implements it."""
+"""``rod-sim`` subcommand -> the module that implements it (of ``rod_sim.tools`` unless a full
+name: compare, sweep and bench are packages of their own)."""
 NEVER_COMPILES = frozenset({"ctl", "repair", "replay", "urdf"})
 """Subcommands that run no compiled code (the others say what numba compiles when it does:
-:func:`rod_sim.tools.common.watch_compiles`; the node installs its own)."""
+:func:`rod_sim.app.common.watch_compiles`; the node installs its own)."""
 
 
 def command_module(name: str) -> ModuleType:
     """The module implementing subcommand ``name`` (imported on first use; KeyError if none)."""
-    return importlib.import_module(f"{__package__}.{COMMANDS[name]}")
+    module = COMMANDS[name]
+    return importlib.import_module(module if module.startswith("rod_sim.")
+                                   else f"{__package__}.{module}")
 
 
 def plugin_modules() -> dict[str, ModuleType]:
@@ -94,7 +99,7 @@ def _error(command: str, err, status: int) -> int:
 def main(argv: list[str] | None = None) -> int:
     """Run ``rod-sim`` with ``argv`` (default: the command line); returns the exit status.
     Ctrl-C / SIGTERM at any moment, from here on (the command table's imports included): one
-    line, exit 130 / 143 (:mod:`rod_sim.tools.signals`)."""
+    line, exit 130 / 143 (:mod:`rod_sim.app.signals`)."""
     entry_point = argv is None
     argv = list(sys.argv[1:] if argv is None else argv)
     name = argv[0] if argv and argv[0] in COMMANDS else ""
@@ -146,7 +151,7 @@ def _main(argv: list[str]) -> int:
     parser = build_parser(argv[0] if argv and argv[0] in COMMANDS else None)
     args = parser.parse_args(argv)
     if args.command not in NEVER_COMPILES:
-        from .common import watch_compiles
+        from rod_sim.app.common import watch_compiles
 
         watch_compiles()
     try:

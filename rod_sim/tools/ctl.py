@@ -17,7 +17,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .common import EXIT_CHECK_FAILED, UsageError, positive_float
+from rod_sim.app.common import EXIT_CHECK_FAILED, UsageError, positive_float
 
 HELP = "call the node's services, get/set its parameters, echo or time a topic (no ros2 CLI)"
 ACTIONS = ("pause", "resume", "step", "reset", "param", "echo", "hz")

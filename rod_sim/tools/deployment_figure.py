@@ -15,7 +15,7 @@ import sys
 import numpy as np
 
 from ..core.quote import quote
-from .common import UsageError, new_output_path
+from rod_sim.app.common import UsageError, new_output_path
 
 HELP = "draw snapshots of a logged chain (e.g. the deployment scene) with its latch events"
 
@@ -105,7 +105,7 @@ def run(args) -> int:
         theta = np.diff(phi, prepend=0.0, axis=1)
         labels = [f"hinge {h}" for h in range(scene.n)]
     else:
-        from .compare_spacecraft import hinge_angles
+        from rod_sim.compare.spacecraft import hinge_angles
 
         theta = hinge_angles(np.asarray(scene.chain_root), phi, base[:, 2])
         labels = [f"{c.name or 'chain'} {h}" for c in scene.chains for h in range(c.count)]

@@ -13,9 +13,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..core.integrators import make_integrator
-from ..core.models import make_model
-from ..core.simulator import Simulator
+from ..api import Simulator, make_integrator, make_model
 from ..core.validity import assess_trajectory, latch_losses
 from ..io.scene_yaml import load_scene
 

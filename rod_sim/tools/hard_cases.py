@@ -16,10 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.integrators import IntegrationError, make_integrator
-from ..core.models import make_model
+from ..api import IntegrationError, Simulator, make_integrator, make_model
 from ..core.scene import Scene
-from ..core.simulator import Simulator
 from ..core.validity import assess_trajectory
 
 TIP_PULSES = "tip_pulses"

@@ -89,7 +89,7 @@ class CompileLog:
 
 def _scene(spec):
     if isinstance(spec, int):
-        from .bench.long_chains import uniform_chain
+        from rod_sim.bench.long_chains import uniform_chain
 
         return uniform_chain(spec)
     from ..io.scene_yaml import load_scene

@@ -4,7 +4,7 @@
 model's dop853-jit drivers and the helpers the node's messages use), ``make test`` without
 (every driver), each again whenever a module of ``rod_sim/core`` changes (which invalidates
 the cache). Anything not compiled here compiles on first use with a notice saying what, why
-and how long (:mod:`rod_sim.tools.compile_watch`).
+and how long (:mod:`rod_sim.core.compile_watch`).
 
 The full set iterates over whatever the registries hold: every model of ``MODEL_NAMES`` with
 every integrator of ``INTEGRATOR_NAMES`` (rod_sim.core.names), on a plain chain and on a
@@ -71,7 +71,7 @@ def groups(todo) -> list[list[tuple[str, str, str]]]:
 def estimate(group) -> float:
     """CPU seconds measured for compiling a group's entry points in one process (the
     model's kernel once: :data:`compile_watch.KERNEL_CPU_S`)."""
-    from .compile_watch import COMPILE_CPU_S, KERNEL_CPU_S, UNKNOWN_CPU_S
+    from rod_sim.core.compile_watch import COMPILE_CPU_S, KERNEL_CPU_S, UNKNOWN_CPU_S
 
     points = {entry_point(m, i) for _, m, i in group}
     return sum(COMPILE_CPU_S.get(p, UNKNOWN_CPU_S) for p in points) \
@@ -116,7 +116,7 @@ def warm(log=print, todo=None, jobs: int = 1, clock=time.perf_counter) -> int:
     """Compile the drivers of ``todo`` (default: :func:`drivers`) in ``jobs`` processes (1:
     in this one), logging one line per driver and, while none finishes, one every
     :data:`TICK_S`; returns how many ran (not skipped)."""
-    from .compile_watch import cpu_inflation, load_slowdown
+    from rod_sim.core.compile_watch import cpu_inflation, load_slowdown
 
     todo = drivers() if todo is None else list(todo)
     plan = groups(todo)

@@ -22,7 +22,7 @@ from ..core.jit import njit
 from ..core.kernels import Problem
 from ..core.models import make_model
 from ..core.simulator import Simulator
-from .common import PAPER_EXAMPLE
+from rod_sim.app.common import PAPER_EXAMPLE
 
 
 @njit

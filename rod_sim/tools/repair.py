@@ -16,7 +16,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from .common import EXIT_OK, UsageError, new_output_path
+from rod_sim.app.common import EXIT_OK, UsageError, new_output_path
 
 HELP = "rewrite a truncated (writer killed) or damaged log with a new summary and indexes"
 

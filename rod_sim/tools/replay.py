@@ -11,7 +11,7 @@ import argparse
 import gc
 import sys
 
-from .common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, positive_float
+from rod_sim.app.common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, positive_float
 
 HELP = "republish a log's topics on a live ROS graph with their timing and /clock"
 DEFAULT_CLOCK_HZ = 100.0

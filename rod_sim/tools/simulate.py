@@ -11,14 +11,13 @@ import sys
 import time
 from pathlib import Path
 
-from .. import __version__
+from ..version import __version__
 from ..core.names import INTEGRATOR_NAMES as INTEGRATORS
 from ..core.names import MODEL_NAMES
-from . import limits
-from .common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, load_scene, \
-    new_output_path
-from .common import positive_float as _positive_float
-from .signals import done, signals_deferred
+from rod_sim.app import limits
+from rod_sim.app.common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, new_output_path
+from rod_sim.app.common import positive_float as _positive_float
+from rod_sim.app.signals import done, signals_deferred
 
 HELP = "offline run of a scene, written as an MCAP log"
 DESCRIPTION = ("Offline run of a scene (no ROS graph); writes the log of docs/interface.md "
@@ -74,9 +73,7 @@ def _sample_grid_ns(rate_hz: float, k: int) -> int:
 
 
 def run(args) -> int:
-    from ..core.integrators import IntegrationError, make_integrator
-    from ..core.models import make_model
-    from ..core.simulator import Simulator
+    from ..api import IntegrationError, Simulator, load_scene, make_integrator, make_model
     from ..io.log_source import SCENE_TOPIC
     from ..io.log_writer import LogWriter, offered_qos_yaml
     from ..io.scene_yaml import scene_to_yaml
@@ -90,8 +87,7 @@ def run(args) -> int:
     if not integrator.adaptive and args.t_end / integrator.step > limits.MAX_FIXED_STEPS:
         raise UsageError(f"--step: {args.t_end:g} s in steps of {integrator.step:g} s is more "
                          f"than {limits.MAX_FIXED_STEPS:g} steps")
-    limits.check_model_memory(scene.n)
-    model = make_model(args.model, scene)
+    model = make_model(args.model, scene)          # refuses a chain too large for memory first
     out = new_output_path(args.out)
     try:                # compile (or load) the kernels before the clock starts
         Simulator(model, make_integrator(args.integrator)).advance(1e-3)

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .common import PAPER_EXAMPLE
+from rod_sim.app.common import PAPER_EXAMPLE
 
 HELP = "recompute Table 1 of the paper"
 DESCRIPTION = ("Recompute Table 1 of the paper with the full and reduced models and print it "
@@ -78,9 +78,7 @@ class Row:
 
 def model_values(scene, model_name: str, rtol: float = 1e-11) -> dict[tuple[str, int, float], float]:
     """Our phi, phi_rate, alpha, beta for every rod at TIMES from a converged run."""
-    from ..core.integrators import make_integrator
-    from ..core.models import make_model
-    from ..core.simulator import Simulator
+    from ..api import Simulator, make_integrator, make_model
 
     model = make_model(model_name, scene)
     sim = Simulator(model, make_integrator("dop853-jit", rtol=rtol))
@@ -147,7 +145,7 @@ def configure(parser) -> None:
 def run(args) -> int:
     import json
 
-    from .common import EXIT_OK, load_scene
+    from rod_sim.app.common import EXIT_OK, load_scene
 
     scene = load_scene(args.scene)
     rows = compute(scene)

@@ -27,8 +27,8 @@ def run(args) -> int:
     import time
 
     from ..io.urdf import urdf_chunks
-    from .common import EXIT_OK, UsageError, load_scene, new_output_path
-    from .signals import done
+    from rod_sim.app.common import EXIT_OK, UsageError, load_scene, new_output_path
+    from rod_sim.app.signals import done
 
     if not args.frame_id or not args.frame_id.replace("_", "").replace("/", "").isalnum():
         raise UsageError(f"--frame-id: not a frame name: {args.frame_id!r}")

@@ -79,7 +79,7 @@ def kernel_cached(name: str) -> bool:
     if kind not in _KINDS or model not in _MODELS:
         return False
     try:
-        from ..core import kernels
+        from rod_sim.core import kernels
 
         disp = getattr(kernels, f"{model}_rhs")
         return bool(disp.overloads) or bool(disp._cache._impl and
@@ -277,7 +277,7 @@ def watch_compiles(sink: Callable[[str], None]) -> CompileWatch | None:
     return the first); None when numba is not in use (``ROD_SIM_NO_JIT``)."""
     global _installed
     if _installed is None:
-        from ..core.jit import HAVE_NUMBA
+        from rod_sim.core.jit import HAVE_NUMBA
 
         if not HAVE_NUMBA:
             return None

@@ -16,7 +16,7 @@ import numpy as np
 
 from rod_sim.core.models import FullModel
 
-from .compare_runs import Run
+from .runs import Run
 
 TWIN_DELTA = 1e-7
 """[rad] initial (and renormalised) phi separation of the twin run measuring the gain."""

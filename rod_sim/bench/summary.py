@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ... import __version__
+from rod_sim.version import __version__
 from .config import (BENCH_CHECK_RTOL, BENCH_REFERENCE_RTOL, HINGE_COST_LIMIT, MODELS, RATE_HZ,
                      REFERENCE_GAP, SCENE_T_END, T_END, TARGET_ERROR, BenchConfig)
 

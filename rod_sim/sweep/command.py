@@ -1,10 +1,10 @@
 """``rod-sim sweep SPEC.yaml``: batch runs over parameter grids or Monte-Carlo draws.
 
-The spec (``docs/sweep.md``, parsed by :mod:`.sweep_spec`) is expanded into runs, every run's
+The spec (``docs/sweep.md``, parsed by :mod:`.spec`) is expanded into runs, every run's
 scene is validated before any run starts, then the runs go to a local process pool
 (``--workers``, default ``os.cpu_count() - 1``; ``--workers 0`` runs them in this process) or to an
 existing Dask cluster (``--scheduler ADDRESS``). Each run is one call of
-:func:`.sweep_worker.run_one` and one row of the result table (``--out``, CSV or Parquet),
+:func:`.worker.run_one` and one row of the result table (``--out``, CSV or Parquet),
 in run order whatever order the runs finish in; failed runs are rows with their reason.
 Ctrl-C cancels the outstanding runs, writes the rows finished so far and exits with 130.
 """
@@ -17,13 +17,13 @@ import sys
 import time
 from pathlib import Path
 
-from ..core.quote import quote
-from .common import EXIT_OK, UsageError, new_output_path
-from .signals import done, exit_status, received, signals_deferred
+from rod_sim.core.quote import quote
+from rod_sim.app.common import EXIT_OK, UsageError, new_output_path
+from rod_sim.app.signals import done, exit_status, received, signals_deferred
 
 HELP = "batch runs over parameter grids or Monte-Carlo draws (local pool or Dask cluster)"
 EXIT_INTERRUPTED = 130
-"""Ctrl-C; SIGTERM: 143 (:func:`rod_sim.tools.signals.exit_status`)."""
+"""Ctrl-C; SIGTERM: 143 (:func:`rod_sim.app.signals.exit_status`)."""
 
 
 class SweepInterrupted(Exception):
@@ -77,7 +77,7 @@ def _progress(total: int, desc: str):
 
 def run_serial(tasks: list[dict], on_row=None) -> dict:
     """Every task in this process, in order. Returns {index: row}."""
-    from .sweep_worker import run_one
+    from .worker import run_one
 
     rows: dict = {}
     try:
@@ -92,7 +92,7 @@ def run_serial(tasks: list[dict], on_row=None) -> dict:
 
 def _worker_init() -> None:
     """Initializer of a pool worker: Ctrl-C is the parent's to handle, and the worker dies with
-    its parent (the forkserver, which dies with the sweep: :mod:`sweep_forkserver`; or the
+    its parent (the forkserver, which dies with the sweep: :mod:`.forkserver`; or the
     sweep, for spawned workers) even when that is SIGKILLed (issue 27, item 8)."""
     from .parent_death import die_with_parent
 
@@ -108,8 +108,8 @@ def _pool_context():
     if "forkserver" in multiprocessing.get_all_start_methods():
         ctx = multiprocessing.get_context("forkserver")
         # the first import makes the forkserver die with the sweep (parent-death signal)
-        ctx.set_forkserver_preload(["rod_sim.tools.sweep_forkserver",
-                                    "rod_sim.tools.sweep_worker"])
+        ctx.set_forkserver_preload(["rod_sim.sweep.forkserver",
+                                    "rod_sim.sweep.worker"])
         return ctx
     return multiprocessing.get_context("spawn")
 
@@ -117,7 +117,7 @@ def _pool_context():
 def _collect(futures: dict, finished, rows: dict, on_row=None) -> None:
     """Rows of ``futures`` ({future: task}) into ``rows`` ({index: row}) in the order
     ``finished(futures)`` yields them; a future that raised becomes a failed row."""
-    from .sweep_worker import failed_row
+    from .worker import failed_row
 
     for future in finished(futures):
         task = futures[future]
@@ -155,7 +155,7 @@ def _pool_round(tasks: list[dict], workers: int, function, marker_dir: str, rows
     from concurrent.futures.process import BrokenProcessPool
     from functools import partial
 
-    from .sweep_worker import failed_row
+    from .worker import failed_row
 
     executor = ProcessPoolExecutor(max_workers=workers, initializer=_worker_init,
                                    mp_context=_pool_context())
@@ -205,7 +205,7 @@ def run_local(tasks: list[dict], workers: int, on_row=None, function=None) -> di
     """
     import tempfile
 
-    from .sweep_worker import failed_row, run_one
+    from .worker import failed_row, run_one
 
     function = function or run_one
     rows: dict = {}
@@ -241,7 +241,7 @@ def run_dask(tasks: list[dict], address: str, on_row=None) -> dict:
         from dask.distributed import Client, as_completed
     except ImportError:
         raise UsageError("--scheduler needs dask.distributed: pip install 'rod_sim[sweep]'") from None
-    from .sweep_worker import run_one
+    from .worker import run_one
 
     try:
         client = Client(address, timeout="10s")
@@ -303,13 +303,13 @@ def execute(tasks: list[dict], workers: int | None = None, scheduler: str | None
 # ----- the command -----
 
 def result_columns(spec) -> list[str]:
-    from .sweep_worker import OUTPUTS
+    from .worker import OUTPUTS
 
     return ["run", *(p.path for p in spec.parameters), *OUTPUTS]
 
 
 def metadata(spec) -> dict:
-    from .. import __version__
+    from rod_sim.version import __version__
 
     return {"name": spec.name, "models": list(spec.models), "seed": spec.seed,
             "draws": spec.draws, "version": __version__, **spec.settings(),
@@ -327,8 +327,8 @@ def _summary(rows: list[dict], total: int) -> str:
 
 
 def run(args) -> int:
-    from .sweep_spec import expand, load_spec
-    from .sweep_table import table_format, write_table
+    from .spec import expand, load_spec
+    from .table import table_format, write_table
 
     spec = load_spec(args.spec, seed=args.seed)
     out = new_output_path(args.out or f"{spec.name}.csv")
@@ -376,7 +376,7 @@ def run(args) -> int:
     write_table(rows, out, result_columns(spec), metadata(spec))
     done(out)
     if plot is not None:
-        from .sweep_plot import plot_sweep
+        from .plot import plot_sweep
 
         plot_sweep(rows, [p.path for p in spec.parameters],
                    {p.path for p in spec.parameters if p.random}, plot,
@@ -385,13 +385,3 @@ def run(args) -> int:
     print(f"{spec.name}: {_summary(rows, len(tasks))}; {wall:.1f} s wall -> {out}"
           + (f", {plot}" if plot else ""))
     return EXIT_OK
-
-
-def main(argv=None) -> int:                            # python -m rod_sim.tools.sweep
-    from .cli import main as cli_main
-
-    return cli_main(["sweep", *(sys.argv[1:] if argv is None else argv)])
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,13 +1,13 @@
 """``rod-sim bench [--quick] [--json] [--out DIR]``: the command line of the bench (options,
-the order of the measurements, the output); see :mod:`rod_sim.tools.bench`."""
+the order of the measurements, the output); see :mod:`rod_sim.bench`."""
 from __future__ import annotations
 
 import json
 import os
 from pathlib import Path
 
-from ...core.names import INTEGRATOR_NAMES
-from ..common import EXIT_CHECK_FAILED, EXIT_OK, UsageError
+from rod_sim.core.names import INTEGRATOR_NAMES
+from rod_sim.app.common import EXIT_CHECK_FAILED, EXIT_OK, UsageError
 from .config import MODELS, QUICK_SCENES, SCENES, BenchConfig
 from .micro import full_model_bound, hinge_rhs_cost, scaling
 from .report import format_rows, format_targets, write_report
@@ -40,7 +40,7 @@ def configure(parser) -> None:
     parser.add_argument("--spacecraft", action="store_true",
                         help="only the spacecraft bench (free vs fixed base rhs, two-wing "
                              "deployment RTF, radau-jit O(n) on a free base, Basilisk peer; "
-                             "~10 min; rod_sim.tools.bench.spacecraft)")
+                             "~10 min; rod_sim.bench.spacecraft)")
     parser.add_argument("--out", default=None,
                         help="directory for bench.json, results.md and the PNG plots")
 

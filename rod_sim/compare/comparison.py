@@ -1,10 +1,10 @@
 """The numbers behind ``rod-sim compare``: a logged run against a converged full-model re-run.
 
 Pure computation (numpy + rod_sim.core) on the stream of :mod:`rod_sim.io.log_source`; the
-report is printed by :mod:`rod_sim.tools.compare`. A small pipeline, one part a module: the
-logged inputs and sample times (:mod:`.compare_inputs`), the reference runs
-(:mod:`.compare_runs`), the chaos tracker (:mod:`.compare_chaos`), the per-quantity statistics
-(:mod:`.compare_stats`) and the verdict as data (:mod:`.compare_verdict`); :class:`_Comparison`
+report is printed by :mod:`rod_sim.compare.command`. A small pipeline, one part a module: the
+logged inputs and sample times (:mod:`.inputs`), the reference runs
+(:mod:`.runs`), the chaos tracker (:mod:`.chaos`), the per-quantity statistics
+(:mod:`.stats`) and the verdict as data (:mod:`.verdict`); :class:`_Comparison`
 feeds them window by window and :class:`Report` holds what they found.
 
 Streaming. The log is compared in windows of at most :data:`WINDOW_SAMPLES` states or
@@ -53,15 +53,15 @@ from rod_sim.core.kinematics import node_positions
 from rod_sim.core.scene import Scene
 from rod_sim.core.units import NS_PER_S
 
-from .compare_chaos import CONVERGED_FRACTION, ChaosTracker
-from .compare_chaos import ONSET_GAIN, TWIN_DELTA  # noqa: F401  (documented constants)
-from .compare_inputs import CompareInputError, HeldInputs, SampleTimeline
-from .compare_spacecraft import SpacecraftCheck
-from .compare_runs import (COMPARE_CHECK_RTOL, COMPARE_REFERENCE_RTOL, References,
-                           reference_model)
-from .compare_stats import (QUANTITIES, BeyondHorizon, Decimated, QuantityStats,
-                            WithinHorizon)
-from .compare_verdict import Judgement, judge
+from .chaos import CONVERGED_FRACTION, ChaosTracker
+from .chaos import ONSET_GAIN, TWIN_DELTA  # noqa: F401  (documented constants)
+from .inputs import CompareInputError, HeldInputs, SampleTimeline
+from .spacecraft import SpacecraftCheck
+from .runs import (COMPARE_CHECK_RTOL, COMPARE_REFERENCE_RTOL, References,
+                   reference_model)
+from .stats import (QUANTITIES, BeyondHorizon, Decimated, QuantityStats,
+                    WithinHorizon)
+from .verdict import Judgement, judge
 
 if TYPE_CHECKING:
     from rod_sim.io.log_source import LogStream
@@ -106,7 +106,7 @@ class Report:
     info: dict[str, Any] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     spacecraft: dict[str, Any] | None = None
-    """A spacecraft scene's per-chain and base errors (:mod:`.compare_spacecraft`), else None."""
+    """A spacecraft scene's per-chain and base errors (:mod:`.spacecraft`), else None."""
     spacecraft_lines: list[str] = field(default_factory=list)
 
     @property

@@ -5,7 +5,7 @@ Exit 0: PASS (max |phi error| <= --tolerance, no gap in the states, reference co
 PASS up to the predictability horizon and INCONCLUSIVE beyond it (chaotic motion: only
 statistics are meaningful there); 1: FAIL; 2: the log cannot be compared, e.g. a corrupt log
 (one line on stderr naming the byte offset, no traceback, no verdict). The report fits 100
-columns. The numbers are computed by :mod:`rod_sim.tools.comparison`; docs/compare.md explains
+columns. The numbers are computed by :mod:`rod_sim.compare.comparison`; docs/compare.md explains
 them.
 """
 from __future__ import annotations
@@ -16,10 +16,10 @@ import sys
 import textwrap
 from pathlib import Path
 
-from ..io.quote import quote
+from rod_sim.io.quote import quote
 
-from .common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, positive_float
-from .compare_verdict import Cause, Verdict
+from rod_sim.app.common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, positive_float
+from .verdict import Cause, Verdict
 
 HELP = "check a log against a converged re-run of the full model (predictability horizon)"
 
@@ -45,9 +45,9 @@ def configure(parser) -> None:
 
 def _scene_for(log, scene_path: str | None):
     """(scene, where it came from, note or None)."""
-    from ..io.log_source import metadata_scene
-    from ..io.log_format import LogFormatError
-    from ..io.scene_yaml import load_scene, scene_to_yaml
+    from rod_sim.io.log_source import metadata_scene
+    from rod_sim.io.log_format import LogFormatError
+    from rod_sim.io.scene_yaml import load_scene, scene_to_yaml
 
     if scene_path is None:
         logged, where = log.scene()
@@ -268,7 +268,7 @@ def validity_messages(scene, model_name: str, report) -> list[str]:
     """Warnings of the validity monitor (rod_sim.core.validity) that apply to a compared log:
     loads near the first bending mode (reduced logs) and end slopes of the full-model
     reference beyond the small-bending range (where neither model is right)."""
-    from ..core.validity import SMALL_BENDING_RAD, frequency_findings
+    from rod_sim.core.validity import SMALL_BENDING_RAD, frequency_findings
 
     out = [f.message for f in frequency_findings(scene, model_name)]
     worst = max((report.quantities[k].ref_max for k in ("alpha", "beta")
@@ -280,9 +280,9 @@ def validity_messages(scene, model_name: str, report) -> list[str]:
 
 
 def run(args) -> int:
-    from ..io.log_format import LogFormatError
-    from ..io.log_source import read_log
-    from .common import new_output_path
+    from rod_sim.io.log_format import LogFormatError
+    from rod_sim.io.log_source import read_log
+    from rod_sim.app.common import new_output_path
     from .comparison import DEFAULT_TOLERANCE, CompareInputError, compare_log
 
     plot = new_output_path(args.plot, "--plot") if args.plot else None

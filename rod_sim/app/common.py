@@ -1,6 +1,7 @@
 """What every ``rod-sim`` subcommand shares: exit statuses, the usage error, argument types.
 
-A subcommand lives in its own module under ``rod_sim/tools``, listed in
+A subcommand lives in its own module (under ``rod_sim/tools``, or the ``command`` module of
+``rod_sim/compare``, ``rod_sim/sweep``, ``rod_sim/bench``), listed in
 :data:`rod_sim.tools.cli.COMMANDS`, and defines
 
 - ``HELP`` (one line for ``rod-sim --help``) and optionally ``DESCRIPTION``,
@@ -17,7 +18,7 @@ import math
 import sys
 from pathlib import Path
 
-from ..core.quote import quote
+from rod_sim.core.quote import quote
 
 EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 PAPER_EXAMPLE = Path(__file__).resolve().parents[2] / "config" / "paper_example.yaml"
@@ -52,14 +53,14 @@ def positive_float(text: str) -> float:
 
 def load_scene(path: str):
     """Read a scene YAML file (raises SceneError/UsageError with a one-line reason)."""
-    from ..io.scene_yaml import load_scene as _load
+    from rod_sim.io.scene_yaml import load_scene as _load
 
     return _load(path)
 
 
 def new_output_path(text: str, option: str = "--out") -> Path:
     """A file path that does not exist yet, in an existing directory (UsageError otherwise),
-    registered as this command's unfinished output (:func:`rod_sim.tools.signals.done`)."""
+    registered as this command's unfinished output (:func:`rod_sim.app.signals.done`)."""
     out = Path(text)
     if out.exists():
         raise UsageError(f"{option}: {out} exists; refusing to overwrite it")
@@ -71,13 +72,13 @@ def new_output_path(text: str, option: str = "--out") -> Path:
     return out
 
 
-from .compile_watch import COMPILE_NOTICE  # noqa: E402,F401  (tests filter by it)
+from rod_sim.core.compile_watch import COMPILE_NOTICE  # noqa: E402,F401  (tests filter by it)
 
 
 def watch_compiles(prefix: str = "rod-sim"):
     """Say on stderr what numba compiles, why and how long it takes, when it does (a driver
-    not in the cache compiles on first use): :mod:`rod_sim.tools.compile_watch`."""
-    from .compile_watch import watch_compiles as _watch
+    not in the cache compiles on first use): :mod:`rod_sim.core.compile_watch`."""
+    from rod_sim.core.compile_watch import watch_compiles as _watch
 
     return _watch(lambda line: print(f"{prefix}: {line}", file=sys.stderr, flush=True))
 

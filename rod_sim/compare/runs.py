@@ -9,10 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from rod_sim.core.integrators import make_integrator
-from rod_sim.core.models import FullModel, make_model
+from rod_sim.api import Simulator, make_integrator, make_model
+from rod_sim.core.models import FullModel
 from rod_sim.core.scene import Scene
-from rod_sim.core.simulator import Simulator
 
 COMPARE_REFERENCE_RTOL = 1e-10
 """Relative tolerance of compare's full-model re-run (compiled DOP853); atol = rtol * 1e-2."""

@@ -93,7 +93,7 @@ def _watchdog(done: threading.Event) -> None:
 
 
 def unfinished(path) -> None:
-    """``path`` is an output this command creates (:func:`rod_sim.tools.common.new_output_path`
+    """``path`` is an output this command creates (:func:`rod_sim.app.common.new_output_path`
     registers each): if the watchdog has to end the process before :func:`done` is called
     for it, the file is removed (an output is whole or absent)."""
     _unfinished[Path(path)] = 1

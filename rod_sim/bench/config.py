@@ -11,8 +11,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...core.names import SCIPY_METHODS
-from ..common import PAPER_EXAMPLE
+from rod_sim.core.names import SCIPY_METHODS
+from rod_sim.app.common import PAPER_EXAMPLE
 
 T_END = 2.0                 # simulated time of every run [s]
 RATE_HZ = 100.0             # output samples [Hz of simulated time]
@@ -37,6 +37,11 @@ SCENE_T_END = {"deployment": 10.0}
 QUICK_SCENES = ("paper_example",)
 RADAU_RTOLS = (1e-4, 1e-5, 6e-6, 3e-6, 1e-6, 3e-7, 1e-7, 1e-8)
 RADAU_RTOLS_QUICK = (1e-5, 3e-6, 1e-6)
+
+
+def cell(x, fmt=".3g") -> str:
+    """A table cell: ``x`` formatted with ``fmt``, "-" for None or a non-finite number."""
+    return "-" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, fmt)
 
 
 @dataclass
@@ -93,7 +98,7 @@ class BenchConfig:
     extra: dict = field(default_factory=dict)
 
 def load_bench_scene(key: str):
-    from ...io.scene_yaml import load_scene
+    from rod_sim.io.scene_yaml import load_scene
 
     return load_scene(str(SCENES[key]))
 

@@ -12,11 +12,9 @@ import time
 
 import numpy as np
 
-from ..core.integrators import IntegrationError, make_integrator
-from ..core.models import make_model
-from ..core.scene import Scene
-from ..core.simulator import Simulator
-from ..core.validity import balance_run
+from rod_sim.api import IntegrationError, Simulator, make_integrator, make_model
+from rod_sim.core.scene import Scene
+from rod_sim.core.validity import balance_run
 
 # Result columns after the run index and the swept parameters, with units.
 OUTPUTS = {

@@ -19,7 +19,7 @@ import time
 
 import numpy as np
 
-from ..common import importable
+from rod_sim.app.common import importable
 
 MAX_JOINTS = 4096
 MEMORY_LIMIT_BYTES = 4 << 30

@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from ...core.names import SCIPY_METHODS
+from rod_sim.core.names import SCIPY_METHODS
 from .config import (BENCH_CHECK_RTOL, BENCH_REFERENCE_RTOL, FAST_BUDGET_S, MAX_REPEATS,
                      PILOT_FRACTION, RATE_HZ, REFERENCE_GAP, SCENE_T_END, SCENES, T_END,
                      BenchConfig, BenchRow, Reference, describe_setting, load_bench_scene,
@@ -22,9 +22,9 @@ from .config import (BENCH_CHECK_RTOL, BENCH_REFERENCE_RTOL, FAST_BUDGET_S, MAX_
 
 def _core():
     """The numerical core, imported on first use (``rod-sim --help`` stays light)."""
-    from ...core.integrators import IntegrationError, make_integrator
-    from ...core.models import make_model
-    from ...core.simulator import Simulator
+    from rod_sim.core.integrators import IntegrationError, make_integrator
+    from rod_sim.core.models import make_model
+    from rod_sim.core.simulator import Simulator
 
     return IntegrationError, make_integrator, make_model, Simulator
 

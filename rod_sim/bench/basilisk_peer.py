@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..common import importable
+from rod_sim.app.common import importable
 
 NAME = "basilisk"
 """The peer's name (rows ``basilisk-rk4``)."""

@@ -1,59 +1,26 @@
-"""Resource limits of the command line: what ``rod-sim`` refuses before it allocates.
+"""The memory a run needs and the memory this process may count on: refusing a chain that
+would not fit before allocating it (the command line and the node both check it).
 
-Every figure here is stated in docs/interface.md ("Limits") and docs/reliability.md.
-A refusal is a :class:`~rod_sim.tools.common.UsageError` naming the option or scene key.
+Figures: docs/interface.md ("Limits") and docs/reliability.md. A refusal is a
+:class:`~rod_sim.core.scene.SceneError` keyed ``rods.count`` naming the figure and what limits
+it.
 """
 from __future__ import annotations
 
-import math
 import os
 
-from .common import UsageError
+from .scene_error import SceneError
 
-MAX_T_END = 1e6                     # [s] of simulated time (--t-end)
-MAX_RATE = 1e9                      # [Hz]: log times are whole nanoseconds
-RTOL_RANGE = (1e-14, 1e-2)          # --rtol, the same range as the node's parameter
-MAX_OUTPUT_BYTES = 4 * 1024 ** 3    # estimated (uncompressed) size of a simulate log
-# Uncompressed bytes per logged sample of an n-rod chain: every topic of one sample, measured
-# on logs of n = 8 (6325 B) and n = 64 (45733 B); zstd makes the file 3x (moving chain) to 40x
-# (chain at rest) smaller.
-LOG_BYTES_PER_SAMPLE = (700, 704)   # (fixed, per rod)
 # Peak memory of a run is linear in n (the O(n) kernels keep no n x n array): a base for the
 # interpreter, numba, numpy and the log writer, plus bytes per rod for the scene, the model,
 # the integrators' workspaces and one sample's messages (bounds above the peak RSS measured in
 # docs/bench.md, "start-up and memory").
 MODEL_MEMORY = (400 * 1024 ** 2, 16 * 1024)     # (base, per rod) [bytes]
-MAX_FIXED_STEPS = 1e8               # --t-end / --step of a fixed-step integrator
 
 
 def gib(nbytes: float) -> str:
     """``nbytes`` in GiB, 3 significant digits."""
     return f"{nbytes / 1024 ** 3:.3g} GiB"
-
-
-def check_rtol(rtol: float | None) -> None:
-    """--rtol within RTOL_RANGE (None: the default)."""
-    lo, hi = RTOL_RANGE
-    if rtol is not None and not lo <= rtol <= hi:
-        raise UsageError(f"--rtol: must be between {lo:g} and {hi:g} (got {rtol:g})")
-
-
-def check_sampling(t_end: float, rate_hz: float, n: int) -> int:
-    """Refuse a --t-end / --rate whose log would exceed MAX_OUTPUT_BYTES; returns the number
-    of samples the log will hold."""
-    if t_end > MAX_T_END:
-        raise UsageError(f"--t-end: at most {MAX_T_END:g} s (got {t_end:g})")
-    if rate_hz > MAX_RATE:
-        raise UsageError(f"--rate: at most {MAX_RATE:g} Hz, since log times are whole "
-                         f"nanoseconds (got {rate_hz:g})")
-    samples = math.floor(t_end * rate_hz + 1e-9) + 2          # t = 0, the grid and t_end
-    fixed, per_rod = LOG_BYTES_PER_SAMPLE
-    size = samples * (fixed + per_rod * n)
-    if size > MAX_OUTPUT_BYTES:
-        raise UsageError(f"--rate x --t-end: the log would hold {samples:.3g} samples of "
-                         f"{n} rods, about {gib(size)}; the limit is {gib(MAX_OUTPUT_BYTES)} "
-                         "(lower --rate or --t-end)")
-    return samples
 
 
 MEMORY_LIMIT_ENV = "ROD_SIM_MEMORY_LIMIT"
@@ -184,5 +151,6 @@ def check_model_memory(n: int, available: int | None = None) -> None:
     else:
         have, why = available, "available"
     if have is not None and need > have:
-        raise UsageError(f"rods.count: a chain of {n} rods needs about {gib(need)} of memory "
-                         f"({gib(MODEL_MEMORY[1] * 1024)} per 1024 rods); {gib(have)} {why}")
+        raise SceneError("rods.count", f"a chain of {n} rods needs about {gib(need)} of memory "
+                                       f"({gib(MODEL_MEMORY[1] * 1024)} per 1024 rods); "
+                                       f"{gib(have)} {why}")

@@ -1,6 +1,6 @@
 """The spacecraft bench (issue 25, SPEC section 8): chains on a moving base, one core.
 
-``rod-sim bench --spacecraft`` (or ``python -m rod_sim.tools.bench.spacecraft [--json]``)
+``rod-sim bench --spacecraft`` (or ``python -m rod_sim.bench.spacecraft [--json]``)
 measures, each in one run so that the ratios share the machine's load:
 
 - :func:`base_rhs_ratio`: the cost of one right-hand side (compiled rk4 loop) of 2 chains x
@@ -57,9 +57,9 @@ PEER_RTOLS = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)
 
 
 def _core():
-    from ...core.integrators import IntegrationError, make_integrator
-    from ...core.models import make_model
-    from ...core.simulator import Simulator
+    from rod_sim.core.integrators import IntegrationError, make_integrator
+    from rod_sim.core.models import make_model
+    from rod_sim.core.simulator import Simulator
 
     return IntegrationError, make_integrator, make_model, Simulator
 
@@ -69,7 +69,7 @@ def two_chain_scene(n: int, mode: str = "free"):
     10 N m/rad and 0.01 N m s/rad) at (+-1, 0) m of a base (``mode`` free: 100 kg,
     50 kg m^2; fixed: at the origin), bent and moving (phi 0.1 rad + their direction, rates
     0.5 rad/s), turning at 0.1 rad/s (free)."""
-    from ...core.scene import Scene
+    from rod_sim.core.scene import Scene
 
     chains = []
     for name, x, off in (("east", 1.0, 0.0), ("west", -1.0, math.pi)):
@@ -130,7 +130,7 @@ def _run(model, integrator: str, settings: dict, t_end: float, repeats: int = 1)
 def two_wing_rtf(model_name: str = "reduced", t_end: float = TWO_WING_T_END,
                  repeats: int = 5, log=None) -> dict:
     """Real-time factor against error of the two-wing deployment (module docstring)."""
-    from ...io.scene_yaml import load_scene
+    from rod_sim.io.scene_yaml import load_scene
 
     IntegrationError = _core()[0]
     model = _core()[2](model_name, load_scene(str(TWO_WING)))
@@ -222,7 +222,7 @@ def peer_spacecraft(n_panels: int):
 def peer_scene(craft):
     """The same spacecraft as a rod_sim scene: one one-rod chain per panel (rest angle a_i,
     phi_i = a_i + theta_i, rate omega + theta_rate_i), a free base, no node masses."""
-    from ...core.scene import Scene
+    from rod_sim.core.scene import Scene
 
     chains = [{"name": f"panel{i}", "attach": list(p.attach),
                "rods": {"count": 1, "length": craft.length,
@@ -360,7 +360,7 @@ def format_text(res: dict) -> str:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m rod_sim.tools.bench.spacecraft",
+    parser = argparse.ArgumentParser(prog="python -m rod_sim.bench.spacecraft",
                                      description=__doc__.split("\n\n")[0])
     parser.add_argument("--part", action="append", choices=("rhs", "two_wing", "radau", "peer"),
                         help="measure only this part (repeatable; default all)")

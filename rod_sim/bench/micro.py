@@ -33,7 +33,7 @@ def rhs_cost(model_name: str, scene, budget_s: float = 0.05) -> float:
 def paper_chain(n: int):
     """The paper's example with n rods: its first rod's length, mass, stiffness and hinge, node
     masses and tip pulses (at node n), a bent initial state (phi 0.1 rad, rates 0.5 rad/s)."""
-    from ...core.scene import Scene
+    from rod_sim.core.scene import Scene
 
     base = load_bench_scene("paper_example")
     d = base.to_dict()
@@ -88,8 +88,8 @@ def full_model_bound(rows, scene_key: str = "paper_example", samples: int = 21) 
     dop853-jit run over the span can take, and with the CPU time per rhs of this run's best
     dop853-jit row the highest RTF it could reach. radau-jit's best row gives its steps, rhs
     and CPU per step. None when the scene's full-model rows are missing."""
-    from ...core import erk
-    from ...core.stability import spectral_radius, stability_limit
+    from rod_sim.core import erk
+    from rod_sim.core.stability import spectral_radius, stability_limit
     from .summary import best_at
 
     best = {integ: best_at([r for r in rows if r.integrator == integ], "full", scene=scene_key)

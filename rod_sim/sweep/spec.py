@@ -24,12 +24,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
-from ..core.integrators import INTEGRATORS, make_integrator
-from ..core.models import MODELS, ModelError, make_model
-from ..core.scene import Scene, SceneError
-from ..core.quote import quote
+from rod_sim.core.integrators import INTEGRATORS, make_integrator
+from rod_sim.core.models import MODELS, ModelError, make_model
+from rod_sim.core.scene import Scene, SceneError
+from rod_sim.core.quote import quote
+from rod_sim.io import yaml_text
 
 __all__ = ["SweepSpecError", "Parameter", "SweepSpec", "Run", "load_spec", "parse_spec",
            "expand", "parse_path", "apply_path"]
@@ -125,19 +125,12 @@ class Run:
     scene: dict
 
     def task(self, spec: SweepSpec) -> dict:
-        """Plain-dict input of :func:`rod_sim.tools.sweep_worker.run_one`."""
+        """Plain-dict input of :func:`rod_sim.sweep.worker.run_one`."""
         return {"index": self.index, "model": self.model, "params": dict(self.params),
                 "scene": self.scene, **spec.settings()}
 
 
 # ----- YAML -----
-
-def _yaml_loader():
-    # The scene files' loader: YAML 1.2 floats (1e5) and duplicate keys rejected.
-    from ..io.scene_yaml import _SceneLoader
-
-    return _SceneLoader
-
 
 def _read_yaml(path: Path, key: str) -> Any:
     try:
@@ -146,20 +139,17 @@ def _read_yaml(path: Path, key: str) -> Any:
         raise SweepSpecError(key, f"file not found: {path}") from None
     except (OSError, UnicodeDecodeError) as err:
         raise SweepSpecError(key, f"cannot read {path}: {err}") from None
-    loader = _yaml_loader()(text)
     try:
-        return loader.get_single_data()
+        return yaml_text.load_strict(text)      # as scene files: YAML 1.2 floats, duplicate keys
     except SceneError as err:                      # a duplicate key, named by its path
         if key == "spec":
             raise SweepSpecError(err.key, str(err)[len(err.key) + 2:]) from None
         raise SweepSpecError(key, f"{err} (in {path})") from None
-    except yaml.YAMLError as err:
+    except yaml_text.YAMLError as err:
         mark = getattr(err, "problem_mark", None)
         where = f" at line {mark.line + 1} column {mark.column + 1}" if mark else ""
         problem = getattr(err, "problem", None) or str(err)
         raise SweepSpecError(key, f"YAML error{where}: {problem} (in {path})") from None
-    finally:
-        loader.dispose()
 
 
 def load_spec(path: str | Path, seed: int | None = None) -> SweepSpec:

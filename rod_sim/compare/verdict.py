@@ -51,7 +51,7 @@ class Reason:
     first_t: float | None = None
     interval: tuple[float, float] | None = None
     detail: str | None = None
-    """SPACECRAFT_EXCEEDED: the sentence of :mod:`rod_sim.tools.compare_spacecraft`."""
+    """SPACECRAFT_EXCEEDED: the sentence of :mod:`rod_sim.compare.spacecraft`."""
 
     def text(self) -> str:
         """The reason as one sentence (the text report's FAIL line and JSON ``reasons``)."""

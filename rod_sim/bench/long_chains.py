@@ -22,7 +22,7 @@ import numpy as np
 from . import pinocchio_peer
 from .config import TARGET_ERROR
 from .micro import rhs_cost
-from .report import cell
+from .config import cell
 
 SCALING_NS = (8, 16, 32, 64, 128, 256, 512, 1024, 2048, 4096)
 STARTUP_NS = (8, 256, 1024, 2048, 4096)
@@ -39,7 +39,7 @@ measured): the peer is timed up to this n."""
 def uniform_chain(n: int, load: bool = True):
     """The paper's rods, node masses and hinges (config/bench/chain_n32.yaml) with n rods at
     rest along x, the paper's two tip pulses at node n (``load``)."""
-    from ...core.scene import Scene
+    from rod_sim.core.scene import Scene
 
     d = {"name": f"chain_n{n}",
          "rods": {"count": n, "length": 2.0, "mass_per_length": 3.0, "bending_stiffness": 1e5},
@@ -57,7 +57,7 @@ def tether(n: int = TETHER_N):
     """A stiff tether: n rods of 5 cm (0.1 kg/m, EI 0.5 N m^2: first bending mode 1.56 kHz,
     growing as 1/l^2), soft damped hinges, hanging straight along x, a 0.2 s sideways pulse
     of 2 N at the tip."""
-    from ...core.scene import Scene
+    from rod_sim.core.scene import Scene
 
     return Scene.from_dict({
         "name": f"tether_n{n}",
@@ -84,7 +84,7 @@ def scaling(ns=SCALING_NS, models=("rigid", "reduced", "full"), log=None) -> dic
             out["per_rhs_s"][m].append(min(rhs_cost(m, scene) for _ in range(2)))
         peer = data = math.nan
         if have_peer and n <= PEER_MAX_N:
-            from ...core.models import make_model
+            from rod_sim.core.models import make_model
 
             err = pinocchio_peer.check(scene, make_model("rigid", scene))
             out["pinocchio_check"] = max(out["pinocchio_check"] or 0.0, err)
@@ -115,7 +115,7 @@ def scaling(ns=SCALING_NS, models=("rigid", "reduced", "full"), log=None) -> dic
 def startup(ns=STARTUP_NS, log=None) -> list[dict]:
     """Wall time [s] and peak RSS [bytes] of ``rod-sim simulate`` (reduced, 4 rk4 steps of
     0.1 ms, a fresh Python process, the numba cache warm) on the uniform chain of n rods."""
-    from ...io.scene_yaml import scene_to_yaml
+    from rod_sim.io.scene_yaml import scene_to_yaml
 
     say = log or (lambda s: None)
     rows = []
@@ -146,9 +146,9 @@ def startup(ns=STARTUP_NS, log=None) -> list[dict]:
 
 
 def _phi_run(scene, model_name, integrator, rtol, t_end, rate=50.0):
-    from ...core.integrators import make_integrator
-    from ...core.models import make_model
-    from ...core.simulator import Simulator
+    from rod_sim.core.integrators import make_integrator
+    from rod_sim.core.models import make_model
+    from rod_sim.core.simulator import Simulator
 
     sim = Simulator(make_model(model_name, scene), make_integrator(integrator, rtol=rtol))
     cpu = time.process_time()
@@ -306,7 +306,7 @@ def markdown_lines(data: dict) -> list[str]:
 
 
 def main(argv=None) -> int:
-    """``python -m rod_sim.tools.bench.long_chains [--quick]``: print the section's markdown."""
+    """``python -m rod_sim.bench.long_chains [--quick]``: print the section's markdown."""
     import argparse
     import json
 

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..common import importable
+from rod_sim.app.common import importable
 
 NAME = "mujoco"
 """The peer's name: its bench rows are integrators ``mujoco-<integrator>``."""
@@ -101,7 +101,7 @@ class ChainPeer:
     def __init__(self, scene, dt: float, integrator: str = "RK4"):
         import mujoco
 
-        from ...core.models import load_table
+        from rod_sim.core.models import load_table
 
         self.mj = mujoco
         self.scene = scene

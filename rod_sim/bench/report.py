@@ -8,7 +8,7 @@ import json
 import math
 from pathlib import Path
 
-from .config import HINGE_COST_LIMIT, BenchRow
+from .config import HINGE_COST_LIMIT, BenchRow, cell
 from .plots import plots
 
 
@@ -38,11 +38,6 @@ def write_report(out_dir: Path, data: dict) -> list[Path]:
     written.append(md)
     written += plots(out_dir, rows, data.get("scaling"))
     return written
-
-
-def cell(x, fmt=".3g") -> str:
-    """A table cell: ``x`` formatted with ``fmt``, "-" for None or a non-finite number."""
-    return "-" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, fmt)
 
 
 TARGET_TABLE = (

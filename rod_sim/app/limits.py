@@ -1,0 +1,48 @@
+"""Resource limits of the command line: what ``rod-sim`` refuses before it allocates.
+
+Every figure here is stated in docs/interface.md ("Limits") and the README ("Reliability").
+A refusal is a :class:`~rod_sim.app.common.UsageError` naming the option; the memory check
+(:mod:`rod_sim.core.memory`, shared with the node) a SceneError keyed ``rods.count``.
+"""
+from __future__ import annotations
+
+import math
+
+from rod_sim.core.memory import gib
+
+from .common import UsageError
+
+MAX_T_END = 1e6                     # [s] of simulated time (--t-end)
+MAX_RATE = 1e9                      # [Hz]: log times are whole nanoseconds
+RTOL_RANGE = (1e-14, 1e-2)          # --rtol, the same range as the node's parameter
+MAX_OUTPUT_BYTES = 4 * 1024 ** 3    # estimated (uncompressed) size of a simulate log
+# Uncompressed bytes per logged sample of an n-rod chain: every topic of one sample, measured
+# on logs of n = 8 (6325 B) and n = 64 (45733 B); zstd makes the file 3x (moving chain) to 40x
+# (chain at rest) smaller.
+LOG_BYTES_PER_SAMPLE = (700, 704)   # (fixed, per rod)
+MAX_FIXED_STEPS = 1e8               # --t-end / --step of a fixed-step integrator
+
+
+def check_rtol(rtol: float | None) -> None:
+    """--rtol within RTOL_RANGE (None: the default)."""
+    lo, hi = RTOL_RANGE
+    if rtol is not None and not lo <= rtol <= hi:
+        raise UsageError(f"--rtol: must be between {lo:g} and {hi:g} (got {rtol:g})")
+
+
+def check_sampling(t_end: float, rate_hz: float, n: int) -> int:
+    """Refuse a --t-end / --rate whose log would exceed MAX_OUTPUT_BYTES; returns the number
+    of samples the log will hold."""
+    if t_end > MAX_T_END:
+        raise UsageError(f"--t-end: at most {MAX_T_END:g} s (got {t_end:g})")
+    if rate_hz > MAX_RATE:
+        raise UsageError(f"--rate: at most {MAX_RATE:g} Hz, since log times are whole "
+                         f"nanoseconds (got {rate_hz:g})")
+    samples = math.floor(t_end * rate_hz + 1e-9) + 2          # t = 0, the grid and t_end
+    fixed, per_rod = LOG_BYTES_PER_SAMPLE
+    size = samples * (fixed + per_rod * n)
+    if size > MAX_OUTPUT_BYTES:
+        raise UsageError(f"--rate x --t-end: the log would hold {samples:.3g} samples of "
+                         f"{n} rods, about {gib(size)}; the limit is {gib(MAX_OUTPUT_BYTES)} "
+                         "(lower --rate or --t-end)")
+    return samples
