@@ -337,3 +337,38 @@ def test_the_shipped_example_over_one_span_gets_no_untrue_warning(tmp_path, caps
                      "--out", str(tmp_path / "a.mcap")]) == 0
     err = capsys.readouterr().err
     assert "warning" not in err, err
+
+
+def test_two_chains_latching_in_one_impact_share_its_loss():
+    """Two identical two-rod chains on a fixed base, both at their latch angle at t = 0: one
+    impact latches both hinges (as the two wings of a symmetric bus latch together). Each
+    chain loses KE(0) - H^2 / (2 I) of its own (closed form, as above): the two events' losses
+    sum to twice that, not four times (each event once carried the whole impact's loss, and
+    the ledger booked it twice: 165 J of 329 J on the two-wing deployment), and the balance
+    closes."""
+    geom = dict(l1=0.8, l2=1.2, rho1=1.5, rho2=1.0, mu1=0.0, mu2=0.6)
+    h, ke0 = momentum_and_energy(**geom, phi1=0.3, phi2=0.3, w1=1.0, w2=3.0)
+    inertia, _ = momentum_and_energy(**geom, phi1=0.0, phi2=0.0, w1=1.0, w2=1.0)
+    one = ke0 - h**2 / (2 * inertia)
+
+    def chain(name, attach):
+        return {"name": name, "attach": attach,
+                "rods": {"count": 2, "length": [geom["l1"], geom["l2"]],
+                         "mass_per_length": [geom["rho1"], geom["rho2"]],
+                         "bending_stiffness": 1.0e4},
+                "nodes": {"mass": [geom["mu1"], geom["mu2"]]},
+                "hinges": {"stiffness": 0.0, "damping": 0.0, "latch": [None, 0.0]},
+                "initial": {"phi": [0.3, 0.3], "phi_rate": [1.0, 3.0]}}
+
+    sc = Scene.from_dict({"name": "two_latching_chains", "base": {"mode": "fixed"},
+                          "chains": [chain("left", [0.0, 1.0]), chain("right", [0.0, -1.0])]})
+    traj, sim = run(sc, "rigid", 0.5, 10.0)
+    latches = [e for e in sim.events if e.kind == "latch"]
+    assert len(latches) == 2 and all(e.t == 0.0 for e in latches)
+    assert sum(e.data["kinetic_energy_loss"] for e in latches) == pytest.approx(2 * one,
+                                                                                rel=1e-10)
+    for e in latches:
+        assert e.data["impact_kinetic_energy_loss"] == pytest.approx(2 * one, rel=1e-10)
+        assert sorted(e.data["impact_hinges"]) == sorted(x.hinge for x in latches)
+    residual, scale = worst_residual(traj, sim)
+    assert residual < 1e-9 * scale

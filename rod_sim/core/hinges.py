@@ -37,7 +37,9 @@ class HingeEvent:
     """Something that happened to hinge ``hinge`` (0..n-1) at simulated time ``t`` [s].
 
     ``kind``: 'latch', 'stop_contact_begin' or 'stop_contact_end'; ``data``: angle [rad],
-    rate [rad/s], and for a latch the kinetic energy lost in the impact [J]; for a contact
+    rate [rad/s], and for a latch its share of the kinetic energy lost in the impact [J]
+    (``kinetic_energy_loss``; the impact's whole loss and the hinges it latched:
+    ``impact_kinetic_energy_loss``, ``impact_hinges``); for a contact
     which stop ('lower' or 'upper')."""
 
     t: float

@@ -605,10 +605,14 @@ def _latch(model, mode, t: float, y, located: int | None, events: list):
     new_mode = mode | hit
     y1 = model.project_velocity(y, new_mode)
     loss = model.kinetic_energy(t, y) - model.kinetic_energy(t, y1)
-    for h in np.flatnonzero(hit):
-        events.append(hinges.HingeEvent(t, "latch", int(h), {
+    # one impact latches every hinge of ``hit`` at once (the two wings of a symmetric bus):
+    # its loss is shared out so that the events' losses sum to the impact's
+    together = [int(h) for h in np.flatnonzero(hit)]
+    for h in together:
+        events.append(hinges.HingeEvent(t, "latch", h, {
             "angle": float(theta[h]), "rate": float(rate[h]),
-            "kinetic_energy_loss": float(loss)}))
+            "kinetic_energy_loss": float(loss) / len(together),
+            "impact_kinetic_energy_loss": float(loss), "impact_hinges": together}))
     return new_mode, y1
 
 

@@ -3,8 +3,9 @@
 Topic ``hinge_events`` (absolute ``/hinge_events`` in a log), type std_msgs/msg/String, one
 message per event, stamped (log_time) at the event's simulated time; ``data`` is a JSON object
 ``{"t": s, "event": "latch"|"stop_contact_begin"|"stop_contact_end", "hinge": h, "angle": rad,
-"rate": rad/s, ...}`` (a latch adds ``kinetic_energy_loss`` [J], a contact ``stop``:
-'lower'|'upper'). See docs/hinges.md.
+"rate": rad/s, ...}`` (a latch adds ``kinetic_energy_loss`` [J], its share of the impact's
+loss ``impact_kinetic_energy_loss`` [J] that latched ``impact_hinges`` at once; a contact
+``stop``: 'lower'|'upper'). See docs/hinges.md.
 """
 from __future__ import annotations
 
