@@ -116,7 +116,13 @@ def test_default_and_transient_local_controllers_get_states_in_every_mode(
     for name, stamps in everyone.items():
         advanced = [t for t in stamps if t > 0]
         assert advanced == sorted(set(advanced)), f"{name}: {stamps}"
-        assert advanced[:5] == [PERIOD_NS * k for k in range(1, 6)], f"{name}: {stamps}"
+        assert all(t % PERIOD_NS == 0 for t in advanced), f"{name}: {stamps}"
+        if name.endswith("default"):
+            # a reader of depth 10 keeps every period (the controller answers one at a time)
+            assert advanced[:5] == [PERIOD_NS * k for k in range(1, 6)], f"{name}: {stamps}"
+        # a reader of depth 1 keeps the newest sample only: when the controller's answer
+        # lets the node publish the next period before this reader's sample was taken, the
+        # middleware replaces it (seen under load: [0, 0, 20 ms, 30 ms, ...]), as its QoS says
 
 
 @pytest.mark.slow
