@@ -20,6 +20,7 @@ from typing import Callable
 
 import numpy as np
 
+from rod_sim.core.ahead import Ahead
 from rod_sim.core.integrators import IntegrationError
 from rod_sim.core.ledger import SpacecraftLedger, diagnostic_strings, diagnostic_values
 from rod_sim.core.snapshot import Snapshot
@@ -28,6 +29,19 @@ from rod_sim.core.validity import ValidityMonitor, balance_sample
 from rod_sim.ros.errors import one_line
 from rod_sim.ros.monitor import EnergyLedger
 from rod_sim.ros.pacing import RateMeter
+
+AHEAD_MAX_S = 0.1
+"""[s] of simulated time one drive may cover ahead (:class:`~rod_sim.core.ahead.Ahead`)."""
+
+
+def ahead_periods(limit: int, held_for: int, step_s: float, period_ns: int) -> int:
+    """Periods to integrate ahead at once: 1 (an ordinary period) unless the inputs have
+    been held unchanged for ``held_for`` >= 2 periods, then as many as they have been held
+    (they are expected to stay as long again; a command that comes earlier wastes at most
+    that much work), the integrator's carried step ``step_s`` [s] covers (its natural step:
+    one drive ~ one step) and ``limit`` allows."""
+    natural = int(step_s * NS_PER_S // period_ns) if step_s > 0 else 1
+    return max(1, min(int(limit), int(held_for), natural))
 
 
 def full_inputs(held, n: int) -> np.ndarray:
@@ -43,10 +57,19 @@ def full_inputs(held, n: int) -> np.ndarray:
 
 class PeriodRunner:
     """Advances ``sim`` (a :class:`~rod_sim.core.simulator.Simulator`) one period of
-    ``period_ns`` [ns] at a time within ``budget`` (a :class:`~rod_sim.ros.budget.WorkBudget`)."""
+    ``period_ns`` [ns] at a time within ``budget`` (a :class:`~rod_sim.ros.budget.WorkBudget`).
+    ``ahead``: integrate several periods at once while the inputs stay held
+    (:func:`ahead_periods`, :class:`~rod_sim.core.ahead.Ahead`: the integrator's natural
+    steps, period ends from its dense output; not in lockstep, whose log stays bit for bit
+    that of one drive per period)."""
 
-    def __init__(self, sim, budget, period_ns: int):
+    def __init__(self, sim, budget, period_ns: int, ahead: bool = False):
         self.sim = sim
+        self.ahead = Ahead(sim)
+        self.ahead_limit = max(1, int(AHEAD_MAX_S * NS_PER_S // period_ns)) if ahead else 1
+        """Most periods one drive covers (1: one drive per period)."""
+        self.held_for = 0
+        """Periods the current held inputs have been held unchanged."""
         self.model = sim.model
         self.budget = budget
         self.period_ns = int(period_ns)
@@ -75,6 +98,7 @@ class PeriodRunner:
     def reset(self) -> None:
         """The simulator back at t = 0 and the bookkeeping started afresh."""
         self.sim.reset()
+        self.held_for = 0
         self.events_seen = 0
         self.error = None
         self.ledger.start(self.energy(self.sim.held))
@@ -124,15 +148,18 @@ class PeriodRunner:
         last = self._balance_end
         if last is not None and last[0] == sim.t_ns and np.array_equal(last[1], held):
             start_sample = last[2]
+            self.held_for += 1
         else:       # one right-hand side gives the slopes and the rate's direction
             start_sample = balance_sample(self.model, sim.t, sim.y, held, sim.mode)
             self._book_spacecraft(held)     # the inputs changed: their rates from now on
+            self.held_for = 0
         work = self.budget.work(sim)
         start = time.perf_counter_ns()
         try:
             # advance() never hands out a non-finite state and, when it raises, leaves the
             # simulator at the period's start (hinge latches and events included)
-            sim.advance(self.period_ns / NS_PER_S)
+            self.ahead.advance(self.period_ns, ahead_periods(
+                self.ahead_limit, self.held_for, sim.carry.h, self.period_ns))
         except (IntegrationError, ArithmeticError) as exc:
             self.error = self._failure(exc, work, start)
             return None
