@@ -11,7 +11,11 @@ the simulator stays at the period's start).
 
 Per period, beyond the integration: one snapshot, one or two balance samples (two when the
 held inputs changed at the period's start, since the net power jumps there) and the monitor's
-O(n) checks: vectorised, no loop over rods.
+O(n) checks: vectorised, no loop over rods. Outside lockstep, while the held inputs stay the
+same and no hinge event happens, the ledgers book one span per :data:`LEDGER_SPAN_S` instead
+of one per period (the span's end sample is taken when it closes: its state, inputs and
+right-hand side are kept), and one drive may cover several periods
+(:class:`~rod_sim.core.ahead.Ahead`).
 """
 from __future__ import annotations
 
@@ -30,6 +34,11 @@ from rod_sim.ros.errors import one_line
 from rod_sim.ros.monitor import EnergyLedger
 from rod_sim.ros.pacing import RateMeter
 
+LEDGER_SPAN_S = 0.01
+"""[s] of simulated time the energy and momentum ledgers may go without a sample while the
+held inputs stay the same and no hinge event happens (outside lockstep; at rates of 100 Hz
+and below every period is booked): at 1 kHz one balance sample per 10 periods, as a 100 Hz
+node or ``simulate``'s default log books them."""
 AHEAD_MAX_S = 0.1
 """[s] of simulated time one drive may cover ahead (:class:`~rod_sim.core.ahead.Ahead`)."""
 
@@ -88,8 +97,13 @@ class PeriodRunner:
         self.events_seen = 0
         """Hinge events of ``sim.events`` already booked and published."""
         self._balance_end = None
-        """(t_ns, held, BalanceSample) at the end of the last period (the next start when
-        the held inputs did not change)."""
+        """(t_ns, held, y, mode, f, bending) at the end of the last period: its inputs and
+        what its balance sample needs (the next period goes on with the same span when the
+        held inputs did not change)."""
+        self._span_start = None
+        """The BalanceSample where the span not yet booked in the ledgers starts."""
+        self._span_ns = 0
+        """Its time [ns]."""
 
     def energy(self, held: np.ndarray) -> float:
         sim = self.sim
@@ -106,7 +120,7 @@ class PeriodRunner:
             self.spacecraft.start()
         self.last_state = None
         self._book_spacecraft(self.sim.held)
-        self._balance_end = None
+        self._balance_end = self._span_start = None
         self.validity = ValidityMonitor(self.model)
         self.meter.restart(time.monotonic_ns())
 
@@ -147,10 +161,11 @@ class PeriodRunner:
             at_start(sim.t_ns)
         last = self._balance_end
         if last is not None and last[0] == sim.t_ns and np.array_equal(last[1], held):
-            start_sample = last[2]
             self.held_for += 1
         else:       # one right-hand side gives the slopes and the rate's direction
-            start_sample = balance_sample(self.model, sim.t, sim.y, held, sim.mode)
+            self.book()                      # the pending span ends here, with its inputs
+            self._span_start = balance_sample(self.model, sim.t, sim.y, held, sim.mode)
+            self._span_ns = sim.t_ns
             self._book_spacecraft(held)     # the inputs changed: their rates from now on
             self.held_for = 0
         work = self.budget.work(sim)
@@ -167,15 +182,30 @@ class PeriodRunner:
         # one right-hand side for the snapshot's slopes and the balance's power rate
         f, bending = self.model.rhs_bending(sim.t, sim.y, held, sim.mode)
         snap = self.model.snapshot(sim.t, sim.y, held, sim.mode, bending)
-        end_sample = balance_sample(self.model, sim.t, sim.y, held, sim.mode, bending, f)
-        self.ledger.add(start_sample, end_sample, sim.events[self.events_seen:])
-        self._balance_end = (sim.t_ns, held.copy(), end_sample)
-        self._book_spacecraft(held)
+        self._balance_end = (sim.t_ns, held.copy(), sim.y, sim.mode, f, bending)
         self.last_state = snap
         self.validity.update(sim.t, sim.y, held[:sim.model.n], snap.alpha, snap.beta)
-        self.validity.update_energy(sim.t, self.ledger.residual, self.ledger.scale,
-                                    self.ledger.unresolved)
+        if len(sim.events) > self.events_seen or self.ahead_limit <= 1 or \
+                sim.t_ns - self._span_ns >= LEDGER_SPAN_S * NS_PER_S:
+            self.book(events=sim.events[self.events_seen:])
         return snap
+
+    def book(self, events=()) -> None:
+        """Book the span from the last booked sample to the end of the last period (its
+        energy balance sample, the momentum ledger), if not booked yet; ``events``: the
+        hinge events inside it."""
+        end = self._balance_end
+        if end is None or self._span_start is None or end[0] == self._span_ns:
+            return
+        t_ns, held, y, mode, f, bending = end
+        t = t_ns / NS_PER_S
+        sample = balance_sample(self.model, t, y, held, mode, bending, f)
+        self.ledger.add(self._span_start, sample, events)
+        self._span_start, self._span_ns = sample, t_ns
+        if self.spacecraft is not None:
+            self.spacecraft.add(t, y, held, mode)
+        self.validity.update_energy(t, self.ledger.residual, self.ledger.scale,
+                                    self.ledger.unresolved)
 
     def _failure(self, exc: Exception, work, start_ns: int) -> str:
         """The one-line cause of a failed period, naming the work budget when it ran out."""
