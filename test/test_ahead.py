@@ -134,7 +134,8 @@ def test_hinge_events_are_never_served_from_the_buffer():
 
 @pytest.mark.parametrize("limit, held_for, step_s, k", [
     (100, 0, 0.05, 1), (100, 1, 0.05, 1), (100, 7, 0.05, 7), (100, 500, 0.05, 50),
-    (10, 500, 0.05, 10), (100, 500, 0.0, 1), (100, 500, 0.0004, 1), (1, 500, 0.05, 1)])
+    (10, 500, 0.05, 10), (100, 500, 0.0, 1), (100, 500, 0.0004, 4), (100, 3, 0.0004, 3),
+    (1, 500, 0.05, 1)])
 def test_ahead_periods(limit, held_for, step_s, k):
     assert ahead_periods(limit, held_for, step_s, PERIOD_NS) == k
 

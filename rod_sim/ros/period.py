@@ -43,13 +43,21 @@ AHEAD_MAX_S = 0.1
 """[s] of simulated time one drive may cover ahead (:class:`~rod_sim.core.ahead.Ahead`)."""
 
 
+AHEAD_SHORT_STEPS = 4
+"""Periods one drive may cover when the integrator's step is shorter than a period: its
+steps then do not end at every period's end (each such end costs a shortened step)."""
+
+
 def ahead_periods(limit: int, held_for: int, step_s: float, period_ns: int) -> int:
     """Periods to integrate ahead at once: 1 (an ordinary period) unless the inputs have
     been held unchanged for ``held_for`` >= 2 periods, then as many as they have been held
     (they are expected to stay as long again; a command that comes earlier wastes at most
-    that much work), the integrator's carried step ``step_s`` [s] covers (its natural step:
-    one drive ~ one step) and ``limit`` allows."""
-    natural = int(step_s * NS_PER_S // period_ns) if step_s > 0 else 1
+    that much work), as the integrator's carried step ``step_s`` [s] covers (its natural
+    step: one drive ~ one step), or :data:`AHEAD_SHORT_STEPS` when that step is shorter
+    than a period, and as ``limit`` allows (0 s: no step carried yet, 1)."""
+    if step_s <= 0:
+        return 1
+    natural = max(int(step_s * NS_PER_S // period_ns), AHEAD_SHORT_STEPS)
     return max(1, min(int(limit), int(held_for), natural))
 
 

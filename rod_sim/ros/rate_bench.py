@@ -71,6 +71,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="two chains of --rods rods each (default 512) on a free base")
     p.add_argument("--model", default="reduced", choices=("reduced", "full", "rigid"))
     p.add_argument("--rate", type=float, default=1000.0, help="node rate_hz [Hz]")
+    p.add_argument("--rtol", type=float, default=None,
+                   help="the node's rtol parameter (default: the node's default, 1e-8)")
     p.add_argument("--duration", type=float, default=10.0, help="measured wall window [s]")
     p.add_argument("--warmup", type=float, default=3.0, help="wall seconds ignored first")
     p.add_argument("--record", action="store_true", help="let the node record an MCAP log too")
@@ -267,6 +269,8 @@ def measure_lockstep(args) -> dict:
         params = {"scene_file": str(scene), "model": args.model, "rate_hz": float(args.rate),
                   "sync_mode": True, "publish_clock": False,
                   "record_path": str(log) if args.record else ""}
+        if args.rtol is not None:
+            params["rtol"] = float(args.rtol)
         node_proc = _node_process(args, params)
         commands = [force_array(lockstep_force(k, n)) for k in range(args.lockstep)]
         rclpy.init()
@@ -344,6 +348,8 @@ def measure(args) -> dict:
         params = {"scene_file": str(scene), "model": args.model, "rate_hz": float(args.rate),
                   "real_time_factor": 1.0, "sync_mode": False, "publish_clock": True,
                   "record_path": str(tmp / "bench.mcap") if args.record else ""}
+        if args.rtol is not None:
+            params["rtol"] = float(args.rtol)
         viewer = None
         if args.live_view:
             params["live_view_port"] = free_port()
@@ -415,6 +421,8 @@ def measure_period_cost(args) -> dict:
         values.update(scene_file=str(scene_file(args, tmp)), model=args.model,
                       rate_hz=float(args.rate),
                       record_path=str(tmp / "cost.mcap") if args.record else "")
+        if args.rtol is not None:
+            values["rtol"] = float(args.rtol)
         settings = NodeSettings(**values)
         built = simulation.build(settings, "/rod_sim", ())
         period = simulation.start(built, settings)
