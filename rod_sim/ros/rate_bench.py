@@ -35,9 +35,11 @@ from the same settings (:mod:`rod_sim.ros.simulation`) and runs K control period
 node's own parts (``PeriodRunner.run``, the output table's encoders, the recording with
 ``--record``), the held inputs changing every period (``lockstep_force``, as a lockstep
 controller sends them) or, with ``--held-constant``, zero; it reports CPU time per period
-[ms] (the minimum of three rounds of K/3): the integration alone (``Simulator.advance``), the
-period (integration, snapshot, energy ledger, validity) and the period with its outputs (what
-the node does per period besides the executor and DDS). CPU time is what a loaded machine
+[ms] (the minimum of three rounds of K/3): the integration alone (``Simulator.advance``, one
+drive per period), the period (integration as the node's real-time mode does it: with inputs
+held, several periods per drive, :mod:`rod_sim.core.ahead`; snapshot, energy ledger,
+validity) and the period with its outputs (what the node does per period besides the executor
+and DDS). ``--rtol`` sets the node's ``rtol`` parameter (every mode). CPU time is what a loaded machine
 disturbs least.
 
 ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is LOCALHOST and ``ROS_DOMAIN_ID`` is ``--domain`` (default
