@@ -167,17 +167,27 @@ def test_the_ledgers_book_fewer_spans_to_the_same_balance(scene, period_ns):
                             period_ns, ahead=flag) for flag in (False, True)]
     push = np.zeros((n, 3))
     push[-1, 1] = 0.3
-    booked = []
-    for k in range(400 if period_ns == PERIOD_NS else 800):
+    booked, spans = [], []
+    add = runners[1].ledger.add
+
+    def spy(start, end, events):
+        spans.append((start.t, end.t))
+        add(start, end, events)
+
+    runners[1].ledger.add = spy
+    for k in range(600 if period_ns == PERIOD_NS else 800):
         held = push if 57 <= k < 133 or k == 250 else np.zeros((n, 3))
         for r in runners:
             assert r.run(held) is not None
             r.events_seen = len(r.sim.events)
         booked.append(runners[1]._span_ns)
     plain, fewer = runners
+    spans = [(round(a, 9), round(b, 9)) for a, b in spans]
     assert len(set(booked)) < 0.6 * len(booked)       # spans were merged
     for k in (57, 133, 250, 251):                     # ... and closed where the inputs change
         assert k * period_ns in booked, k
+    if scene == "paper_example.yaml":        # ... and a load's breakpoint (0.5 s) has
+        assert (0.499, 0.5) in spans             # a span of one period of its own
     fewer.book()
     # (the deployment's stop contacts and latches leave the ledger a residual of ~5e-5 of
     # its scale either way; the two differ by a fraction of it)

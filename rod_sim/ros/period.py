@@ -12,8 +12,8 @@ the simulator stays at the period's start).
 Per period, beyond the integration: one snapshot, one or two balance samples (two when the
 held inputs changed at the period's start, since the net power jumps there) and the monitor's
 O(n) checks: vectorised, no loop over rods. Outside lockstep, while the held inputs stay the
-same and no hinge event happens, the ledgers book one span per :data:`LEDGER_SPAN_S` instead
-of one per period (the span's end sample is taken when it closes: its state, inputs and
+same and no hinge event or breakpoint of a scripted load happens, the ledgers book one span per
+:data:`LEDGER_SPAN_S` instead of one per period (the span's end sample is taken when it closes: its state, inputs and
 right-hand side are kept), and one drive may cover several periods
 (:class:`~rod_sim.core.ahead.Ahead`).
 """
@@ -112,6 +112,12 @@ class PeriodRunner:
         """The BalanceSample where the span not yet booked in the ledgers starts."""
         self._span_ns = 0
         """Its time [ns]."""
+        scene = self.model.scene
+        self._breaks_ns = np.array(sorted({round(b * NS_PER_S) for b in (
+            *scene.load_breakpoints(), *getattr(scene, "motion_breakpoints", tuple)())}),
+            dtype=np.int64)
+        """Breakpoints of the scripted loads and base motion [ns]: the periods holding one
+        are booked on their own (as in lockstep)."""
 
     def energy(self, held: np.ndarray) -> float:
         sim = self.sim
@@ -176,6 +182,9 @@ class PeriodRunner:
             self._span_ns = sim.t_ns
             self._book_spacecraft(held)     # the inputs changed: their rates from now on
             self.held_for = 0
+        kink = self._kink_in(sim.t_ns)
+        if kink:
+            self.book()              # a span never holds a scripted load's breakpoint inside
         work = self.budget.work(sim)
         start = time.perf_counter_ns()
         try:
@@ -193,10 +202,16 @@ class PeriodRunner:
         self._balance_end = (sim.t_ns, held.copy(), sim.y, sim.mode, f, bending)
         self.last_state = snap
         self.validity.update(sim.t, sim.y, held[:sim.model.n], snap.alpha, snap.beta)
-        if len(sim.events) > self.events_seen or self.ahead_limit <= 1 or \
+        if len(sim.events) > self.events_seen or self.ahead_limit <= 1 or kink or \
                 sim.t_ns - self._span_ns >= LEDGER_SPAN_S * NS_PER_S:
             self.book(events=sim.events[self.events_seen:])
         return snap
+
+    def _kink_in(self, t_ns: int) -> bool:
+        """Whether a scripted load or a prescribed base motion has a breakpoint in the period
+        (t_ns, t_ns + period] (its power, or the power's rate, may jump there)."""
+        k = int(np.searchsorted(self._breaks_ns, t_ns, side="right"))
+        return k < self._breaks_ns.size and self._breaks_ns[k] <= t_ns + self.period_ns
 
     def book(self, events=()) -> None:
         """Book the span from the last booked sample to the end of the last period (its
