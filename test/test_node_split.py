@@ -36,18 +36,22 @@ def raw(values) -> bytes:
 def test_inputs_hold_time_out_and_queue_in_lockstep():
     inputs = Inputs(2, timeout_s=0.1)
     recorded = []
-    cmd, warning = inputs.receive(raw([1, 2, 3, 4]), inputs.forces, 0, recorded.append)
+
+    def rec(msg, data):
+        recorded.append(msg)
+
+    cmd, warning = inputs.receive(raw([1, 2, 3, 4]), inputs.forces, 0, rec)
     assert cmd is not None and not warning and len(recorded) == 1
     held, notes = inputs.held(50_000_000, wall_age=False)
     np.testing.assert_array_equal(held, [[1, 2, 0], [3, 4, 0]])
     held, notes = inputs.held(200_000_000, wall_age=False)        # 0.2 s > timeout
     assert not held.any() and notes[0][0] == FORCES and "set to zero" in notes[0][1]
-    cmd, warning = inputs.receive(raw([1, 2, 3]), inputs.forces, 0, recorded.append)
+    cmd, warning = inputs.receive(raw([1, 2, 3]), inputs.forces, 0, rec)
     assert cmd is None and "rejected a nodal_forces command" in warning
     assert inputs.rejection.startswith("nodal_forces: ")
     # lockstep: a torque command keeps the forces of the forces command before it
-    torque, _ = inputs.receive(raw([5, 6]), inputs.torques, 0, recorded.append)
-    force, _ = inputs.receive(raw([1, 1, 2, 2]), inputs.forces, 0, recorded.append)
+    torque, _ = inputs.receive(raw([5, 6]), inputs.torques, 0, rec)
+    force, _ = inputs.receive(raw([1, 1, 2, 2]), inputs.forces, 0, rec)
     inputs.queue.extend([force, torque])
     np.testing.assert_array_equal(inputs.next_queued(), [[1, 1, 0], [2, 2, 0]])
     np.testing.assert_array_equal(inputs.next_queued(), [[1, 1, 5], [2, 2, 6]])

@@ -78,11 +78,12 @@ class Inputs:
                 ) -> tuple[Command | None, str]:
         """A serialized command of ``intake``'s topic received at simulated time ``sim_ns``:
         refused by its length before decoding (an 80 MB message must not stall the node),
-        decoded, passed to ``record(msg)`` (rejected ones included; undecodable ones not),
-        validated. Returns (the valid command or None, the warning line of a rejection)."""
+        decoded, passed to ``record(msg, data)`` (rejected ones included; undecodable ones
+        not), validated. Returns (the valid command or None, the warning line of a
+        rejection)."""
         msg = intake.decode(data)
         if msg is not None:
-            record(msg)
+            record(msg, data)
         command = None if msg is None else intake.accept(msg, sim_ns)
         return command, ("" if command is not None else self.note_rejection(intake))
 

@@ -51,6 +51,8 @@ from rod_sim.ros.recording import NodeRecording, create_log, node_log_metadata, 
 __all__ = ["RodSimNode", "NodeConfigError", "main", "PARAMETERS", "SERVICE_QUEUE_DEPTH",
            "params_files", "has_hinge_events"]
 COMMAND_TYPE = "std_msgs/msg/Float64MultiArray"
+CDR_LE = b"\x00\x01"
+"""The encapsulation of little-endian (plain) CDR, the first two bytes of a serialized message."""
 DIAGNOSTICS_TOPIC = "/diagnostics"
 """Absolute, where diagnostic_aggregator listens (as diagnostic_updater publishes)."""
 DIAGNOSTICS_STATUS_NAME = topics.DIAGNOSTICS_STATUS_NAME
@@ -209,9 +211,8 @@ class RodSimNode(Node):
     def _on_command_bytes(self, data: bytes, intake: CommandIntake | None = None) -> None:
         """A serialized command: checked, recorded, validated, held (lockstep: queued)."""
         intake = self.inputs.forces if intake is None else intake
-        command, warning = self.inputs.receive(data, intake, self.sim.t_ns, lambda msg: (
-            self._recording.record(self._topic_names[intake.kind], MESSAGE_TYPES[intake.kind],
-                                   self.sim.t_ns, message_to_dict(msg))))
+        command, warning = self.inputs.receive(
+            data, intake, self.sim.t_ns, functools.partial(self._record_command, intake.kind))
         if command is None:
             self._log_throttled(f"rejected {intake.kind}", "warning", warning)
             return
@@ -223,6 +224,15 @@ class RodSimNode(Node):
             # its period at once, in this callback: a round through the guard condition
             # costs the executor another wait (rclpy rebuilds its wait set: ~0.2-0.4 ms)
             self._on_sync_trigger()
+
+    def _record_command(self, kind: str, msg, data: bytes) -> None:
+        """Record a received command: its bytes as they came (as rosbag2 records) when they
+        are little-endian CDR, else re-encoded from the message (the log is little-endian)."""
+        topic, type_name = self._topic_names[kind], MESSAGE_TYPES[kind]
+        if bytes(data[:2]) == CDR_LE:
+            self._recording.record_cdr(topic, type_name, self.sim.t_ns, bytes(data))
+        else:
+            self._recording.record(topic, type_name, self.sim.t_ns, message_to_dict(msg))
 
     def _held(self, wall_age: bool):
         held, notes = self.inputs.held(self.sim.t_ns, wall_age)

@@ -11,7 +11,11 @@ the simulator stays at the period's start).
 
 Per period, beyond the integration: one snapshot, one or two balance samples (two when the
 held inputs changed at the period's start, since the net power jumps there) and the monitor's
-O(n) checks: vectorised, no loop over rods.
+O(n) checks: vectorised, no loop over rods. Outside lockstep, while the held inputs stay the
+same and no hinge event or breakpoint of a scripted load happens, the ledgers book one span per
+:data:`LEDGER_SPAN_S` instead of one per period (the span's end sample is taken when it closes: its state, inputs and
+right-hand side are kept), and one drive may cover several periods
+(:class:`~rod_sim.core.ahead.Ahead`).
 """
 from __future__ import annotations
 
@@ -20,6 +24,7 @@ from typing import Callable
 
 import numpy as np
 
+from rod_sim.core.ahead import Ahead
 from rod_sim.core.integrators import IntegrationError
 from rod_sim.core.ledger import SpacecraftLedger, diagnostic_strings, diagnostic_values
 from rod_sim.core.snapshot import Snapshot
@@ -28,6 +33,32 @@ from rod_sim.core.validity import ValidityMonitor, balance_sample
 from rod_sim.ros.errors import one_line
 from rod_sim.ros.monitor import EnergyLedger
 from rod_sim.ros.pacing import RateMeter
+
+LEDGER_SPAN_S = 0.01
+"""[s] of simulated time the energy and momentum ledgers may go without a sample while the
+held inputs stay the same and no hinge event happens (outside lockstep; at rates of 100 Hz
+and below every period is booked): at 1 kHz one balance sample per 10 periods, as a 100 Hz
+node or ``simulate``'s default log books them."""
+AHEAD_MAX_S = 0.1
+"""[s] of simulated time one drive may cover ahead (:class:`~rod_sim.core.ahead.Ahead`)."""
+
+
+AHEAD_SHORT_STEPS = 4
+"""Periods one drive may cover when the integrator's step is shorter than a period: its
+steps then do not end at every period's end (each such end costs a shortened step)."""
+
+
+def ahead_periods(limit: int, held_for: int, step_s: float, period_ns: int) -> int:
+    """Periods to integrate ahead at once: 1 (an ordinary period) unless the inputs have
+    been held unchanged for ``held_for`` >= 2 periods, then as many as they have been held
+    (they are expected to stay as long again; a command that comes earlier wastes at most
+    that much work), as the integrator's carried step ``step_s`` [s] covers (its natural
+    step: one drive ~ one step), or :data:`AHEAD_SHORT_STEPS` when that step is shorter
+    than a period, and as ``limit`` allows (0 s: no step carried yet, 1)."""
+    if step_s <= 0:
+        return 1
+    natural = max(int(step_s * NS_PER_S // period_ns), AHEAD_SHORT_STEPS)
+    return max(1, min(int(limit), int(held_for), natural))
 
 
 def full_inputs(held, n: int) -> np.ndarray:
@@ -43,10 +74,19 @@ def full_inputs(held, n: int) -> np.ndarray:
 
 class PeriodRunner:
     """Advances ``sim`` (a :class:`~rod_sim.core.simulator.Simulator`) one period of
-    ``period_ns`` [ns] at a time within ``budget`` (a :class:`~rod_sim.ros.budget.WorkBudget`)."""
+    ``period_ns`` [ns] at a time within ``budget`` (a :class:`~rod_sim.ros.budget.WorkBudget`).
+    ``ahead``: integrate several periods at once while the inputs stay held
+    (:func:`ahead_periods`, :class:`~rod_sim.core.ahead.Ahead`: the integrator's natural
+    steps, period ends from its dense output; not in lockstep, whose log stays bit for bit
+    that of one drive per period)."""
 
-    def __init__(self, sim, budget, period_ns: int):
+    def __init__(self, sim, budget, period_ns: int, ahead: bool = False):
         self.sim = sim
+        self.ahead = Ahead(sim)
+        self.ahead_limit = max(1, int(AHEAD_MAX_S * NS_PER_S // period_ns)) if ahead else 1
+        """Most periods one drive covers (1: one drive per period)."""
+        self.held_for = 0
+        """Periods the current held inputs have been held unchanged."""
         self.model = sim.model
         self.budget = budget
         self.period_ns = int(period_ns)
@@ -65,8 +105,19 @@ class PeriodRunner:
         self.events_seen = 0
         """Hinge events of ``sim.events`` already booked and published."""
         self._balance_end = None
-        """(t_ns, held, BalanceSample) at the end of the last period (the next start when
-        the held inputs did not change)."""
+        """(t_ns, held, y, mode, f, bending) at the end of the last period: its inputs and
+        what its balance sample needs (the next period goes on with the same span when the
+        held inputs did not change)."""
+        self._span_start = None
+        """The BalanceSample where the span not yet booked in the ledgers starts."""
+        self._span_ns = 0
+        """Its time [ns]."""
+        scene = self.model.scene
+        self._breaks_ns = np.array(sorted({round(b * NS_PER_S) for b in (
+            *scene.load_breakpoints(), *getattr(scene, "motion_breakpoints", tuple)())}),
+            dtype=np.int64)
+        """Breakpoints of the scripted loads and base motion [ns]: the periods holding one
+        are booked on their own (as in lockstep)."""
 
     def energy(self, held: np.ndarray) -> float:
         sim = self.sim
@@ -75,6 +126,7 @@ class PeriodRunner:
     def reset(self) -> None:
         """The simulator back at t = 0 and the bookkeeping started afresh."""
         self.sim.reset()
+        self.held_for = 0
         self.events_seen = 0
         self.error = None
         self.ledger.start(self.energy(self.sim.held))
@@ -82,7 +134,7 @@ class PeriodRunner:
             self.spacecraft.start()
         self.last_state = None
         self._book_spacecraft(self.sim.held)
-        self._balance_end = None
+        self._balance_end = self._span_start = None
         self.validity = ValidityMonitor(self.model)
         self.meter.restart(time.monotonic_ns())
 
@@ -123,16 +175,23 @@ class PeriodRunner:
             at_start(sim.t_ns)
         last = self._balance_end
         if last is not None and last[0] == sim.t_ns and np.array_equal(last[1], held):
-            start_sample = last[2]
+            self.held_for += 1
         else:       # one right-hand side gives the slopes and the rate's direction
-            start_sample = balance_sample(self.model, sim.t, sim.y, held, sim.mode)
+            self.book()                      # the pending span ends here, with its inputs
+            self._span_start = balance_sample(self.model, sim.t, sim.y, held, sim.mode)
+            self._span_ns = sim.t_ns
             self._book_spacecraft(held)     # the inputs changed: their rates from now on
+            self.held_for = 0
+        kink = self._kink_in(sim.t_ns)
+        if kink:
+            self.book()              # a span never holds a scripted load's breakpoint inside
         work = self.budget.work(sim)
         start = time.perf_counter_ns()
         try:
             # advance() never hands out a non-finite state and, when it raises, leaves the
             # simulator at the period's start (hinge latches and events included)
-            sim.advance(self.period_ns / NS_PER_S)
+            self.ahead.advance(self.period_ns, ahead_periods(
+                self.ahead_limit, self.held_for, sim.carry.h, self.period_ns))
         except (IntegrationError, ArithmeticError) as exc:
             self.error = self._failure(exc, work, start)
             return None
@@ -140,15 +199,36 @@ class PeriodRunner:
         # one right-hand side for the snapshot's slopes and the balance's power rate
         f, bending = self.model.rhs_bending(sim.t, sim.y, held, sim.mode)
         snap = self.model.snapshot(sim.t, sim.y, held, sim.mode, bending)
-        end_sample = balance_sample(self.model, sim.t, sim.y, held, sim.mode, bending, f)
-        self.ledger.add(start_sample, end_sample, sim.events[self.events_seen:])
-        self._balance_end = (sim.t_ns, held.copy(), end_sample)
-        self._book_spacecraft(held)
+        self._balance_end = (sim.t_ns, held.copy(), sim.y, sim.mode, f, bending)
         self.last_state = snap
         self.validity.update(sim.t, sim.y, held[:sim.model.n], snap.alpha, snap.beta)
-        self.validity.update_energy(sim.t, self.ledger.residual, self.ledger.scale,
-                                    self.ledger.unresolved)
+        if len(sim.events) > self.events_seen or self.ahead_limit <= 1 or kink or \
+                sim.t_ns - self._span_ns >= LEDGER_SPAN_S * NS_PER_S:
+            self.book(events=sim.events[self.events_seen:])
         return snap
+
+    def _kink_in(self, t_ns: int) -> bool:
+        """Whether a scripted load or a prescribed base motion has a breakpoint in the period
+        (t_ns, t_ns + period] (its power, or the power's rate, may jump there)."""
+        k = int(np.searchsorted(self._breaks_ns, t_ns, side="right"))
+        return k < self._breaks_ns.size and self._breaks_ns[k] <= t_ns + self.period_ns
+
+    def book(self, events=()) -> None:
+        """Book the span from the last booked sample to the end of the last period (its
+        energy balance sample, the momentum ledger), if not booked yet; ``events``: the
+        hinge events inside it."""
+        end = self._balance_end
+        if end is None or self._span_start is None or end[0] == self._span_ns:
+            return
+        t_ns, held, y, mode, f, bending = end
+        t = t_ns / NS_PER_S
+        sample = balance_sample(self.model, t, y, held, mode, bending, f)
+        self.ledger.add(self._span_start, sample, events)
+        self._span_start, self._span_ns = sample, t_ns
+        if self.spacecraft is not None:
+            self.spacecraft.add(t, y, held, mode)
+        self.validity.update_energy(t, self.ledger.residual, self.ledger.scale,
+                                    self.ledger.unresolved)
 
     def _failure(self, exc: Exception, work, start_ns: int) -> str:
         """The one-line cause of a failed period, naming the work budget when it ran out."""

@@ -35,9 +35,11 @@ from the same settings (:mod:`rod_sim.ros.simulation`) and runs K control period
 node's own parts (``PeriodRunner.run``, the output table's encoders, the recording with
 ``--record``), the held inputs changing every period (``lockstep_force``, as a lockstep
 controller sends them) or, with ``--held-constant``, zero; it reports CPU time per period
-[ms] (the minimum of three rounds of K/3): the integration alone (``Simulator.advance``), the
-period (integration, snapshot, energy ledger, validity) and the period with its outputs (what
-the node does per period besides the executor and DDS). CPU time is what a loaded machine
+[ms] (the minimum of three rounds of K/3): the integration alone (``Simulator.advance``, one
+drive per period), the period (integration as the node's real-time mode does it: with inputs
+held, several periods per drive, :mod:`rod_sim.core.ahead`; snapshot, energy ledger,
+validity) and the period with its outputs (what the node does per period besides the executor
+and DDS). ``--rtol`` sets the node's ``rtol`` parameter (every mode). CPU time is what a loaded machine
 disturbs least.
 
 ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is LOCALHOST and ``ROS_DOMAIN_ID`` is ``--domain`` (default
@@ -71,6 +73,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="two chains of --rods rods each (default 512) on a free base")
     p.add_argument("--model", default="reduced", choices=("reduced", "full", "rigid"))
     p.add_argument("--rate", type=float, default=1000.0, help="node rate_hz [Hz]")
+    p.add_argument("--rtol", type=float, default=None,
+                   help="the node's rtol parameter (default: the node's default, 1e-8)")
     p.add_argument("--duration", type=float, default=10.0, help="measured wall window [s]")
     p.add_argument("--warmup", type=float, default=3.0, help="wall seconds ignored first")
     p.add_argument("--record", action="store_true", help="let the node record an MCAP log too")
@@ -267,6 +271,8 @@ def measure_lockstep(args) -> dict:
         params = {"scene_file": str(scene), "model": args.model, "rate_hz": float(args.rate),
                   "sync_mode": True, "publish_clock": False,
                   "record_path": str(log) if args.record else ""}
+        if args.rtol is not None:
+            params["rtol"] = float(args.rtol)
         node_proc = _node_process(args, params)
         commands = [force_array(lockstep_force(k, n)) for k in range(args.lockstep)]
         rclpy.init()
@@ -344,6 +350,8 @@ def measure(args) -> dict:
         params = {"scene_file": str(scene), "model": args.model, "rate_hz": float(args.rate),
                   "real_time_factor": 1.0, "sync_mode": False, "publish_clock": True,
                   "record_path": str(tmp / "bench.mcap") if args.record else ""}
+        if args.rtol is not None:
+            params["rtol"] = float(args.rtol)
         viewer = None
         if args.live_view:
             params["live_view_port"] = free_port()
@@ -415,6 +423,8 @@ def measure_period_cost(args) -> dict:
         values.update(scene_file=str(scene_file(args, tmp)), model=args.model,
                       rate_hz=float(args.rate),
                       record_path=str(tmp / "cost.mcap") if args.record else "")
+        if args.rtol is not None:
+            values["rtol"] = float(args.rtol)
         settings = NodeSettings(**values)
         built = simulation.build(settings, "/rod_sim", ())
         period = simulation.start(built, settings)

@@ -67,7 +67,8 @@ def start(simulation: Simulation, settings) -> PeriodRunner:
     1e308: non-finite linearization) is a NodeConfigError naming the cause."""
     try:
         _warm_up(simulation, settings)
-        return PeriodRunner(simulation.sim, simulation.budget, simulation.period_ns)
+        return PeriodRunner(simulation.sim, simulation.budget, simulation.period_ns,
+                            ahead=not settings.sync_mode)
     except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
         raise NodeConfigError(
             f"scene_file {settings.scene_file}: the scene cannot be simulated from its "
