@@ -11,9 +11,9 @@ WARM = $(VENV)/.jit-warm
 WARM_DEMO = $(VENV)/.jit-warm-demo
 
 # Tests that start a ROS graph take their ROS_DOMAIN_IDs from test/ros_domains.py (from
-# ROD_SIM_TEST_DOMAIN_BASE when set, else from the process id, so that runs side by side do not
-# meet); this default keeps everything else off the common domain 0. Discovery never leaves the
-# machine.
+# ROD_SIM_TEST_DOMAIN_BASE when set, else from a block of ids each test process claims, so that
+# runs side by side do not meet: docs/testing.md); this default keeps everything else off the
+# common domain 0. Discovery never leaves the machine.
 ROS_DOMAIN_ID ?= 42
 ROS_ENV = ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST ROS_DOMAIN_ID=$(ROS_DOMAIN_ID)
 

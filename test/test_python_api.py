@@ -125,16 +125,20 @@ def test_the_simulator_by_name_and_its_refusals(monkeypatch):
 
 @pytest.mark.slow
 def test_the_readmes_python_block_runs(guide_run):
-    """README's "Python" section: its block runs after the README's first simulate command."""
+    """README's "Python" section: its block runs after the tour's scene (its yaml block, saved
+    as my_chain.yaml) and the tour's simulate command, whose log it reads."""
     work, _ = guide_run
     text = (ROOT / "README.md").read_text(encoding="utf-8")
     section = text[text.index("## Python\n"):]
     code = BLOCK.search(section)
     assert code and code.group(1) == "python" and "import rod_sim" in code.group(2)
+    scene = re.search(r"^```yaml\n(.*?)^```", text, re.S | re.M).group(1)
+    (work / "my_chain.yaml").write_text(scene)
     (work / "out").mkdir(exist_ok=True)
-    simulate = "rod-sim simulate config/paper_example.yaml --model reduced --t-end 2 " \
-               "--out out/run.mcap"
-    assert simulate.replace("rod-sim", ".venv/bin/rod-sim") in text
+    simulate = next(line for line in text.splitlines()
+                    if line.startswith(".venv/bin/rod-sim simulate my_chain.yaml"))
+    assert "out/mine.mcap" in simulate and "out/mine.mcap" in code.group(2)
+    simulate = simulate.replace(".venv/bin/rod-sim", "rod-sim")
     for lang, block in (("bash", simulate), ("python", code.group(2))):
         done = run_block(lang, block, work)
         assert done.returncode == 0, done.stderr

@@ -55,12 +55,14 @@ def as_run_here(command: str) -> list[str]:
 
 def test_the_readme_blocks_are_the_ones_these_tests_run():
     """A block added to the README (or one changed in kind) fails here until a test runs it:
-    the tour's blocks below, the two-commands block in test_docs.py."""
+    the tour's blocks below, the two-commands block in test_docs.py, the Python block in
+    test_python_api.py."""
     text = README.read_text(encoding="utf-8")
     assert len(blocks(text, "yaml")) == 1 and blocks(text, "yaml") == blocks(tour(), "yaml")
-    assert blocks(text, "python") == []
+    assert len(blocks(text, "python")) == 1           # run by test_python_api
     fences = re.findall(r"^```(\w*)$", text, re.M)              # opening, closing, ...
-    assert fences[0::2] == ["sh", "yaml", "sh", "sh", "sh"] and not any(fences[1::2])
+    assert fences[0::2] == ["sh", "yaml", "sh", "sh", "sh", "python"]
+    assert not any(fences[1::2])
     assert [c.split()[0] for c in commands()] == [
         "mkdir", ".venv/bin/rod-sim", ".venv/bin/rod-sim", ".venv/bin/python", ".venv/bin/rod-sim"]
     assert "simulate my_chain.yaml" in commands()[1]

@@ -36,8 +36,30 @@ def test_the_default_base_follows_the_process_id():
     assert ros_domains.base({}, pid=0) == 1 and ros_domains.base({}, pid=231) == 232
     assert ros_domains.base({}, pid=232) == 1
     assert ros_domains.base({"ROD_SIM_TEST_DOMAIN_BASE": ""}, pid=41) == 42
-    firsts = {ids_of_a_process(None, 1)[0] for _ in range(3)}
-    assert len(firsts) > 1, "three processes without a base started at the same id"
+
+
+def test_processes_running_at_once_get_disjoint_blocks_of_ids(tmp_path):
+    """Test processes alive at the same time (CI's two suites side by side) never share an id:
+    each claims its own block, held until it exits; a fifth gets ids from its process id."""
+    env = {"PYTHONPATH": str(HERE), "ROD_SIM_TEST_DOMAIN_LOCKS": str(tmp_path)}
+    code = ("import sys, ros_domains; print(*ros_domains.next_domains(70), flush=True); "
+            "sys.stdin.read()")
+    procs = [subprocess.Popen([sys.executable, "-c", code], env=env, stdin=subprocess.PIPE,
+                              stdout=subprocess.PIPE, text=True) for _ in range(5)]
+    try:
+        got = [set(map(int, p.stdout.readline().split())) for p in procs]
+    finally:
+        for p in procs:
+            p.communicate("", timeout=30)
+    ids = [g for g in got if len(g) == ros_domains.BLOCK_SIZE]   # 70 ids wrapped in a block
+    assert len(ids) == 4 and sum(len(g) == 70 for g in got) == 1, [sorted(g) for g in got]
+    for i in range(4):
+        assert all(1 <= x <= 232 for x in ids[i])
+        for j in range(i):
+            assert not ids[i] & ids[j], (i, j)
+    # a block is free again once its process has exited
+    again = ros_domains.claim_block(pid=0, lock_dir=str(tmp_path))
+    assert again is not None and again[0] == 1
 
 
 @pytest.mark.parametrize("bad", ["0", "233", "-5", "x", "1.5"])
