@@ -40,7 +40,7 @@ setup(
     zip_safe=True,
     entry_points={
         "console_scripts": [
-            "rod-sim = rod_sim.tools.cli:main",
+            "rod-sim = rod_sim.tools.launch:main",
             "sim_node = rod_sim.ros.node:main",
             "pd_controller = rod_sim.ros.controller:main",
         ],

@@ -27,7 +27,7 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(600)]
 
 REPO = Path(__file__).resolve().parents[1]
 DOMAIN = next_domain()
-LAUNCH = "import sys; from rod_sim.tools.cli import main; sys.exit(main())"   # as bin/rod-sim
+LAUNCH = "import sys; from rod_sim.tools.launch import main; sys.exit(main())"   # as bin/rod-sim
 
 
 def chain(tmp_path: Path, n: int) -> Path:

@@ -335,7 +335,9 @@ def test_simulate_cli_runs_radau_jit(tmp_path):
 @pytest.mark.timeout(120)
 def test_node_runs_radau_jit(monkeypatch):
     """The node's ``integrator`` parameter selects radau-jit; its states are those of an
-    offline Simulator advanced by the same periods."""
+    offline reference run (radau-jit at rtol 1e-12) to the integrator's tolerance. (Not bit
+    for bit the offline run advanced period by period: outside lockstep the node integrates
+    across periods while its inputs are held, rod_sim.core.ahead; seen 1.3e-8 apart.)"""
     rclpy = pytest.importorskip("rclpy")
     from rclpy.parameter import Parameter
 
@@ -362,12 +364,12 @@ def test_node_runs_radau_jit(monkeypatch):
             executor.spin_once(timeout_sec=0.01)
         t_ns, y = node.sim.t_ns, node.sim.y.copy()
         assert t_ns >= 50_000_000
+        assert node.settings.rtol <= 1e-8
         offline = Simulator(make_model("full", load_scene(PAPER)),
-                            make_integrator("radau-jit", rtol=node.settings.rtol))
-        for _ in range(t_ns // 10_000_000):
-            offline.advance(0.01)
+                            make_integrator("radau-jit", rtol=1e-12))
+        offline.advance(t_ns / 1e9)
         assert offline.t_ns == t_ns
-        np.testing.assert_array_equal(offline.y, y)
+        np.testing.assert_allclose(y, offline.y, rtol=0.0, atol=1e-6)
         executor.shutdown()
     finally:
         node.destroy_node()

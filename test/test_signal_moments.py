@@ -28,9 +28,13 @@ from ros_domains import next_domain  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "config" / "paper_example.yaml"
 DEPLOYMENT = ROOT / "config" / "deployment.yaml"
-LAUNCH = "import sys; from rod_sim.tools.cli import main; sys.exit(main())"   # as bin/rod-sim
+LAUNCH = "import sys; from rod_sim.tools.launch import main; sys.exit(main())"   # as bin/rod-sim
 SEED = int(os.environ.get("ROD_SIM_SIGNAL_SEED", "27"))
 TRIALS = 3                              # per command; 10 commands
+EARLY_S = 0.5
+"""[s] a signal sent this soon may still meet the interpreter's own start-up (before
+rod_sim.tools.launch's first line: 0.13-0.14 s was seen under load), where Python's defaults
+apply; the later moments (most of the seeded 0.05-3 s) check rod_sim's handling."""
 
 
 @pytest.fixture(scope="module")
@@ -115,6 +119,15 @@ def test_a_signal_at_a_random_moment_ends_the_command_cleanly(inputs, tmp_path, 
             pytest.fail(f"{what}: still running 30 s after the signal")
         took = time.monotonic() - sent
         lines = err.strip().splitlines()
+        if delay < EARLY_S and (output is None or not output.exists()):
+            early = (proc.returncode == -sig and not err.strip() if sig == signal.SIGTERM
+                     else proc.returncode in (1, -sig) and "KeyboardInterrupt" in err
+                     and "rod_sim" not in err)
+            if early:
+                # the signal came during the interpreter's own start-up, before the first
+                # line of rod_sim.tools.launch (which handles both from there on): Python's
+                # defaults end it, nothing was written (seen at 0.13-0.14 s under load)
+                continue
         if proc.returncode in (0, 1) and (not lines or "interrupted" not in lines[-1]):
             # it ended just as the signal came (its own last line, no traceback)
             assert "Traceback" not in err and took < 0.1, (what, proc.returncode, err)

@@ -131,7 +131,9 @@ def handle_sigterm() -> None:
         if hasattr(signal, "pthread_sigmask"):
             signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
         signal.signal(signal.SIGTERM, _on_signal)
-        if signal.getsignal(signal.SIGINT) in (signal.default_int_handler, _on_signal):
+        current = signal.getsignal(signal.SIGINT)
+        if current in (signal.default_int_handler, _on_signal) or getattr(
+                current, "rod_sim_early", False):     # rod_sim.tools.launch's first handler
             signal.signal(signal.SIGINT, _on_signal)
 
 

@@ -1,0 +1,35 @@
+"""The ``rod-sim`` console script's entry point: Ctrl-C and SIGTERM handled from its first line.
+
+The interpreter imports this module before anything else of the command line; its first
+statements install a handler that ends the process at once with the command's one line
+(``rod-sim CMD: interrupted``, `` (SIGTERM)``) and status 130 / 143: nothing is open yet. Then
+:func:`rod_sim.tools.cli.main` installs the commands' own handler (which closes their files).
+Before this module's first line (the interpreter's own start-up) Python's defaults apply."""
+import os
+import signal
+import sys
+
+
+def _stop_at_once(signum, frame):           # pragma: no cover - timing-dependent
+    name = sys.argv[1] if len(sys.argv) > 1 and not sys.argv[1].startswith("-") else ""
+    tail = " (SIGTERM)" if signum == signal.SIGTERM else ""
+    try:
+        os.write(2, f"rod-sim {name}: interrupted{tail}\n".replace("rod-sim : ", "rod-sim: ")
+                 .encode())
+    finally:
+        os._exit(128 + signum)
+
+
+_stop_at_once.rod_sim_early = True          # rod_sim.app.signals replaces it
+signal.signal(signal.SIGINT, _stop_at_once)
+signal.signal(signal.SIGTERM, _stop_at_once)
+
+
+def main() -> int:
+    from .cli import main as cli_main
+
+    return cli_main()
+
+
+if __name__ == "__main__":
+    sys.exit(main())
