@@ -8,7 +8,9 @@ Each repeat is a separate ``pytest -m EXPR`` process (so each takes other ROS do
 test/ros_domains.py), with a JUnit XML report in DIR (default out/flake); ARGS go to pytest
 (e.g. ``-k clock``). The burners are plain busy loops at normal priority, as another user's
 build would be, killed at the end (also on Ctrl-C). Exit status 0 when no selected test failed
-in any repeat, 1 otherwise (2: bad arguments, or a repeat that ran no test; 130: interrupted)."""
+in any repeat, 1 otherwise (2: bad arguments, or a repeat that ran no test; 130: interrupted).
+A repeat whose pytest crashed (killed by a signal) counts as a failure of ``CRASH in FILE:LINE
+in FUNCTION`` (faulthandler's innermost test frame) and the hunt goes on."""
 from __future__ import annotations
 
 import argparse
@@ -80,6 +82,17 @@ def outcomes(report: Path) -> dict[str, tuple[str, str]]:
     return found
 
 
+def crash_site(log: Path) -> str:
+    """Where a crashed pytest was, from faulthandler's dump in ``log``: the innermost test
+    file frame of the crashing thread (``test_x.py:51 in client_in``), else 'unknown'."""
+    import re
+
+    text = log.read_text(errors="replace")
+    current = text[text.find("Current thread"):] if "Current thread" in text else text
+    frame = re.search(r'File "[^"]*/(test_\w+\.py)", line (\d+) in (\w+)', current)
+    return f"{frame.group(1)}:{frame.group(2)} in {frame.group(3)}" if frame else "unknown"
+
+
 def table(results: dict[str, list[tuple[str, str]]]) -> str:
     """One row per test: runs (not skipped), failures, failure rate; worst first."""
     rows = []
@@ -126,6 +139,11 @@ def main(argv: list[str] | None = None) -> int:
             code = run_pytest(["-m", args.marker, "-q", "-p", "no:cacheprovider",
                                f"--junitxml={report}", *args.pytest_args], log)
             found = outcomes(report) if report.exists() else {}
+            if not found and code < 0:
+                # pytest itself crashed (a segfault in a middleware's teardown was seen): a
+                # failure of the test it was in, and the hunt goes on
+                found = {f"CRASH in {crash_site(log)}": ("failed", f"pytest killed by signal "
+                                                          f"{-code}; see {log}")}
             if not found:
                 print(f"run {k + 1}: no test ran (pytest exit {code}); see {log}", flush=True)
                 return 2
