@@ -1,6 +1,8 @@
 """Positions of the chain: nodes (paper eq. (3)) and points of the bent rods (eqs. (1), (4))."""
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 
@@ -15,21 +17,58 @@ def node_positions(length: np.ndarray, phi: np.ndarray) -> np.ndarray:
     return out
 
 
+class ChainTable(NamedTuple):
+    """Where each chain's rods and nodes are (:func:`chain_table`): ``index`` (nc, L) int, row
+    c = chain c's rods seg[c] .. seg[c+1] - 1 then n (a zero pad) up to L, the longest chain's
+    rod count; ``valid`` (nc, L) bool, False on the pads; ``chain`` (n,) int, each rod's
+    chain; ``roots`` (nc,) int, the row of each chain's node 0 among the n + nc nodes;
+    ``ends`` (n,) int, the row of each rod's end node (its start node is the row before)."""
+
+    index: np.ndarray
+    valid: np.ndarray
+    chain: np.ndarray
+    roots: np.ndarray
+    ends: np.ndarray
+
+
+def chain_table(seg) -> ChainTable:
+    """The :class:`ChainTable` of chains whose first rods are ``seg`` (nc + 1,) (then n)."""
+    seg = np.asarray(seg, dtype=np.int64)
+    counts = np.diff(seg)
+    j = np.arange(int(counts.max(initial=0)))
+    valid = j[None, :] < counts[:, None]
+    index = np.where(valid, seg[:-1, None] + j[None, :], seg[-1])
+    rods = np.arange(seg[-1])
+    chain = np.searchsorted(seg[1:], rods, side="right")
+    return ChainTable(index, valid, chain, seg[:-1] + np.arange(len(seg) - 1), rods + chain + 1)
+
+
+def chain_cumsum(values: np.ndarray, table: ChainTable) -> np.ndarray:
+    """Cumulative sums of ``values`` (n, ...) along the rods, restarting at each chain's first
+    rod: the values of ``np.cumsum`` over each chain's slice, bit for bit (each chain's sums
+    are accumulated in the same order; the pads come after them), in one pass over every
+    chain (n, ...)."""
+    if table.index.shape[0] == 1:
+        return np.cumsum(values, axis=0)
+    padded = np.concatenate([values, np.zeros((1,) + values.shape[1:])])[table.index]
+    return np.cumsum(padded, axis=1)[table.valid]
+
+
 def chain_node_positions(length: np.ndarray, phi: np.ndarray, seg, attach, x: float,
-                         y: float, psi: float) -> np.ndarray:
+                         y: float, psi: float, table: ChainTable | None = None) -> np.ndarray:
     """Every chain's nodes 0..n_c in scene order (n + nc, 2) [m] on a base frame at (x, y)
     [m] turned by psi [rad]: chain c (rods seg[c] .. seg[c+1] - 1) starts at its attach point
-    (nc, 2) [m] of the base frame, then eq. (3) with the absolute angles phi."""
+    (nc, 2) [m] of the base frame, then eq. (3) with the absolute angles phi. ``table``:
+    :func:`chain_table` of ``seg`` if already known. No loop over chains."""
+    table = chain_table(seg) if table is None else table
     c, s = np.cos(psi), np.sin(psi)
-    seg = np.asarray(seg)
-    out = np.empty((len(phi) + len(seg) - 1, 2))
-    for ci in range(len(seg) - 1):
-        a, b = int(seg[ci]), int(seg[ci + 1])
-        ax, ay = attach[ci]
-        nodes = node_positions(length[a:b], phi[a:b])
-        nodes[:, 0] += x + c * ax - s * ay
-        nodes[:, 1] += y + s * ax + c * ay
-        out[a + ci:b + ci + 1] = nodes
+    attach = np.asarray(attach, dtype=float).reshape(-1, 2)
+    ax, ay = attach[:, 0], attach[:, 1]
+    origin = np.stack([x + c * ax - s * ay, y + s * ax + c * ay], axis=-1)     # (nc, 2)
+    steps = np.stack([length * np.cos(phi), length * np.sin(phi)], axis=-1)     # (n, 2)
+    out = np.empty((len(phi) + len(attach), 2))
+    out[table.roots] = 0.0 + origin
+    out[table.ends] = chain_cumsum(steps, table) + origin[table.chain]
     return out
 
 

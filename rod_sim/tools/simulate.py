@@ -182,10 +182,13 @@ class _LoggedRun:
         from ..core.validity import EnergyBalance, balance_sample
 
         model = self.sim.model
-        f, bending = model.rhs_bending(t, y, None, mode)     # one right-hand side for both
-        snap = model.snapshot(t, y, None, mode, bending)
+        # one State: each quantity of the sample (the right-hand side with the slopes, node
+        # velocities, momentum, powers, ...) computed once for the snapshot, the energy
+        # balance, the momentum ledger and the diagnostics
+        state = model.state(t, y, None, mode)
+        snap = model.snapshot(t, y, None, mode, state=state)
         self.validity.update(snap.t, y, None, snap.alpha, snap.beta)
-        sample = balance_sample(model, t, y, None, mode, bending, f)
+        sample = balance_sample(model, t, y, None, mode, state=state)
         if self.balance is None:
             self.balance = EnergyBalance.for_model(model, sample.energy)
         else:
@@ -202,7 +205,7 @@ class _LoggedRun:
 
         t_ns = topics.time_ns(snap.t)
         encoded = encoders.snapshot_bytes(snap, self.scene, self.frame_id, self.topics)
-        diagnostics = self._diagnostics(t, y, mode, snap)
+        diagnostics = self._diagnostics(t, y, mode, snap, state)
         with signals_deferred():            # every record of a sample whole, or none
             for name, data in encoded.items():
                 self.log.write_cdr("/" + name, topics.TOPIC_TYPES[name], t_ns, data)
@@ -214,16 +217,16 @@ class _LoggedRun:
         if self.live is not None:
             self._show(t, t_ns, snap, encoded)
 
-    def _diagnostics(self, t: float, y, mode, snap):
+    def _diagnostics(self, t: float, y, mode, snap, state=None):
         """A spacecraft scene's ``/diagnostics`` message of the sample (None otherwise): the
         node's energy keys and the spacecraft keys (docs/interface.md section 3), the momentum
-        ledger fed with every sample."""
+        ledger fed with every sample (``state``: the sample's State, shared)."""
         if self.spacecraft is None:
             return None
         from ..core.ledger import diagnostic_strings, diagnostic_values
         from ..io import topics
 
-        self.spacecraft.add(t, y, None, mode)
+        self.spacecraft.add(t, y, None, mode, state=state)
         b = self.balance
         values = {"energy_J": f"{self._last.energy:.17g}",
                   "energy_balance_residual_J": f"{b.residual if b is not None else 0.0:.17g}",

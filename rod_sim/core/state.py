@@ -1,0 +1,391 @@
+"""The quantities of a model at one state, each computed once (what one sample needs).
+
+A sample of a run (``simulate``'s log, a control period of the node) publishes the snapshot,
+books the energy balance and the momentum ledger and writes the diagnostics; all of them need
+the node positions and velocities, the hinge angles, the loads, the momentum, the powers of
+one state. :class:`State` computes each of these on first use and keeps it for the other
+users of that state. The laws of the energies, the momentum, the powers and the snapshot are
+written here, once: :class:`~rod_sim.core.models.ChainModel`'s methods of the same names
+evaluate them on a fresh State, so a separate call and a shared State give the same values,
+bit for bit. Pure numpy, O(n), no loop over rods or chains (but over the chains of a
+prescribed base's kinetic energy: their sums keep numpy's pairwise order).
+"""
+from __future__ import annotations
+
+from functools import cached_property
+from typing import Callable
+
+import numpy as np
+
+from . import hinges, kernels
+from .snapshot import Snapshot
+
+
+def cross(a, b):
+    """z component of a x b over the last axis (2,)."""
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
+class State:
+    """A model's quantities at time ``t`` [s], state ``y`` (state_size,), held inputs ``held``
+    (as the model's methods take them: None, (n, 2), (n, 3) or (n + 2, 3)) and latches
+    ``mode`` (n,) bool (None: none fired). ``f`` (dy/dt, state_size,) and ``bending`` =
+    (alpha, beta) (n,) each [rad] may be given when already known at these arguments
+    (``model.rhs_bending`` gives both).
+
+    Each attribute below is computed on first use and kept; the arrays are shared by every
+    user of the state (the snapshot included) and must not be written to. :meth:`value` keeps
+    the derived quantities of other modules (the net power, the momentum rates, ...) the same
+    way. ``y`` must not change while the object is in use."""
+
+    def __init__(self, model, t: float, y, held=None, mode=None, f=None, bending=None):
+        self.model = model
+        self.t = t
+        self.y = np.asarray(y, dtype=float)
+        self.held = held
+        self.mode = mode
+        self._memo: dict = {}
+        if f is not None:
+            self.f = f
+        if bending is not None:
+            self.bending = bending
+
+    def value(self, law: Callable[["State"], object]):
+        """``law(self)``, computed once per state (keyed by the function)."""
+        memo = self._memo
+        if law in memo:
+            return memo[law]
+        out = memo[law] = law(self)
+        return out
+
+    # ----- inputs of every law -----
+    @cached_property
+    def phi(self) -> np.ndarray:
+        """Rod angles (n,) [rad] (a view of y)."""
+        return self.model.phi(self.y)
+
+    @cached_property
+    def phi_rate(self) -> np.ndarray:
+        """Rod angular rates (n,) [rad/s] (a view of y)."""
+        return self.model.phi_rate(self.y)
+
+    @cached_property
+    def f(self) -> np.ndarray:
+        """dy/dt (state_size,) (and the slopes, when not known yet: one right-hand side)."""
+        m = self.model
+        if "bending" in self.__dict__:
+            return m.rhs(self.t, self.y, self.held, self.mode)
+        f, self.bending = m.rhs_bending(self.t, self.y, self.held, self.mode)
+        return f
+
+    @cached_property
+    def bending(self) -> tuple[np.ndarray, np.ndarray]:
+        """End slopes (alpha, beta), (n,) each [rad] (the reduced model's from a right-hand
+        side, which is kept as :attr:`f`)."""
+        m = self.model
+        if m.slopes_need_rhs:
+            f, bending = m.rhs_bending(self.t, self.y, self.held, self.mode)
+            self.__dict__.setdefault("f", f)
+            return bending
+        return m.bending(self.t, self.y, self.held, self.mode)
+
+    @cached_property
+    def bending_rates(self) -> tuple[np.ndarray, np.ndarray]:
+        """Rates of the end slopes as the model carries them (n,) each [rad/s]."""
+        return self.model.bending_rates(self.t, self.y, self.held)
+
+    @cached_property
+    def base(self):
+        """The base's pose and twist (:class:`~rod_sim.core.models.BaseState`)."""
+        return self.model.base_state(self.t, self.y)
+
+    @cached_property
+    def base_angle(self) -> tuple:
+        """(psi [rad], psi_rate [rad/s]) of the base, as the hinge angles take them."""
+        return self.model._base_angle(self.y, self.t)
+
+    @cached_property
+    def hinge_angles(self) -> np.ndarray:
+        """Rigid hinge angles theta (n,) [rad]."""
+        m = self.model
+        if m._plain_angles:
+            return hinges.hinge_angles(self.phi)
+        return m._relative(self.phi, self.base_angle[0])
+
+    @cached_property
+    def hinge_rates(self) -> np.ndarray:
+        """Their rates (n,) [rad/s]."""
+        m = self.model
+        if m._plain_rates:
+            return hinges.hinge_angles(self.phi_rate)
+        return m._relative(self.phi_rate, self.base_angle[1])
+
+    @cached_property
+    def locked(self) -> np.ndarray:
+        """Hinges held rigid in this mode (n,) bool."""
+        return self.model.plan(self.mode).locked
+
+    @cached_property
+    def contact_moments(self) -> np.ndarray:
+        """Stop contact moments (n,) [N m] on theta (zero on locked hinges)."""
+        m = self.model
+        if not m.has_stops:
+            return np.zeros(m.n)
+        s = m.scene
+        out = hinges.contact_moments(self.hinge_angles, self.hinge_rates, s.stop_lower,
+                                     s.stop_upper, s.stop_stiffness, s.stop_damping)
+        out[self.locked] = 0.0
+        return out
+
+    @cached_property
+    def loads(self) -> np.ndarray:
+        """Every applied load (n + 2, 3) at t (:meth:`ChainModel.loads_at`)."""
+        return self.model.loads_at(self.t, self.held)
+
+    @cached_property
+    def nodes(self) -> np.ndarray:
+        """Node positions (n + nc, 2) [m] (:meth:`ChainModel.node_positions`)."""
+        return self.model.node_positions(self.t, self.y)
+
+    @cached_property
+    def velocities(self) -> np.ndarray:
+        """Node velocities (n + nc, 2) [m/s] (:meth:`ChainModel.node_velocities`)."""
+        return self.model.node_velocities(self.t, self.y)
+
+    # ----- hinges -----
+    @cached_property
+    def deflection_rate(self) -> np.ndarray:
+        """d/dt Delta phi_h (n,) [rad/s] (the reduced and rigid models carry no bending
+        rates)."""
+        m = self.model
+        dphi = self.phi_rate
+        dalpha, dbeta = self.bending_rates
+        dleft = np.concatenate([[0.0], dphi[:-1] + dbeta[:-1]])
+        if m._moving_hinge0:
+            dleft[m.first] = self.base_angle[1]
+        return dphi + dalpha - dleft
+
+    @cached_property
+    def deflection(self) -> tuple[np.ndarray, np.ndarray]:
+        """Relative hinge rotations Delta phi_h of eq. (2) with the slopes of :attr:`bending`
+        and their rates, each (n,)."""
+        m = self.model
+        alpha, beta = self.bending
+        phi = self.phi
+        left = np.concatenate([[0.0], phi[:-1] + beta[:-1]])
+        if m._turned_hinge0:
+            left[m.first] = self.base_angle[0]
+        return phi + alpha - left, self.deflection_rate
+
+    # ----- energies -----
+    @cached_property
+    def kinetic_energy(self) -> float:
+        """(1/2) x'^T M x' [J] (:meth:`ChainModel.kinetic_energy`)."""
+        m = self.model
+        y = self.y
+        ke = 0.5 * float(np.dot(y[m.dof:], m.mass_times(y)))
+        if m.base_mode != kernels.MODE_PRESCRIBED:
+            return ke
+        ch = m.chain
+        phi, dphi = self.phi, self.phi_rate
+        w = ch.l * ch.Mt * dphi
+        if m.dof_per_rod == 3:
+            da, db = self.bending_rates
+            w = w + ch.C * (da - db)
+        px, py = -w * np.sin(phi), w * np.cos(phi)
+        v = self.velocities
+        for ci in range(len(m.seg) - 1):        # numpy's pairwise sums of each chain
+            a, b = m.seg[ci], m.seg[ci + 1]
+            v0 = v[a + ci]
+            ke += float(v0[0] * px[a:b].sum() + v0[1] * py[a:b].sum()
+                        + 0.5 * ch.Mc[ci] * (v0[0] ** 2 + v0[1] ** 2))
+        return ke
+
+    def gravity_energy_with(self, bending) -> float:
+        """-sum m g.r over every mass point [J] with the slopes ``bending`` (alpha, beta) (or
+        None: straight rods), 0 without gravity."""
+        m = self.model
+        b = m.chain.base
+        if b[kernels.B_GRAVITY] == 0.0:
+            return 0.0
+        g = np.array([b[kernels.B_GX], b[kernels.B_GY]])
+        p = m.params
+        alpha, beta = (np.zeros(m.n), np.zeros(m.n)) if bending is None else bending
+        nodes = self.nodes
+        starts = nodes[m.rod_starts]
+        phi = self.phi
+        e = np.stack([np.cos(phi), np.sin(phi)], axis=-1)
+        ep = np.stack([-np.sin(phi), np.cos(phi)], axis=-1)
+        ml = p.m * p.l
+        # a rod: mass m l at its chord's midpoint plus int m eta ds = C (alpha - beta) along
+        # e_perp
+        first_moment = (ml[:, None] * (starts + 0.5 * p.l[:, None] * e)
+                        + (p.m * p.l**2 / 12.0 * (alpha - beta))[:, None] * ep)
+        tips = nodes[m.rod_starts + 1]
+        total = first_moment.sum(axis=0) + (p.mu[:, None] * tips).sum(axis=0)
+        energy = -float(np.dot(g, total))
+        if m.nb:
+            energy -= float(b[kernels.B_MASS] * np.dot(g, m._base_com(self.base)))
+        return energy
+
+    @cached_property
+    def energies(self):
+        """Kinetic, hinge (springs + stop contacts), bending and gravity energy [J]
+        (:class:`~rod_sim.core.models.Energies`) with the slopes of :attr:`bending`."""
+        from .models import Energies
+
+        m = self.model
+        p, s = m.params, m.scene
+        alpha, beta = self.bending
+        delta, _ = self.deflection
+        hinge = 0.5 * float(np.sum(p.kappa * (delta - s.hinge_rest_angle) ** 2))
+        if m.has_stops:      # the stop contacts' elastic energy (no stop: none)
+            pen = hinges.contact_penetration(self.hinge_angles, s.stop_lower, s.stop_upper)
+            pen[self.locked] = 0.0
+            hinge += 0.5 * float(np.sum(s.stop_stiffness * pen**2))
+        bend = float(np.sum(2.0 * p.EI / p.l * (alpha**2 + beta**2 + alpha * beta)))
+        return Energies(self.kinetic_energy, hinge, bend, self.gravity_energy_with(self.bending))
+
+    @cached_property
+    def base_energies(self) -> tuple[float, float]:
+        """(kinetic energy of a free base: m_B |v_C|^2 / 2 + J_B psi'^2 / 2, of its wheel:
+        J_W (psi' + theta_w')^2 / 2) [J]; zeros for a fixed or prescribed base."""
+        m = self.model
+        if not m.nb:
+            return 0.0, 0.0
+        b = m.chain.base
+        st = self.base
+        off = m._base_com(st) - np.array([st.x, st.y])
+        vc = (st.x_rate - st.psi_rate * off[1], st.y_rate + st.psi_rate * off[0])
+        base = 0.5 * float(b[kernels.B_MASS]) * (vc[0] ** 2 + vc[1] ** 2) \
+            + 0.5 * float(b[kernels.B_INERTIA]) * st.psi_rate ** 2
+        wheel = 0.5 * float(b[kernels.B_WHEEL]) * (st.psi_rate + st.wheel_rate) ** 2
+        return base, wheel
+
+    # ----- momentum and powers -----
+    @cached_property
+    def momentum(self):
+        """Linear and angular momentum of the whole system and its centre of mass
+        (:class:`~rod_sim.core.models.Momentum`, :meth:`ChainModel.momentum`), O(n)."""
+        from .models import Momentum
+
+        m = self.model
+        p = m.params
+        phi, dphi = self.phi, self.phi_rate
+        nodes, vel = self.nodes, self.velocities
+        i0 = m.rod_starts
+        r0, v0 = nodes[i0], vel[i0]
+        r1, v1 = nodes[i0 + 1], vel[i0 + 1]
+        e = np.stack([np.cos(phi), np.sin(phi)], axis=-1)
+        ep = np.stack([-np.sin(phi), np.cos(phi)], axis=-1)
+        ml = p.m * p.l
+        if m.dof_per_rod == 3:
+            alpha, beta = self.bending
+            dalpha, dbeta = self.bending_rates
+        else:
+            alpha = beta = dalpha = dbeta = np.zeros(m.n)
+        # rod k: r(s) = r0 + s e + eta e_perp, v(s) = v0 + (s phi' + eta') e_perp - eta phi' e;
+        # the integrals of m over s in closed form (sigma, tau of eq. (1))
+        C = p.m * p.l**2 / 12.0
+        eta1 = C * (alpha - beta)                                   # int m eta
+        deta1 = C * (dalpha - dbeta)                                # int m eta'
+        l3 = p.m * p.l**3
+        Isd = l3 / 30.0 * dalpha - l3 / 20.0 * dbeta                # int m s eta'
+        Iee = l3 / 105.0 * (alpha**2 + beta**2) - 2.0 * l3 / 140.0 * alpha * beta  # int m eta^2
+        lin_rods = (ml[:, None] * v0 + (0.5 * ml * p.l * dphi + deta1)[:, None] * ep
+                    - (eta1 * dphi)[:, None] * e)
+        H = float(np.sum(cross(r0, lin_rods) + 0.5 * ml * p.l * cross(e, v0)
+                         + eta1 * cross(ep, v0) + l3 / 3.0 * dphi + Isd + Iee * dphi)
+                  + np.sum(p.mu * cross(r1, v1)))
+        P = lin_rods.sum(axis=0) + (p.mu[:, None] * v1).sum(axis=0)
+        mass = float(np.sum(ml + p.mu))
+        com_sum = ((ml[:, None] * (r0 + 0.5 * p.l[:, None] * e) + eta1[:, None] * ep).sum(axis=0)
+                   + (p.mu[:, None] * r1).sum(axis=0))
+        if m.nb:
+            b = m.chain.base
+            st = self.base
+            mB = float(b[kernels.B_MASS])
+            rc = m._base_com(st)
+            off = rc - np.array([st.x, st.y])
+            vc = np.array([st.x_rate - st.psi_rate * off[1], st.y_rate + st.psi_rate * off[0]])
+            P = P + mB * vc
+            H += mB * float(cross(rc, vc)) + float(b[kernels.B_INERTIA]) * st.psi_rate
+            H += float(b[kernels.B_WHEEL]) * (st.psi_rate + st.wheel_rate)
+            com_sum = com_sum + mB * rc
+            mass += mB
+        com = com_sum / mass
+        return Momentum(P, H, H - float(cross(com, P)), com, mass)
+
+    @cached_property
+    def powers(self) -> tuple[float, float]:
+        """(power of the applied loads and motors, and of a free base's loads and wheel
+        motor; power dissipated in the hinge dampers and the stop contacts) [W]
+        (:meth:`ChainModel.powers`)."""
+        m = self.model
+        n = m.n
+        loads = self.loads
+        f = loads[:n, :2]
+        if m._plain_powers:
+            phi, dphi = self.phi, self.phi_rate
+            l = m.params.l
+            vx = np.cumsum(-l * np.sin(phi) * dphi)
+            vy = np.cumsum(l * np.cos(phi) * dphi)
+        else:
+            v = self.velocities[m.rod_starts + 1]
+            vx, vy = v[:, 0], v[:, 1]
+        load_power = float(np.sum(f[:, 0] * vx + f[:, 1] * vy))
+        ddelta = self.deflection_rate
+        load_power += float(np.dot(loads[:n, 2], ddelta))    # hinge motors
+        if m.nb:
+            st = self.base
+            b = m.chain.base
+            c, s = np.cos(st.psi), np.sin(st.psi)
+            rc = (c * b[kernels.B_CX] - s * b[kernels.B_CY],
+                  s * b[kernels.B_CX] + c * b[kernels.B_CY])
+            vc = (st.x_rate - st.psi_rate * rc[1], st.y_rate + st.psi_rate * rc[0])
+            load_power += float(loads[n, 0] * vc[0] + loads[n, 1] * vc[1]
+                                + loads[n, 2] * st.psi_rate
+                                + loads[n + 1, 2] * st.wheel_rate)
+        damper = float(np.sum(m.params.nu * ddelta**2))
+        if m.has_stops:
+            s = m.scene
+            theta, dtheta = self.hinge_angles, self.hinge_rates
+            elastic = -s.stop_stiffness * (np.maximum(0.0, theta - s.stop_upper)
+                                           - np.maximum(0.0, s.stop_lower - theta))
+            elastic[self.locked] = 0.0
+            damper -= float(np.sum((self.contact_moments - elastic) * dtheta))
+        return load_power, damper
+
+    # ----- what is published -----
+    def snapshot(self) -> Snapshot:
+        """Everything published about the chain (:meth:`ChainModel.snapshot`): hinge_moment =
+        kappa (Delta - theta_rest) + nu Delta' minus the stop contact moment (the constraint
+        reaction of a locked hinge is not included); a spacecraft scene's base, momentum and
+        energy terms."""
+        m = self.model
+        alpha, beta = self.bending
+        delta, ddelta = self.deflection
+        p = m.params
+        moment = (p.kappa * (delta - m.scene.hinge_rest_angle) + p.nu * ddelta
+                  - self.contact_moments)
+        extra = self._spacecraft_fields() if m.is_spacecraft else {}
+        return Snapshot(
+            t=float(self.t), phi=np.array(self.phi, dtype=float),
+            phi_rate=np.array(self.phi_rate, dtype=float), alpha=np.asarray(alpha, float),
+            beta=np.asarray(beta, float), hinge_angle=self.hinge_angles,
+            hinge_rate=self.hinge_rates, hinge_moment=moment, nodes=self.nodes,
+            forces=self.loads[:m.n, :2].copy(), **extra)
+
+    def _spacecraft_fields(self) -> dict:
+        """The :class:`Snapshot` fields of a spacecraft scene (see its docstring), O(n)."""
+        st = self.base
+        mom = self.momentum
+        e = self.energies
+        base_ke, wheel_ke = self.base_energies
+        return {"base": np.array([st.x, st.y, st.psi, st.x_rate, st.y_rate, st.psi_rate]),
+                "wheel_rate": float(st.wheel_rate),
+                "momentum": np.array([mom.linear[0], mom.linear[1], mom.angular_origin,
+                                      mom.angular_com, mom.com[0], mom.com[1]]),
+                "energy_terms": {"kinetic": e.kinetic, "hinge": e.hinge, "bending": e.bending,
+                                 "gravity": e.gravity, "base_kinetic": base_ke,
+                                 "wheel_kinetic": wheel_ke, "total": e.total}}
