@@ -6,14 +6,23 @@ from typing import NamedTuple
 import numpy as np
 
 
-def node_positions(length: np.ndarray, phi: np.ndarray) -> np.ndarray:
+def node_positions(length: np.ndarray, phi: np.ndarray, trig=None) -> np.ndarray:
     """Nodes 0..n of the chain, eq. (3): array (n+1, 2) [m]; node 0 at the origin.
 
-    ``length`` (n,) [m], ``phi`` (n,) [rad].
+    ``length`` (n,) [m], ``phi`` (n,) [rad]; ``trig`` = (cos phi, sin phi) if known.
     """
+    c, s = (np.cos(phi), np.sin(phi)) if trig is None else trig
     out = np.zeros((len(phi) + 1, 2))
-    out[1:, 0] = np.cumsum(length * np.cos(phi))
-    out[1:, 1] = np.cumsum(length * np.sin(phi))
+    out[1:, 0] = np.cumsum(length * c)
+    out[1:, 1] = np.cumsum(length * s)
+    return out
+
+
+def pairs(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(n, 2) C-ordered with columns a, b (n,): ``np.stack([a, b], axis=-1)``, cheaper."""
+    out = np.empty((len(a), 2))
+    out[:, 0] = a
+    out[:, 1] = b
     return out
 
 
@@ -22,13 +31,15 @@ class ChainTable(NamedTuple):
     c = chain c's rods seg[c] .. seg[c+1] - 1 then n (a zero pad) up to L, the longest chain's
     rod count; ``valid`` (nc, L) bool, False on the pads; ``chain`` (n,) int, each rod's
     chain; ``roots`` (nc,) int, the row of each chain's node 0 among the n + nc nodes;
-    ``ends`` (n,) int, the row of each rod's end node (its start node is the row before)."""
+    ``ends`` (n,) int, the row of each rod's end node (its start node is the row before);
+    ``even``: every chain has L rods (no pads)."""
 
     index: np.ndarray
     valid: np.ndarray
     chain: np.ndarray
     roots: np.ndarray
     ends: np.ndarray
+    even: bool
 
 
 def chain_table(seg) -> ChainTable:
@@ -40,7 +51,8 @@ def chain_table(seg) -> ChainTable:
     index = np.where(valid, seg[:-1, None] + j[None, :], seg[-1])
     rods = np.arange(seg[-1])
     chain = np.searchsorted(seg[1:], rods, side="right")
-    return ChainTable(index, valid, chain, seg[:-1] + np.arange(len(seg) - 1), rods + chain + 1)
+    return ChainTable(index, valid, chain, seg[:-1] + np.arange(len(seg) - 1), rods + chain + 1,
+                      bool(valid.all()))
 
 
 def chain_cumsum(values: np.ndarray, table: ChainTable) -> np.ndarray:
@@ -50,22 +62,28 @@ def chain_cumsum(values: np.ndarray, table: ChainTable) -> np.ndarray:
     chain (n, ...)."""
     if table.index.shape[0] == 1:
         return np.cumsum(values, axis=0)
+    if table.even:               # chains of one length: a view of (nc, L, ...)
+        rows = values.reshape(table.index.shape + values.shape[1:])
+        return np.cumsum(rows, axis=1).reshape(values.shape)
     padded = np.concatenate([values, np.zeros((1,) + values.shape[1:])])[table.index]
     return np.cumsum(padded, axis=1)[table.valid]
 
 
 def chain_node_positions(length: np.ndarray, phi: np.ndarray, seg, attach, x: float,
-                         y: float, psi: float, table: ChainTable | None = None) -> np.ndarray:
+                         y: float, psi: float, table: ChainTable | None = None,
+                         trig=None) -> np.ndarray:
     """Every chain's nodes 0..n_c in scene order (n + nc, 2) [m] on a base frame at (x, y)
     [m] turned by psi [rad]: chain c (rods seg[c] .. seg[c+1] - 1) starts at its attach point
     (nc, 2) [m] of the base frame, then eq. (3) with the absolute angles phi. ``table``:
-    :func:`chain_table` of ``seg`` if already known. No loop over chains."""
+    :func:`chain_table` of ``seg`` and ``trig`` = (cos phi, sin phi) if already known. No
+    loop over chains."""
     table = chain_table(seg) if table is None else table
     c, s = np.cos(psi), np.sin(psi)
     attach = np.asarray(attach, dtype=float).reshape(-1, 2)
     ax, ay = attach[:, 0], attach[:, 1]
-    origin = np.stack([x + c * ax - s * ay, y + s * ax + c * ay], axis=-1)     # (nc, 2)
-    steps = np.stack([length * np.cos(phi), length * np.sin(phi)], axis=-1)     # (n, 2)
+    origin = pairs(x + c * ax - s * ay, y + s * ax + c * ay)                     # (nc, 2)
+    cphi, sphi = (np.cos(phi), np.sin(phi)) if trig is None else trig
+    steps = pairs(length * cphi, length * sphi)                                 # (n, 2)
     out = np.empty((len(phi) + len(attach), 2))
     out[table.roots] = 0.0 + origin
     out[table.ends] = chain_cumsum(steps, table) + origin[table.chain]

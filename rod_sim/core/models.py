@@ -23,7 +23,7 @@ from .scipy_tables import light_dop853_tables
 
 with light_dop853_tables():     # erk's tables without scipy.integrate's import
     from . import erk, hinges, kernels, radau
-from .kinematics import chain_cumsum, chain_node_positions, chain_table, node_positions
+from .kinematics import chain_table
 from .loadlaw import Loads, make_loads
 from .matrices import ChainParams
 from .scene import LOAD_AXES, Scene
@@ -123,6 +123,36 @@ def base_table(scene) -> tuple[np.ndarray, np.ndarray]:
         motion[row, 0] = prof.code
         motion[row, 1:4] = prof.parameters
     return out, motion
+
+
+class RodConstants(NamedTuple):
+    """Per-rod factors of the momentum, gravity and bending-energy laws (each (n,), or
+    (n, 1) for ``*_col``), computed once per model by the laws' own expressions: ``ml`` = m
+    l, ``C`` = m l^2 / 12, ``l3_k`` = m l^3 / k (``l3_70`` = 2 m l^3 / 140), ``half_ml_l``
+    = m l^2 / 2, ``EI2_l`` = 2 EI / l, ``mass`` the chains' mass [kg], ``zeros``."""
+
+    ml: np.ndarray
+    ml_col: np.ndarray
+    mu_col: np.ndarray
+    half_l_col: np.ndarray
+    C: np.ndarray
+    l3_3: np.ndarray
+    l3_20: np.ndarray
+    l3_30: np.ndarray
+    l3_105: np.ndarray
+    l3_70: np.ndarray
+    half_ml_l: np.ndarray
+    EI2_l: np.ndarray
+    mass: float
+    zeros: np.ndarray
+
+    @classmethod
+    def of(cls, p: ChainParams) -> "RodConstants":
+        ml = p.m * p.l
+        l3 = p.m * p.l**3
+        return cls(ml, ml[:, None], p.mu[:, None], 0.5 * p.l[:, None], p.m * p.l**2 / 12.0,
+                   l3 / 3.0, l3 / 20.0, l3 / 30.0, l3 / 105.0, 2.0 * l3 / 140.0,
+                   0.5 * ml * p.l, 2.0 * p.EI / p.l, float(np.sum(ml + p.mu)), np.zeros(p.n))
 
 
 @dataclass(frozen=True, eq=False)
@@ -311,6 +341,8 @@ class ChainModel:
                                      0.0, 0.0, 0.0)
         self.breakpoints = tuple(self.scene.load_breakpoints())
         """Times [s] where a scripted load or one of its derivatives jumps."""
+        self.rod_constants = RodConstants.of(self.params)
+        """Per-rod factors of the per-state laws (:class:`RodConstants`)."""
 
     slopes_need_rhs = False
     """Whether :meth:`bending` solves the right-hand side (then a :class:`State` keeps both)."""
@@ -638,13 +670,7 @@ class ChainModel:
     def node_positions(self, t: float, y: np.ndarray) -> np.ndarray:
         """Every chain's nodes 0..n_c in scene order, (n + nc, 2) [m] (one chain: (n + 1, 2),
         node 0 at its attach point on the base)."""
-        phi = self.phi(y)
-        p = self.params
-        if self._plain_nodes:
-            return node_positions(p.l, phi)
-        st = self.base_state(t, y)
-        return chain_node_positions(p.l, phi, self.seg, self.chain.attach, st.x, st.y, st.psi,
-                                    self.table)
+        return State(self, t, y).nodes
 
     def energies(self, t: float, y: np.ndarray, held=None, bending=None, mode=None) -> Energies:
         """Kinetic, hinge (springs about their rest angles + stop contacts), bending and
@@ -654,19 +680,7 @@ class ChainModel:
 
     def node_velocities(self, t: float, y: np.ndarray) -> np.ndarray:
         """Velocities of the nodes of :meth:`node_positions` (n + nc, 2) [m/s]."""
-        phi, dphi = self.phi(y), self.phi_rate(y)
-        l = self.params.l
-        st = self.base_state(t, y)
-        c, s = np.cos(st.psi), np.sin(st.psi)
-        ax, ay = self.chain.attach[:, 0], self.chain.attach[:, 1]
-        v0 = np.stack([st.x_rate - st.psi_rate * (s * ax + c * ay),
-                       st.y_rate + st.psi_rate * (c * ax - s * ay)], axis=-1)     # (nc, 2)
-        steps = np.stack([-l * np.sin(phi) * dphi, l * np.cos(phi) * dphi], axis=-1)
-        table = self.table
-        out = np.empty((self.n + len(self.seg) - 1, 2))
-        out[table.roots] = v0
-        out[table.ends] = v0[table.chain] + chain_cumsum(steps, table)
-        return out
+        return State(self, t, y).velocities
 
     def powers(self, t: float, y: np.ndarray, held=None, mode=None) -> tuple[float, float]:
         """(power of the applied loads and motors — nodal forces, hinge motors, gravity is in

@@ -12,13 +12,32 @@ prescribed base's kinetic energy: their sums keep numpy's pairwise order).
 """
 from __future__ import annotations
 
-from functools import cached_property
 from typing import Callable
 
 import numpy as np
 
 from . import hinges, kernels
+from .kinematics import chain_cumsum, chain_node_positions, node_positions, pairs
 from .snapshot import Snapshot
+
+
+class cached:
+    """A property computed on first use and then kept in the instance (what
+    ``functools.cached_property`` does, without its lock: a State belongs to one thread)."""
+
+    def __init__(self, compute):
+        self.compute = compute
+        self.name = compute.__name__
+        self.__doc__ = compute.__doc__
+
+    def __set_name__(self, owner, name):
+        self.name = name
+
+    def __get__(self, obj, owner=None):
+        if obj is None:
+            return self
+        value = obj.__dict__[self.name] = self.compute(obj)
+        return value
 
 
 def cross(a, b):
@@ -59,17 +78,33 @@ class State:
         return out
 
     # ----- inputs of every law -----
-    @cached_property
+    @cached
     def phi(self) -> np.ndarray:
         """Rod angles (n,) [rad] (a view of y)."""
         return self.model.phi(self.y)
 
-    @cached_property
+    @cached
     def phi_rate(self) -> np.ndarray:
         """Rod angular rates (n,) [rad/s] (a view of y)."""
         return self.model.phi_rate(self.y)
 
-    @cached_property
+    @cached
+    def cos_phi(self) -> np.ndarray:
+        """cos phi (n,)."""
+        return np.cos(self.phi)
+
+    @cached
+    def sin_phi(self) -> np.ndarray:
+        """sin phi (n,)."""
+        return np.sin(self.phi)
+
+    @cached
+    def axes(self) -> tuple[np.ndarray, np.ndarray]:
+        """(e, e_perp) (n, 2) each: each rod's chord direction and its normal."""
+        c, s = self.cos_phi, self.sin_phi
+        return pairs(c, s), pairs(-s, c)
+
+    @cached
     def f(self) -> np.ndarray:
         """dy/dt (state_size,) (and the slopes, when not known yet: one right-hand side)."""
         m = self.model
@@ -78,7 +113,7 @@ class State:
         f, self.bending = m.rhs_bending(self.t, self.y, self.held, self.mode)
         return f
 
-    @cached_property
+    @cached
     def bending(self) -> tuple[np.ndarray, np.ndarray]:
         """End slopes (alpha, beta), (n,) each [rad] (the reduced model's from a right-hand
         side, which is kept as :attr:`f`)."""
@@ -89,22 +124,22 @@ class State:
             return bending
         return m.bending(self.t, self.y, self.held, self.mode)
 
-    @cached_property
+    @cached
     def bending_rates(self) -> tuple[np.ndarray, np.ndarray]:
         """Rates of the end slopes as the model carries them (n,) each [rad/s]."""
         return self.model.bending_rates(self.t, self.y, self.held)
 
-    @cached_property
+    @cached
     def base(self):
         """The base's pose and twist (:class:`~rod_sim.core.models.BaseState`)."""
         return self.model.base_state(self.t, self.y)
 
-    @cached_property
+    @cached
     def base_angle(self) -> tuple:
         """(psi [rad], psi_rate [rad/s]) of the base, as the hinge angles take them."""
         return self.model._base_angle(self.y, self.t)
 
-    @cached_property
+    @cached
     def hinge_angles(self) -> np.ndarray:
         """Rigid hinge angles theta (n,) [rad]."""
         m = self.model
@@ -112,7 +147,7 @@ class State:
             return hinges.hinge_angles(self.phi)
         return m._relative(self.phi, self.base_angle[0])
 
-    @cached_property
+    @cached
     def hinge_rates(self) -> np.ndarray:
         """Their rates (n,) [rad/s]."""
         m = self.model
@@ -120,12 +155,12 @@ class State:
             return hinges.hinge_angles(self.phi_rate)
         return m._relative(self.phi_rate, self.base_angle[1])
 
-    @cached_property
+    @cached
     def locked(self) -> np.ndarray:
         """Hinges held rigid in this mode (n,) bool."""
         return self.model.plan(self.mode).locked
 
-    @cached_property
+    @cached
     def contact_moments(self) -> np.ndarray:
         """Stop contact moments (n,) [N m] on theta (zero on locked hinges)."""
         m = self.model
@@ -137,23 +172,43 @@ class State:
         out[self.locked] = 0.0
         return out
 
-    @cached_property
+    @cached
     def loads(self) -> np.ndarray:
         """Every applied load (n + 2, 3) at t (:meth:`ChainModel.loads_at`)."""
         return self.model.loads_at(self.t, self.held)
 
-    @cached_property
+    @cached
     def nodes(self) -> np.ndarray:
-        """Node positions (n + nc, 2) [m] (:meth:`ChainModel.node_positions`)."""
-        return self.model.node_positions(self.t, self.y)
+        """Every chain's nodes 0..n_c in scene order (n + nc, 2) [m] (one chain: (n + 1, 2),
+        node 0 at its attach point on the base), eq. (3)."""
+        m = self.model
+        trig = (self.cos_phi, self.sin_phi)
+        if m._plain_nodes:
+            return node_positions(m.params.l, self.phi, trig)
+        st = self.base
+        return chain_node_positions(m.params.l, self.phi, m.seg, m.chain.attach, st.x, st.y,
+                                    st.psi, m.table, trig)
 
-    @cached_property
+    @cached
     def velocities(self) -> np.ndarray:
-        """Node velocities (n + nc, 2) [m/s] (:meth:`ChainModel.node_velocities`)."""
-        return self.model.node_velocities(self.t, self.y)
+        """Velocities of the nodes of :attr:`nodes` (n + nc, 2) [m/s]."""
+        m = self.model
+        dphi = self.phi_rate
+        l = m.params.l
+        st = self.base
+        c, s = np.cos(st.psi), np.sin(st.psi)
+        ax, ay = m.chain.attach[:, 0], m.chain.attach[:, 1]
+        v0 = pairs(st.x_rate - st.psi_rate * (s * ax + c * ay),
+                   st.y_rate + st.psi_rate * (c * ax - s * ay))                  # (nc, 2)
+        steps = pairs(-l * self.sin_phi * dphi, l * self.cos_phi * dphi)
+        table = m.table
+        out = np.empty((m.n + len(m.seg) - 1, 2))
+        out[table.roots] = v0
+        out[table.ends] = v0[table.chain] + chain_cumsum(steps, table)
+        return out
 
     # ----- hinges -----
-    @cached_property
+    @cached
     def deflection_rate(self) -> np.ndarray:
         """d/dt Delta phi_h (n,) [rad/s] (the reduced and rigid models carry no bending
         rates)."""
@@ -165,7 +220,7 @@ class State:
             dleft[m.first] = self.base_angle[1]
         return dphi + dalpha - dleft
 
-    @cached_property
+    @cached
     def deflection(self) -> tuple[np.ndarray, np.ndarray]:
         """Relative hinge rotations Delta phi_h of eq. (2) with the slopes of :attr:`bending`
         and their rates, each (n,)."""
@@ -178,7 +233,7 @@ class State:
         return phi + alpha - left, self.deflection_rate
 
     # ----- energies -----
-    @cached_property
+    @cached
     def kinetic_energy(self) -> float:
         """(1/2) x'^T M x' [J] (:meth:`ChainModel.kinetic_energy`)."""
         m = self.model
@@ -192,7 +247,7 @@ class State:
         if m.dof_per_rod == 3:
             da, db = self.bending_rates
             w = w + ch.C * (da - db)
-        px, py = -w * np.sin(phi), w * np.cos(phi)
+        px, py = -w * self.sin_phi, w * self.cos_phi
         v = self.velocities
         for ci in range(len(m.seg) - 1):        # numpy's pairwise sums of each chain
             a, b = m.seg[ci], m.seg[ci + 1]
@@ -213,22 +268,20 @@ class State:
         alpha, beta = (np.zeros(m.n), np.zeros(m.n)) if bending is None else bending
         nodes = self.nodes
         starts = nodes[m.rod_starts]
-        phi = self.phi
-        e = np.stack([np.cos(phi), np.sin(phi)], axis=-1)
-        ep = np.stack([-np.sin(phi), np.cos(phi)], axis=-1)
-        ml = p.m * p.l
+        e, ep = self.axes
+        k = m.rod_constants
         # a rod: mass m l at its chord's midpoint plus int m eta ds = C (alpha - beta) along
         # e_perp
-        first_moment = (ml[:, None] * (starts + 0.5 * p.l[:, None] * e)
-                        + (p.m * p.l**2 / 12.0 * (alpha - beta))[:, None] * ep)
+        first_moment = (k.ml_col * (starts + k.half_l_col * e)
+                        + (k.C * (alpha - beta))[:, None] * ep)
         tips = nodes[m.rod_starts + 1]
-        total = first_moment.sum(axis=0) + (p.mu[:, None] * tips).sum(axis=0)
+        total = first_moment.sum(axis=0) + (k.mu_col * tips).sum(axis=0)
         energy = -float(np.dot(g, total))
         if m.nb:
             energy -= float(b[kernels.B_MASS] * np.dot(g, m._base_com(self.base)))
         return energy
 
-    @cached_property
+    @cached
     def energies(self):
         """Kinetic, hinge (springs + stop contacts), bending and gravity energy [J]
         (:class:`~rod_sim.core.models.Energies`) with the slopes of :attr:`bending`."""
@@ -243,10 +296,10 @@ class State:
             pen = hinges.contact_penetration(self.hinge_angles, s.stop_lower, s.stop_upper)
             pen[self.locked] = 0.0
             hinge += 0.5 * float(np.sum(s.stop_stiffness * pen**2))
-        bend = float(np.sum(2.0 * p.EI / p.l * (alpha**2 + beta**2 + alpha * beta)))
+        bend = float(np.sum(m.rod_constants.EI2_l * (alpha**2 + beta**2 + alpha * beta)))
         return Energies(self.kinetic_energy, hinge, bend, self.gravity_energy_with(self.bending))
 
-    @cached_property
+    @cached
     def base_energies(self) -> tuple[float, float]:
         """(kinetic energy of a free base: m_B |v_C|^2 / 2 + J_B psi'^2 / 2, of its wheel:
         J_W (psi' + theta_w')^2 / 2) [J]; zeros for a fixed or prescribed base."""
@@ -263,7 +316,7 @@ class State:
         return base, wheel
 
     # ----- momentum and powers -----
-    @cached_property
+    @cached
     def momentum(self):
         """Linear and angular momentum of the whole system and its centre of mass
         (:class:`~rod_sim.core.models.Momentum`, :meth:`ChainModel.momentum`), O(n)."""
@@ -271,36 +324,33 @@ class State:
 
         m = self.model
         p = m.params
-        phi, dphi = self.phi, self.phi_rate
+        k = m.rod_constants
+        dphi = self.phi_rate
         nodes, vel = self.nodes, self.velocities
         i0 = m.rod_starts
         r0, v0 = nodes[i0], vel[i0]
         r1, v1 = nodes[i0 + 1], vel[i0 + 1]
-        e = np.stack([np.cos(phi), np.sin(phi)], axis=-1)
-        ep = np.stack([-np.sin(phi), np.cos(phi)], axis=-1)
-        ml = p.m * p.l
+        e, ep = self.axes
+        # rod k: r(s) = r0 + s e + eta e_perp, v(s) = v0 + (s phi' + eta') e_perp - eta phi' e;
+        # the integrals of m over s in closed form (sigma, tau of eq. (1))
         if m.dof_per_rod == 3:
             alpha, beta = self.bending
             dalpha, dbeta = self.bending_rates
-        else:
-            alpha = beta = dalpha = dbeta = np.zeros(m.n)
-        # rod k: r(s) = r0 + s e + eta e_perp, v(s) = v0 + (s phi' + eta') e_perp - eta phi' e;
-        # the integrals of m over s in closed form (sigma, tau of eq. (1))
-        C = p.m * p.l**2 / 12.0
-        eta1 = C * (alpha - beta)                                   # int m eta
-        deta1 = C * (dalpha - dbeta)                                # int m eta'
-        l3 = p.m * p.l**3
-        Isd = l3 / 30.0 * dalpha - l3 / 20.0 * dbeta                # int m s eta'
-        Iee = l3 / 105.0 * (alpha**2 + beta**2) - 2.0 * l3 / 140.0 * alpha * beta  # int m eta^2
-        lin_rods = (ml[:, None] * v0 + (0.5 * ml * p.l * dphi + deta1)[:, None] * ep
+            eta1 = k.C * (alpha - beta)                                 # int m eta
+            deta1 = k.C * (dalpha - dbeta)                              # int m eta'
+            Isd = k.l3_30 * dalpha - k.l3_20 * dbeta                    # int m s eta'
+            Iee = k.l3_105 * (alpha**2 + beta**2) - k.l3_70 * alpha * beta    # int m eta^2
+        else:       # straight chords: the same terms, each +0.0
+            eta1 = deta1 = Isd = Iee = k.zeros
+        lin_rods = (k.ml_col * v0 + (k.half_ml_l * dphi + deta1)[:, None] * ep
                     - (eta1 * dphi)[:, None] * e)
-        H = float(np.sum(cross(r0, lin_rods) + 0.5 * ml * p.l * cross(e, v0)
-                         + eta1 * cross(ep, v0) + l3 / 3.0 * dphi + Isd + Iee * dphi)
+        H = float(np.sum(cross(r0, lin_rods) + k.half_ml_l * cross(e, v0)
+                         + eta1 * cross(ep, v0) + k.l3_3 * dphi + Isd + Iee * dphi)
                   + np.sum(p.mu * cross(r1, v1)))
-        P = lin_rods.sum(axis=0) + (p.mu[:, None] * v1).sum(axis=0)
-        mass = float(np.sum(ml + p.mu))
-        com_sum = ((ml[:, None] * (r0 + 0.5 * p.l[:, None] * e) + eta1[:, None] * ep).sum(axis=0)
-                   + (p.mu[:, None] * r1).sum(axis=0))
+        P = lin_rods.sum(axis=0) + (k.mu_col * v1).sum(axis=0)
+        mass = k.mass
+        com_sum = ((k.ml_col * (r0 + k.half_l_col * e) + eta1[:, None] * ep).sum(axis=0)
+                   + (k.mu_col * r1).sum(axis=0))
         if m.nb:
             b = m.chain.base
             st = self.base
@@ -316,7 +366,7 @@ class State:
         com = com_sum / mass
         return Momentum(P, H, H - float(cross(com, P)), com, mass)
 
-    @cached_property
+    @cached
     def powers(self) -> tuple[float, float]:
         """(power of the applied loads and motors, and of a free base's loads and wheel
         motor; power dissipated in the hinge dampers and the stop contacts) [W]
@@ -326,10 +376,10 @@ class State:
         loads = self.loads
         f = loads[:n, :2]
         if m._plain_powers:
-            phi, dphi = self.phi, self.phi_rate
+            dphi = self.phi_rate
             l = m.params.l
-            vx = np.cumsum(-l * np.sin(phi) * dphi)
-            vy = np.cumsum(l * np.cos(phi) * dphi)
+            vx = np.cumsum(-l * self.sin_phi * dphi)
+            vy = np.cumsum(l * self.cos_phi * dphi)
         else:
             v = self.velocities[m.rod_starts + 1]
             vx, vy = v[:, 0], v[:, 1]

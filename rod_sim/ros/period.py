@@ -86,11 +86,12 @@ class PeriodRunner:
         self.validity = ValidityMonitor(self.model)
         self.meter.restart(time.monotonic_ns())
 
-    def _book_spacecraft(self, held) -> None:
-        """The simulator's state in the momentum ledger (a spacecraft scene)."""
+    def _book_spacecraft(self, held, state=None) -> None:
+        """The simulator's state in the momentum ledger (a spacecraft scene); ``state``: its
+        :class:`~rod_sim.core.state.State`, shared with the balance sample and snapshot."""
         if self.spacecraft is not None:
             sim = self.sim
-            self.spacecraft.add(sim.t, sim.y, held, sim.mode)
+            self.spacecraft.add(sim.t, sim.y, held, sim.mode, state=state)
 
     def spacecraft_values(self) -> dict[str, str]:
         """The spacecraft keys of ``/diagnostics`` (:func:`rod_sim.core.ledger.diagnostic_values`)
@@ -125,8 +126,9 @@ class PeriodRunner:
         if last is not None and last[0] == sim.t_ns and np.array_equal(last[1], held):
             start_sample = last[2]
         else:       # one right-hand side gives the slopes and the rate's direction
-            start_sample = balance_sample(self.model, sim.t, sim.y, held, sim.mode)
-            self._book_spacecraft(held)     # the inputs changed: their rates from now on
+            state = self.model.state(sim.t, sim.y, held, sim.mode)
+            start_sample = balance_sample(self.model, sim.t, sim.y, held, sim.mode, state=state)
+            self._book_spacecraft(held, state)  # the inputs changed: their rates from now on
         work = self.budget.work(sim)
         start = time.perf_counter_ns()
         try:
@@ -137,13 +139,14 @@ class PeriodRunner:
             self.error = self._failure(exc, work, start)
             return None
         self.meter.add_step(self.period_ns, time.perf_counter_ns() - start)
-        # one right-hand side for the snapshot's slopes and the balance's power rate
-        f, bending = self.model.rhs_bending(sim.t, sim.y, held, sim.mode)
-        snap = self.model.snapshot(sim.t, sim.y, held, sim.mode, bending)
-        end_sample = balance_sample(self.model, sim.t, sim.y, held, sim.mode, bending, f)
+        # one State for the snapshot, the balance sample and the momentum ledger: each
+        # quantity (the right-hand side with the slopes, the momentum, the powers) once
+        state = self.model.state(sim.t, sim.y, held, sim.mode)
+        snap = self.model.snapshot(sim.t, sim.y, held, sim.mode, state=state)
+        end_sample = balance_sample(self.model, sim.t, sim.y, held, sim.mode, state=state)
         self.ledger.add(start_sample, end_sample, sim.events[self.events_seen:])
         self._balance_end = (sim.t_ns, held.copy(), end_sample)
-        self._book_spacecraft(held)
+        self._book_spacecraft(held, state)
         self.last_state = snap
         self.validity.update(sim.t, sim.y, held[:sim.model.n], snap.alpha, snap.beta)
         self.validity.update_energy(sim.t, self.ledger.residual, self.ledger.scale,
