@@ -328,6 +328,7 @@ class ChainModel:
         self.rod_starts = self.table.ends - 1
         """Row of :meth:`node_positions` where each rod starts (n,) int."""
         self._first_rods = np.flatnonzero(self.first)
+        self._before = np.maximum(np.arange(self.n) - 1, 0)     # rod k - 1 (0 for rod 0)
         one_fixed = self.base_mode == k.MODE_FIXED and len(self.seg) == 2
         self._plain_powers = self._plain_rates = one_fixed
         self._plain_angles = one_fixed and b[k.B_PSI] == 0.0
@@ -348,11 +349,12 @@ class ChainModel:
     """Whether :meth:`bending` solves the right-hand side (then a :class:`State` keeps both)."""
 
     def state(self, t: float, y: np.ndarray, held=None, mode=None, f=None,
-              bending=None) -> State:
+              bending=None, data: ModelData | None = None) -> State:
         """The model's quantities at (t, y, held, mode), each computed once on first use
         (:class:`~rod_sim.core.state.State`); ``f`` = dy/dt and ``bending`` = (alpha, beta)
-        there if known."""
-        return State(self, t, y, held, mode, f, bending)
+        there if known; ``data``: scratch for its right-hand side (a simulator's own, between
+        its steps; None: fresh)."""
+        return State(self, t, y, held, mode, f, bending, data)
 
     def new_data(self) -> ModelData:
         """Fresh scratch for one user of this model (a simulator, a thread):
@@ -442,9 +444,13 @@ class ChainModel:
     def _relative(self, a: np.ndarray, psi) -> np.ndarray:
         """a_k - a_{prev(k)} along the last axis, a_k - psi at each chain's first rod."""
         a = np.asarray(a)
+        first = self._first_rods
+        if a.ndim == 1 and a.dtype == np.float64:
+            out = a - a[self._before]
+            out[first] = a[first] - psi
+            return out
         out = np.empty(a.shape, dtype=np.result_type(a.dtype, np.float64))
         np.subtract(a[..., 1:], a[..., :-1], out=out[..., 1:])
-        first = self._first_rods
         out[..., first] = a[..., first] - np.asarray(psi)[..., None] if np.ndim(psi) else \
             a[..., first] - psi
         return out
@@ -528,18 +534,22 @@ class ChainModel:
         moving in), -1 below the lower one (or on it and moving in), 0 otherwise."""
         if not self.has_stops:      # every stop at -inf / +inf: never touched
             return np.zeros(self.n, dtype=np.int8)
+        return self.contact_of(self.hinge_angles(y), self.hinge_rates(y))
+
+    def contact_of(self, theta: np.ndarray, rate: np.ndarray) -> np.ndarray:
+        """:meth:`contact_state` from the hinge angles theta (n,) [rad] and their rates."""
         s = self.scene
-        theta = self.hinge_angles(y)
-        rate = self.hinge_rates(y)
         up = (theta > s.stop_upper) | ((theta == s.stop_upper) & (rate > 0.0))
         down = (theta < s.stop_lower) | ((theta == s.stop_lower) & (rate < 0.0))
         return (up.astype(np.int8) - down.astype(np.int8)).astype(np.int8)
 
     def rhs(self, t: float, y: np.ndarray, held: np.ndarray | None = None,
-            mode: np.ndarray | None = None, contact: np.ndarray | None = None) -> np.ndarray:
+            mode: np.ndarray | None = None, contact: np.ndarray | None = None,
+            data: ModelData | None = None) -> np.ndarray:
         """dy/dt (state_size,) at time t [s] with held inputs (see :meth:`_held`) in ``mode``
-        with the stop contacts ``contact`` (None: as implied by y)."""
-        return self._evaluate(t, y, held, mode, contact)[0]
+        with the stop contacts ``contact`` (None: as implied by y), in the scratch of
+        ``data`` (None: fresh scratch)."""
+        return self._evaluate(t, y, held, mode, contact, data)[0]
 
     def _evaluate(self, t, y, held=None, mode=None, contact=None, data=None):
         """(dy/dt, the kernel's Extra after the call) at (t, y) in scratch of ``data`` (None:
@@ -621,12 +631,13 @@ class ChainModel:
         """End slopes (alpha, beta), each (n,) [rad]."""
         raise NotImplementedError
 
-    def rhs_bending(self, t, y, held=None, mode=None) -> tuple[np.ndarray, tuple]:
+    def rhs_bending(self, t, y, held=None, mode=None, contact=None,
+                    data=None) -> tuple[np.ndarray, tuple]:
         """(:meth:`rhs`, :meth:`bending`) at (t, y): dy/dt (state_size,) and (alpha, beta)
         (n,) each [rad], the same values as the two calls give (a sample needs both: the
         snapshot and the energy balance's power rate; the reduced model gets both from one
-        right-hand side)."""
-        return self.rhs(t, y, held, mode), self.bending(t, y, held, mode)
+        right-hand side); ``contact`` and ``data`` as :meth:`rhs` takes them."""
+        return self.rhs(t, y, held, mode, contact, data), self.bending(t, y, held, mode)
 
     def bending_rates(self, t, y, held=None) -> tuple[np.ndarray, np.ndarray]:
         """Rates of the end slopes as the model's equations carry them [rad/s]."""
@@ -745,9 +756,9 @@ class ReducedModel(ChainModel):
         kernel solves together with phi'' (left in its work array)."""
         return self.rhs_bending(t, y, held, mode)[1]
 
-    def rhs_bending(self, t, y, held=None, mode=None):
+    def rhs_bending(self, t, y, held=None, mode=None, contact=None, data=None):
         """dy/dt and gamma = (alpha, beta) from one right-hand side (its work array)."""
-        f, extra = self._evaluate(t, y, held, mode)
+        f, extra = self._evaluate(t, y, held, mode, contact, data)
         W = extra.work
         return f, (W[:, kernels.W_A].copy(), W[:, kernels.W_B].copy())
 

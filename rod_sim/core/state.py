@@ -50,15 +50,18 @@ class State:
     (as the model's methods take them: None, (n, 2), (n, 3) or (n + 2, 3)) and latches
     ``mode`` (n,) bool (None: none fired). ``f`` (dy/dt, state_size,) and ``bending`` =
     (alpha, beta) (n,) each [rad] may be given when already known at these arguments
-    (``model.rhs_bending`` gives both).
+    (``model.rhs_bending`` gives both); ``data`` (:class:`~rod_sim.core.models.ModelData`):
+    scratch for the right-hand side (None: fresh).
 
     Each attribute below is computed on first use and kept; the arrays are shared by every
     user of the state (the snapshot included) and must not be written to. :meth:`value` keeps
     the derived quantities of other modules (the net power, the momentum rates, ...) the same
     way. ``y`` must not change while the object is in use."""
 
-    def __init__(self, model, t: float, y, held=None, mode=None, f=None, bending=None):
+    def __init__(self, model, t: float, y, held=None, mode=None, f=None, bending=None,
+                 data=None):
         self.model = model
+        self.data = data
         self.t = t
         self.y = np.asarray(y, dtype=float)
         self.held = held
@@ -109,8 +112,9 @@ class State:
         """dy/dt (state_size,) (and the slopes, when not known yet: one right-hand side)."""
         m = self.model
         if "bending" in self.__dict__:
-            return m.rhs(self.t, self.y, self.held, self.mode)
-        f, self.bending = m.rhs_bending(self.t, self.y, self.held, self.mode)
+            return m.rhs(self.t, self.y, self.held, self.mode, self.contact, self.data)
+        f, self.bending = m.rhs_bending(self.t, self.y, self.held, self.mode, self.contact,
+                                        self.data)
         return f
 
     @cached
@@ -119,15 +123,29 @@ class State:
         side, which is kept as :attr:`f`)."""
         m = self.model
         if m.slopes_need_rhs:
-            f, bending = m.rhs_bending(self.t, self.y, self.held, self.mode)
+            f, bending = m.rhs_bending(self.t, self.y, self.held, self.mode, self.contact,
+                                       self.data)
             self.__dict__.setdefault("f", f)
             return bending
         return m.bending(self.t, self.y, self.held, self.mode)
 
     @cached
     def bending_rates(self) -> tuple[np.ndarray, np.ndarray]:
-        """Rates of the end slopes as the model carries them (n,) each [rad/s]."""
-        return self.model.bending_rates(self.t, self.y, self.held)
+        """Rates of the end slopes as the model carries them (n,) each [rad/s] (zeros but in
+        the full model)."""
+        m = self.model
+        if m.dof_per_rod != 3:
+            zeros = m.rod_constants.zeros
+            return zeros, zeros
+        return m.bending_rates(self.t, self.y, self.held)
+
+    @cached
+    def contact(self) -> np.ndarray:
+        """The stop contacts the state implies (n,) int8 (:meth:`ChainModel.contact_state`)."""
+        m = self.model
+        if not m.has_stops:
+            return np.zeros(m.n, dtype=np.int8)
+        return m.contact_of(self.hinge_angles, self.hinge_rates)
 
     @cached
     def base(self):
@@ -291,12 +309,12 @@ class State:
         p, s = m.params, m.scene
         alpha, beta = self.bending
         delta, _ = self.deflection
-        hinge = 0.5 * float(np.sum(p.kappa * (delta - s.hinge_rest_angle) ** 2))
+        hinge = 0.5 * float((p.kappa * (delta - s.hinge_rest_angle) ** 2).sum())
         if m.has_stops:      # the stop contacts' elastic energy (no stop: none)
             pen = hinges.contact_penetration(self.hinge_angles, s.stop_lower, s.stop_upper)
             pen[self.locked] = 0.0
-            hinge += 0.5 * float(np.sum(s.stop_stiffness * pen**2))
-        bend = float(np.sum(m.rod_constants.EI2_l * (alpha**2 + beta**2 + alpha * beta)))
+            hinge += 0.5 * float((s.stop_stiffness * pen**2).sum())
+        bend = float((m.rod_constants.EI2_l * (alpha**2 + beta**2 + alpha * beta)).sum())
         return Energies(self.kinetic_energy, hinge, bend, self.gravity_energy_with(self.bending))
 
     @cached
@@ -344,9 +362,8 @@ class State:
             eta1 = deta1 = Isd = Iee = k.zeros
         lin_rods = (k.ml_col * v0 + (k.half_ml_l * dphi + deta1)[:, None] * ep
                     - (eta1 * dphi)[:, None] * e)
-        H = float(np.sum(cross(r0, lin_rods) + k.half_ml_l * cross(e, v0)
-                         + eta1 * cross(ep, v0) + k.l3_3 * dphi + Isd + Iee * dphi)
-                  + np.sum(p.mu * cross(r1, v1)))
+        H = float((cross(r0, lin_rods) + k.half_ml_l * cross(e, v0) + eta1 * cross(ep, v0)
+                   + k.l3_3 * dphi + Isd + Iee * dphi).sum() + (p.mu * cross(r1, v1)).sum())
         P = lin_rods.sum(axis=0) + (k.mu_col * v1).sum(axis=0)
         mass = k.mass
         com_sum = ((k.ml_col * (r0 + k.half_l_col * e) + eta1[:, None] * ep).sum(axis=0)
@@ -383,7 +400,7 @@ class State:
         else:
             v = self.velocities[m.rod_starts + 1]
             vx, vy = v[:, 0], v[:, 1]
-        load_power = float(np.sum(f[:, 0] * vx + f[:, 1] * vy))
+        load_power = float((f[:, 0] * vx + f[:, 1] * vy).sum())
         ddelta = self.deflection_rate
         load_power += float(np.dot(loads[:n, 2], ddelta))    # hinge motors
         if m.nb:
@@ -396,14 +413,14 @@ class State:
             load_power += float(loads[n, 0] * vc[0] + loads[n, 1] * vc[1]
                                 + loads[n, 2] * st.psi_rate
                                 + loads[n + 1, 2] * st.wheel_rate)
-        damper = float(np.sum(m.params.nu * ddelta**2))
+        damper = float((m.params.nu * ddelta**2).sum())
         if m.has_stops:
             s = m.scene
             theta, dtheta = self.hinge_angles, self.hinge_rates
             elastic = -s.stop_stiffness * (np.maximum(0.0, theta - s.stop_upper)
                                            - np.maximum(0.0, s.stop_lower - theta))
             elastic[self.locked] = 0.0
-            damper -= float(np.sum((self.contact_moments - elastic) * dtheta))
+            damper -= float(((self.contact_moments - elastic) * dtheta).sum())
         return load_power, damper
 
     # ----- what is published -----

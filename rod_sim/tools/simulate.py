@@ -185,7 +185,7 @@ class _LoggedRun:
         # one State: each quantity of the sample (the right-hand side with the slopes, node
         # velocities, momentum, powers, ...) computed once for the snapshot, the energy
         # balance, the momentum ledger and the diagnostics
-        state = model.state(t, y, None, mode)
+        state = model.state(t, y, None, mode, data=self.sim.data)   # its scratch: between steps
         snap = model.snapshot(t, y, None, mode, state=state)
         self.validity.update(snap.t, y, None, snap.alpha, snap.beta)
         sample = balance_sample(model, t, y, None, mode, state=state)
