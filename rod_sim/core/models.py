@@ -342,6 +342,11 @@ class ChainModel:
                                      0.0, 0.0, 0.0)
         self.breakpoints = tuple(self.scene.load_breakpoints())
         """Times [s] where a scripted load or one of its derivatives jumps."""
+        self.neg_l = -self.params.l
+        self.attach_columns = (self.chain.attach[:, 0].copy(), self.chain.attach[:, 1].copy())
+        """The chains' attach points in the base frame: (x (nc,), y (nc,)) [m]."""
+        self.base_com_offset = (float(b[k.B_CX]), float(b[k.B_CY]))
+        """The base's centre of mass in its frame (x, y) [m]."""
         self.rod_constants = RodConstants.of(self.params)
         """Per-rod factors of the per-state laws (:class:`RodConstants`)."""
 

@@ -108,18 +108,17 @@ def momentum_rates(model, t: float, y, held=None, mode=None, state=None) -> Mome
 
 def _momentum_rates(s) -> MomentumRates:
     model, t, held = s.model, s.t, s.held
-    tips = s.nodes[model.rod_starts + 1]
+    tips = s.nodes[model.table.ends]
     mom = s.momentum
     b = model.chain.base
-    rc = model._base_com(s.base) if model.nb else None
+    rc = s.base_com if model.nb else None
     com = mom.com
     if model.name == "reduced" and b[kernels.B_GRAVITY] != 0.0:
         # its momentum is the chords' but gravity acts on the bent rods (quasi-static slopes)
         p = model.params
         alpha, beta = s.bending
-        phi = s.phi
-        shift = p.m * p.l**2 / 12.0 * (alpha - beta)
-        com = com + np.array([-np.sum(shift * np.sin(phi)), np.sum(shift * np.cos(phi))]) / mom.mass
+        shift = model.rod_constants.C * (alpha - beta)
+        com = com + np.array([-np.sum(shift * s.sin_phi), np.sum(shift * s.cos_phi)]) / mom.mass
 
     def applied(t_side):
         if t_side == t:
@@ -164,8 +163,7 @@ def _defect_rates(s) -> tuple[np.ndarray, float]:
     alpha, beta = y[n:2 * n], y[2 * n:3 * n]
     dalpha, dbeta = s.bending_rates
     ddphi, _, base_acc = s.value(_accelerations)
-    e = np.stack([np.cos(phi), np.sin(phi)], axis=-1)
-    ep = np.stack([-np.sin(phi), np.cos(phi)], axis=-1)
+    e, ep = s.axes
     I1 = p.m * p.l**2 / 12.0 * (alpha - beta)
     l3 = p.m * p.l**3
     Iee = l3 / 105.0 * (alpha**2 + beta**2) - 2.0 * l3 / 140.0 * alpha * beta
@@ -251,8 +249,7 @@ def _base_reaction(s) -> tuple[np.ndarray, np.ndarray]:
     else:
         dgam_rate = np.zeros(n)
         alpha = beta = np.zeros(n)
-    e = np.stack([np.cos(phi), np.sin(phi)], axis=-1)
-    ep = np.stack([-np.sin(phi), np.cos(phi)], axis=-1)
+    e, ep = s.axes
     ml = p.m * p.l
     C = p.m * p.l**2 / 12.0
     l3 = p.m * p.l**3

@@ -153,6 +153,17 @@ class State:
         return self.model.base_state(self.t, self.y)
 
     @cached
+    def base_trig(self) -> tuple:
+        """(cos psi, sin psi) of the base's angle."""
+        psi = self.base.psi
+        return np.cos(psi), np.sin(psi)
+
+    @cached
+    def base_com(self) -> np.ndarray:
+        """The base's centre of mass in Oxy (2,) [m]."""
+        return self.model._base_com(self.base)
+
+    @cached
     def base_angle(self) -> tuple:
         """(psi [rad], psi_rate [rad/s]) of the base, as the hinge angles take them."""
         return self.model._base_angle(self.y, self.t)
@@ -212,13 +223,12 @@ class State:
         """Velocities of the nodes of :attr:`nodes` (n + nc, 2) [m/s]."""
         m = self.model
         dphi = self.phi_rate
-        l = m.params.l
         st = self.base
-        c, s = np.cos(st.psi), np.sin(st.psi)
-        ax, ay = m.chain.attach[:, 0], m.chain.attach[:, 1]
+        c, s = self.base_trig
+        ax, ay = m.attach_columns
         v0 = pairs(st.x_rate - st.psi_rate * (s * ax + c * ay),
                    st.y_rate + st.psi_rate * (c * ax - s * ay))                  # (nc, 2)
-        steps = pairs(-l * self.sin_phi * dphi, l * self.cos_phi * dphi)
+        steps = pairs(m.neg_l * self.sin_phi * dphi, m.params.l * self.cos_phi * dphi)
         table = m.table
         out = np.empty((m.n + len(m.seg) - 1, 2))
         out[table.roots] = v0
@@ -233,9 +243,11 @@ class State:
         m = self.model
         dphi = self.phi_rate
         dalpha, dbeta = self.bending_rates
-        dleft = np.concatenate([[0.0], dphi[:-1] + dbeta[:-1]])
+        dleft = np.empty(m.n)
+        dleft[:1] = 0.0
+        np.add(dphi[:-1], dbeta[:-1], out=dleft[1:])
         if m._moving_hinge0:
-            dleft[m.first] = self.base_angle[1]
+            dleft[m._first_rods] = self.base_angle[1]
         return dphi + dalpha - dleft
 
     @cached
@@ -245,9 +257,11 @@ class State:
         m = self.model
         alpha, beta = self.bending
         phi = self.phi
-        left = np.concatenate([[0.0], phi[:-1] + beta[:-1]])
+        left = np.empty(m.n)
+        left[:1] = 0.0
+        np.add(phi[:-1], beta[:-1], out=left[1:])
         if m._turned_hinge0:
-            left[m.first] = self.base_angle[0]
+            left[m._first_rods] = self.base_angle[0]
         return phi + alpha - left, self.deflection_rate
 
     # ----- energies -----
@@ -296,7 +310,7 @@ class State:
         total = first_moment.sum(axis=0) + (k.mu_col * tips).sum(axis=0)
         energy = -float(np.dot(g, total))
         if m.nb:
-            energy -= float(b[kernels.B_MASS] * np.dot(g, m._base_com(self.base)))
+            energy -= float(b[kernels.B_MASS] * np.dot(g, self.base_com))
         return energy
 
     @cached
@@ -326,7 +340,7 @@ class State:
             return 0.0, 0.0
         b = m.chain.base
         st = self.base
-        off = m._base_com(st) - np.array([st.x, st.y])
+        off = self.base_com - np.array([st.x, st.y])
         vc = (st.x_rate - st.psi_rate * off[1], st.y_rate + st.psi_rate * off[0])
         base = 0.5 * float(b[kernels.B_MASS]) * (vc[0] ** 2 + vc[1] ** 2) \
             + 0.5 * float(b[kernels.B_INERTIA]) * st.psi_rate ** 2
@@ -372,7 +386,7 @@ class State:
             b = m.chain.base
             st = self.base
             mB = float(b[kernels.B_MASS])
-            rc = m._base_com(st)
+            rc = self.base_com
             off = rc - np.array([st.x, st.y])
             vc = np.array([st.x_rate - st.psi_rate * off[1], st.y_rate + st.psi_rate * off[0]])
             P = P + mB * vc
@@ -398,20 +412,19 @@ class State:
             vx = np.cumsum(-l * self.sin_phi * dphi)
             vy = np.cumsum(l * self.cos_phi * dphi)
         else:
-            v = self.velocities[m.rod_starts + 1]
+            v = self.velocities[m.table.ends]
             vx, vy = v[:, 0], v[:, 1]
         load_power = float((f[:, 0] * vx + f[:, 1] * vy).sum())
         ddelta = self.deflection_rate
         load_power += float(np.dot(loads[:n, 2], ddelta))    # hinge motors
         if m.nb:
             st = self.base
-            b = m.chain.base
-            c, s = np.cos(st.psi), np.sin(st.psi)
-            rc = (c * b[kernels.B_CX] - s * b[kernels.B_CY],
-                  s * b[kernels.B_CX] + c * b[kernels.B_CY])
+            c, s = self.base_trig
+            cx, cy = m.base_com_offset
+            rc = (c * cx - s * cy, s * cx + c * cy)
             vc = (st.x_rate - st.psi_rate * rc[1], st.y_rate + st.psi_rate * rc[0])
-            load_power += float(loads[n, 0] * vc[0] + loads[n, 1] * vc[1]
-                                + loads[n, 2] * st.psi_rate
+            fx, fy, mz = loads[n].tolist()
+            load_power += float(fx * vc[0] + fy * vc[1] + mz * st.psi_rate
                                 + loads[n + 1, 2] * st.wheel_rate)
         damper = float((m.params.nu * ddelta**2).sum())
         if m.has_stops:

@@ -391,11 +391,11 @@ def load_jump_power(model, t: float, y, held=None, state=None) -> float:
         vx = np.cumsum(-l * np.sin(phi) * dphi)
         vy = np.cumsum(l * np.cos(phi) * dphi)
         return float(np.sum(d[:n, 0] * vx + d[:n, 1] * vy))
-    v = s.velocities[model.rod_starts + 1]
+    v = s.velocities[model.table.ends]
     power = float(np.sum(d[:n, 0] * v[:, 0] + d[:n, 1] * v[:, 1]))
     if model.nb:
         st = s.base
-        rc = model._base_com(st) - np.array([st.x, st.y])
+        rc = s.base_com - np.array([st.x, st.y])
         power += float(d[n, 0] * (st.x_rate - st.psi_rate * rc[1])
                        + d[n, 1] * (st.y_rate + st.psi_rate * rc[0])
                        + d[n, 2] * st.psi_rate + d[n + 1, 2] * st.wheel_rate)
