@@ -69,6 +69,26 @@ def chain_cumsum(values: np.ndarray, table: ChainTable) -> np.ndarray:
     return np.cumsum(padded, axis=1)[table.valid]
 
 
+def chain_nodes(origin: np.ndarray, steps: np.ndarray, table: ChainTable,
+                root: np.ndarray | None = None) -> np.ndarray:
+    """Every chain's nodes (n + nc, 2) in scene order from each chain's node 0 ``origin``
+    (nc, 2) and the rods' steps (n, 2): node k of chain c at origin[c] + the sum of the
+    chain's steps up to rod k (``origin + np.cumsum(steps of the chain)``, bit for bit), node 0
+    at ``root`` (nc, 2) (default ``origin``)."""
+    root = origin if root is None else root
+    nc = len(origin)
+    if table.even:               # chains of one length: slices of (nc, L + 1, 2)
+        L = table.index.shape[1]
+        out = np.empty((nc, L + 1, 2))
+        out[:, 0] = root
+        np.add(origin[:, None], np.cumsum(steps.reshape(nc, L, 2), axis=1), out=out[:, 1:])
+        return out.reshape(-1, 2)
+    out = np.empty((len(steps) + nc, 2))
+    out[table.roots] = root
+    out[table.ends] = origin[table.chain] + chain_cumsum(steps, table)
+    return out
+
+
 def chain_node_positions(length: np.ndarray, phi: np.ndarray, seg, attach, x: float,
                          y: float, psi: float, table: ChainTable | None = None,
                          trig=None) -> np.ndarray:
@@ -84,10 +104,7 @@ def chain_node_positions(length: np.ndarray, phi: np.ndarray, seg, attach, x: fl
     origin = pairs(x + c * ax - s * ay, y + s * ax + c * ay)                     # (nc, 2)
     cphi, sphi = (np.cos(phi), np.sin(phi)) if trig is None else trig
     steps = pairs(length * cphi, length * sphi)                                 # (n, 2)
-    out = np.empty((len(phi) + len(attach), 2))
-    out[table.roots] = 0.0 + origin
-    out[table.ends] = chain_cumsum(steps, table) + origin[table.chain]
-    return out
+    return chain_nodes(origin, steps, table, 0.0 + origin)
 
 
 def shape_functions(s: np.ndarray, length: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import kernels
-from .kinematics import chain_cumsum
+from .kinematics import chain_nodes, pairs
 from .state import cross as _cross
 
 
@@ -85,13 +85,9 @@ def node_accelerations(model, t, y, ddphi, base_acc) -> np.ndarray:
     w2 = st.psi_rate**2
     ax, ay = model.chain.attach[:, 0], model.chain.attach[:, 1]
     rx, ry = c * ax - s * ay, s * ax + c * ay
-    a0 = np.stack([base_acc[0] - base_acc[2] * ry - w2 * rx,
-                   base_acc[1] + base_acc[2] * rx - w2 * ry], axis=-1)       # (nc, 2)
-    table = model.table
-    out = np.empty((model.n + len(model.seg) - 1, 2))
-    out[table.roots] = a0
-    out[table.ends] = a0[table.chain] + chain_cumsum(np.stack([tx, ty], axis=-1), table)
-    return out
+    a0 = pairs(base_acc[0] - base_acc[2] * ry - w2 * rx,
+               base_acc[1] + base_acc[2] * rx - w2 * ry)                     # (nc, 2)
+    return chain_nodes(a0, pairs(tx, ty), model.table)
 
 
 def _node_accelerations(s) -> np.ndarray:

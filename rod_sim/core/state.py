@@ -17,7 +17,7 @@ from typing import Callable
 import numpy as np
 
 from . import hinges, kernels
-from .kinematics import chain_cumsum, chain_node_positions, node_positions, pairs
+from .kinematics import chain_node_positions, chain_nodes, node_positions, pairs
 from .snapshot import Snapshot
 
 
@@ -229,11 +229,7 @@ class State:
         v0 = pairs(st.x_rate - st.psi_rate * (s * ax + c * ay),
                    st.y_rate + st.psi_rate * (c * ax - s * ay))                  # (nc, 2)
         steps = pairs(m.neg_l * self.sin_phi * dphi, m.params.l * self.cos_phi * dphi)
-        table = m.table
-        out = np.empty((m.n + len(m.seg) - 1, 2))
-        out[table.roots] = v0
-        out[table.ends] = v0[table.chain] + chain_cumsum(steps, table)
-        return out
+        return chain_nodes(v0, steps, m.table)
 
     # ----- hinges -----
     @cached
