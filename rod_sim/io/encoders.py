@@ -120,21 +120,33 @@ def bending(snapshot: Snapshot, scene: Scene | None = None, frame_id: str = "wor
                         np.concatenate([snapshot.alpha, snapshot.beta]))
 
 
+@functools.lru_cache(maxsize=_CACHE)
 def _node_rods(scene: Scene | None, n: int, k: int) -> np.ndarray:
     """For each of the k node rows of a snapshot (every chain's nodes 0..n_c), the rod whose
-    direction the node takes: the rod ending there, a chain's node 0 its rod 1."""
+    direction the node takes: the rod ending there, a chain's node 0 its rod 1 (kept per
+    scene, which is immutable and hashed by identity; read-only)."""
     if scene is None or k == n + 1 or len(getattr(scene, "chains", ())) <= 1:
-        return np.concatenate([[0], np.arange(n)])[:k]
+        out = np.concatenate([[0], np.arange(n)])[:k]
+        out.flags.writeable = False
+        return out
     out = []
     for c in scene.chains:
         out.extend([c.start] + list(range(c.start, c.start + c.count)))
-    return np.asarray(out[:k])
+    out = np.asarray(out[:k])
+    out.flags.writeable = False
+    return out
 
 
 def _rod_starts(scene: Scene, nodes: np.ndarray) -> np.ndarray:
     """Rows of the snapshot's nodes (n + nc, 2) where each rod starts (n,) (one chain: 0..n-1)."""
-    chain_of_rod = np.asarray(scene.chain_of_rod)
-    return np.arange(scene.n) + chain_of_rod
+    return _scene_rod_starts(scene)
+
+
+@functools.lru_cache(maxsize=_CACHE)
+def _scene_rod_starts(scene: Scene) -> np.ndarray:
+    out = np.arange(scene.n) + np.asarray(scene.chain_of_rod)
+    out.flags.writeable = False
+    return out
 
 
 # ----- geometry_msgs/PoseArray -----
