@@ -340,6 +340,8 @@ class ChainModel:
         """Whether the base follows a prescribed motion (its pose and twist depend on t)."""
         self._fixed_base = BaseState(float(b[k.B_X]), float(b[k.B_Y]), float(b[k.B_PSI]),
                                      0.0, 0.0, 0.0)
+        self.scripted_loads = bool(self.loads.row.size)
+        """Whether the scene has scripted loads (else the loads are the held inputs alone)."""
         self.breakpoints = tuple(self.scene.load_breakpoints())
         """Times [s] where a scripted load or one of its derivatives jumps."""
         self.neg_l = -self.params.l

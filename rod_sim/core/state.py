@@ -72,6 +72,16 @@ class State:
         if bending is not None:
             self.bending = bending
 
+    def moved(self, t: float, y) -> "State":
+        """The State at another time and state with the same held inputs, latches and scratch
+        (the central difference of a balance sample): it shares the locked hinges and, when
+        the scene has no scripted load (the loads then do not depend on t), the loads."""
+        out = State(self.model, t, y, self.held, self.mode, data=self.data)
+        out.locked = self.locked
+        if not self.model.scripted_loads:
+            out.loads = self.loads
+        return out
+
     def value(self, law: Callable[["State"], object]):
         """``law(self)``, computed once per state (keyed by the function)."""
         memo = self._memo

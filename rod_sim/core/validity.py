@@ -361,12 +361,14 @@ def _net_power(s) -> float:
     """:func:`net_power` of the State ``s``."""
     model = s.model
     load, damper = s.powers
+    net = load - damper + s.value(_unpaired_power)
     if _plain(model):
-        return load - damper + s.value(_unpaired_power)
+        return net
+    if not model.prescribed_base:       # injected_power is 0.0: the same sum
+        return net + 0.0
     from .momentum import injected_power        # local: momentum imports the models' kernels
 
-    return load - damper + s.value(_unpaired_power) + injected_power(
-        model, s.t, s.y, s.held, s.mode, state=s)
+    return net + injected_power(model, s.t, s.y, s.held, s.mode, state=s)
 
 
 def load_jump_power(model, t: float, y, held=None, state=None) -> float:
@@ -450,8 +452,7 @@ def balance_sample(model, t: float, y, held=None, mode=None, bending=None,
     energy, power = s.energies.total, s.value(_net_power)
     before = power + load_jump_power(model, t, y, held, state=s)
     h = RATE_STEP
-    up = model.state(t + h, y + h * f, held, mode)
-    down = model.state(t - h, y - h * f, held, mode)
+    up, down = s.moved(t + h, y + h * f), s.moved(t - h, y - h * f)
     p_up, p_down = up.value(_net_power), down.value(_net_power)
     if t in model.breakpoints:
         rate, rate_before = (p_up - power) / h, (before - p_down) / h
