@@ -220,14 +220,16 @@ class ValidityMonitor:
     def update(self, t: float, y, held=None, alpha=None, beta=None) -> None:
         """Check one state (alpha, beta [rad] may be given to save recomputing them)."""
         n = self.model.n
-        given = np.zeros((n, 2)) if held is None else np.asarray(held, float).reshape(n, -1)
+        given = held
         held = np.zeros((n, 3))           # forces X, Y and hinge motor moments T
-        held[:, :given.shape[1]] = given
+        if given is not None:
+            given = np.asarray(given, float).reshape(n, -1)
+            held[:, :given.shape[1]] = given
         if alpha is None or beta is None:
             alpha, beta = self.model.bending(t, y, held)
         a, b = np.abs(alpha), np.abs(beta)
-        self.max_abs_alpha = max(self.max_abs_alpha, float(np.max(a, initial=0.0)))
-        self.max_abs_beta = max(self.max_abs_beta, float(np.max(b, initial=0.0)))
+        self.max_abs_alpha = max(self.max_abs_alpha, float(a.max(initial=0.0)))
+        self.max_abs_beta = max(self.max_abs_beta, float(b.max(initial=0.0)))
         worst = np.maximum(a, b)
         for k in np.flatnonzero(worst > SMALL_BENDING_RAD):
             self._add(Finding("bending", float(t), int(k) + 1, float(worst[k]),
@@ -235,7 +237,7 @@ class ValidityMonitor:
                               f"rod {k + 1}: end slope {worst[k]:.3g} rad at t = {t:.4g} s "
                               f"leaves the small-bending range (> {SMALL_BENDING_RAD} rad)"))
         if (self.model.name == "reduced" and self._held is not None
-                and not np.array_equal(held, self._held)):
+                and not (held == self._held).all()):
             jump = force_jump_slopes(self.scene, self.model.phi(y), self.model.phi_rate(y),
                                      self._held, held, y=np.asarray(y, float))
             k = int(np.argmax(jump))
@@ -247,7 +249,7 @@ class ValidityMonitor:
                                   f"vibration of ~{jump[k]:.2g} rad at rod {k % n + 1} (first "
                                   f"bending mode {self.f1:.3g} Hz) that the reduced model "
                                   f"does not carry"))
-        self._held = held.copy()
+        self._held = held                 # a fresh array, never written to again
 
     def update_energy(self, t: float, residual: float, scale: float,
                       unresolved: float = 0.0) -> None:
