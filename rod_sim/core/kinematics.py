@@ -126,8 +126,9 @@ def shape_table(length: np.ndarray, points_per_rod: int = 11
 
 
 def rod_points(length: np.ndarray, phi: np.ndarray, alpha: np.ndarray, beta: np.ndarray,
-               points_per_rod: int = 11, table=None, starts=None) -> np.ndarray:
-    """Points of the bent rods, eq. (4): array (n, points_per_rod, 2) [m].
+               points_per_rod: int = 11, table=None, starts=None, z: bool = False) -> np.ndarray:
+    """Points of the bent rods, eq. (4): array (n, points_per_rod, 2) [m] (``z``: (n,
+    points_per_rod, 3) with z = 0, as a 3-D message takes them).
 
     Point j of rod k is at s = l_k j / (points_per_rod - 1); the first and last point of
     each rod are its end nodes. ``alpha``, ``beta`` (n,) are the end slopes [rad]. ``table``:
@@ -140,7 +141,8 @@ def rod_points(length: np.ndarray, phi: np.ndarray, alpha: np.ndarray, beta: np.
     s, sigma, tau = shape_table(length, points_per_rod) if table is None else table
     eta = alpha[:, None] * sigma + beta[:, None] * tau     # transverse deflection (n, P)
     c, sn = np.cos(phi)[:, None], np.sin(phi)[:, None]
-    out = np.empty((len(phi), points_per_rod, 2))
+    out = np.zeros((len(phi), points_per_rod, 3)) if z else \
+        np.empty((len(phi), points_per_rod, 2))
     out[:, :, 0] = nodes[:-1, 0:1] + s * c - eta * sn
     out[:, :, 1] = nodes[:-1, 1:2] + s * sn + eta * c
     return out

@@ -363,15 +363,15 @@ def _spacecraft_markers(snapshot: Snapshot, scene: Scene, frame_id: str,
                           np.asarray(snapshot.phi, dtype=float),
                           np.asarray(snapshot.alpha, dtype=float),
                           np.asarray(snapshot.beta, dtype=float), points_per_rod, table,
-                          nodes[starts])
+                          nodes[starts], z=True)
     else:
-        rods = nodes
-    x, y, psi = (float(v) for v in snapshot.base[:3])
+        rods = _xyz(nodes)
+    x, y, psi = np.asarray(snapshot.base, dtype=float)[:3].tolist()
     cx, cy = scene.base.centre_of_mass
     c, s = math.cos(psi), math.sin(psi)
     pose = np.array([x + c * cx - s * cy, y + s * cx + c * cy, 0.0, 0.0, 0.0,
                      math.sin(0.5 * psi), math.cos(0.5 * psi)])
-    values = {"stamp": stamps, "zero": np.zeros(stamps.size, dtype="<u4"), "rods": _xyz(rods),
+    values = {"stamp": stamps, "zero": np.zeros(stamps.size, dtype="<u4"), "rods": rods,
               "nodes": _xyz(nodes[starts + 1]), "base_pose": pose}
     return layout.fill(**{k: v for k, v in values.items() if k in layout.slots})
 
@@ -397,11 +397,11 @@ def markers(snapshot: Snapshot, scene: Scene, frame_id: str = "world",
     elif scene.n:
         table = topics._marker_geometry(scene, points_per_rod)[2]
         starts = nodes[_rod_starts(scene, nodes)] if several else None
-        values["rods"] = _xyz(rod_points(np.asarray(scene.length, dtype=float),
-                                         np.asarray(snapshot.phi, dtype=float),
-                                         np.asarray(snapshot.alpha, dtype=float),
-                                         np.asarray(snapshot.beta, dtype=float),
-                                         points_per_rod, table, starts))
+        values["rods"] = rod_points(np.asarray(scene.length, dtype=float),
+                                    np.asarray(snapshot.phi, dtype=float),
+                                    np.asarray(snapshot.alpha, dtype=float),
+                                    np.asarray(snapshot.beta, dtype=float),
+                                    points_per_rod, table, starts, z=True)
     if scene.n:
         values["nodes"] = _xyz(nodes[_rod_starts(scene, nodes) + 1] if several else nodes[1:])
     return layout.fill(**{k: v for k, v in values.items() if k in layout.slots})

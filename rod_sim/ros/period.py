@@ -126,7 +126,7 @@ class PeriodRunner:
         if last is not None and last[0] == sim.t_ns and np.array_equal(last[1], held):
             start_sample = last[2]
         else:       # one right-hand side gives the slopes and the rate's direction
-            state = self.model.state(sim.t, sim.y, held, sim.mode)
+            state = self.model.state(sim.t, sim.y, held, sim.mode, data=sim.data)
             start_sample = balance_sample(self.model, sim.t, sim.y, held, sim.mode, state=state)
             self._book_spacecraft(held, state)  # the inputs changed: their rates from now on
         work = self.budget.work(sim)
@@ -141,7 +141,7 @@ class PeriodRunner:
         self.meter.add_step(self.period_ns, time.perf_counter_ns() - start)
         # one State for the snapshot, the balance sample and the momentum ledger: each
         # quantity (the right-hand side with the slopes, the momentum, the powers) once
-        state = self.model.state(sim.t, sim.y, held, sim.mode)
+        state = self.model.state(sim.t, sim.y, held, sim.mode, data=sim.data)
         snap = self.model.snapshot(sim.t, sim.y, held, sim.mode, state=state)
         end_sample = balance_sample(self.model, sim.t, sim.y, held, sim.mode, state=state)
         self.ledger.add(start_sample, end_sample, sim.events[self.events_seen:])
