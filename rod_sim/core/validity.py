@@ -614,8 +614,9 @@ def balance_run(model, t, y, held=None, modes=None, events=()):
     for i in range(t.size):
         h = held[i] if per_sample else held
         mode = None if modes is None else modes[i]
-        slopes = model.bending(t[i], y[i], h, mode)
-        sample = balance_sample(model, t[i], y[i], h, mode, slopes)
+        state = model.state(t[i], y[i], h, mode)      # one right-hand side for both
+        slopes = state.bending
+        sample = balance_sample(model, t[i], y[i], h, mode, state=state)
         if prev is None:
             balance.start(sample.energy)
         else:
