@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import functools
 import math
+import struct
+from collections.abc import Mapping
 from typing import Callable
 
 import numpy as np
@@ -445,6 +447,47 @@ def torque_array(torques) -> bytes:
 def applied_forces(snapshot: Snapshot, scene: Scene | None = None, frame_id: str = "world"
                    ) -> bytes:
     return force_array(snapshot.forces)
+
+
+# ----- diagnostic_msgs/DiagnosticArray -----
+
+_U32 = struct.Struct("<I").pack
+_STAMP = struct.Struct("<iI").pack
+_ALIGN4 = (b"", b"\0\0\0", b"\0\0", b"\0")
+"""Padding to the next multiple of 4 after ``len(b) & 3`` bytes."""
+
+
+def _cdr_string(b: bytearray, text: str) -> None:
+    """Append a CDR string to ``b``: aligned uint32 length (with the NUL), UTF-8 bytes, NUL."""
+    data = text.encode()
+    b += _ALIGN4[len(b) & 3]
+    b += _U32(len(data) + 1)
+    b += data
+    b.append(0)
+
+
+def diagnostics(t: float, values: Mapping[str, object], hardware_id: str, *,
+                level: int = topics.DIAGNOSTIC_OK, message: str = "", frame_id: str = "",
+                name: str = "rod_sim") -> bytes:
+    """``/diagnostics`` (diagnostic_msgs/DiagnosticArray of one status): the bytes of
+    ``cdr.encoder(type)(topics.diagnostics(t, values, hardware_id, ...))``, written without
+    the message dicts (arguments as :func:`rod_sim.io.topics.diagnostics`)."""
+    if level not in (topics.DIAGNOSTIC_OK, topics.DIAGNOSTIC_WARN, topics.DIAGNOSTIC_ERROR,
+                     topics.DIAGNOSTIC_STALE):
+        raise ValueError(f"diagnostic level must be 0..3 (got {level!r})")
+    b = bytearray(_STAMP(*divmod(topics.time_ns(t), 1_000_000_000)))
+    _cdr_string(b, frame_id)
+    b += _ALIGN4[len(b) & 3]
+    b += _U32(1)                                       # one status
+    b.append(int(level))
+    for text in (name, message, hardware_id):
+        _cdr_string(b, str(text))
+    b += _ALIGN4[len(b) & 3]
+    b += _U32(len(values))
+    for key, value in values.items():
+        _cdr_string(b, str(key))
+        _cdr_string(b, value if isinstance(value, str) else str(value))
+    return cdr.HEADER + bytes(b)
 
 
 # ----- rosgraph_msgs/Clock, std_msgs/String -----

@@ -210,29 +210,30 @@ class _LoggedRun:
             for name, data in encoded.items():
                 self.log.write_cdr("/" + name, topics.TOPIC_TYPES[name], t_ns, data)
             if diagnostics is not None:
-                self.log.write("/diagnostics", topics.TOPIC_TYPES["diagnostics"], t_ns,
-                               diagnostics)
+                self.log.write_cdr("/diagnostics", topics.TOPIC_TYPES["diagnostics"], t_ns,
+                                   diagnostics)
             self.samples += 1
             self.t_logged = t
         if self.live is not None:
             self._show(t, t_ns, snap, encoded)
 
     def _diagnostics(self, t: float, y, mode, snap, state=None):
-        """A spacecraft scene's ``/diagnostics`` message of the sample (None otherwise): the
-        node's energy keys and the spacecraft keys (docs/interface.md section 3), the momentum
-        ledger fed with every sample (``state``: the sample's State, shared)."""
+        """A spacecraft scene's ``/diagnostics`` message of the sample as CDR bytes (None
+        otherwise): the node's energy keys and the spacecraft keys (docs/interface.md section
+        3), the momentum ledger fed with every sample (``state``: the sample's State,
+        shared)."""
         if self.spacecraft is None:
             return None
         from ..core.ledger import diagnostic_strings, diagnostic_values
-        from ..io import topics
+        from ..io import encoders, topics
 
         self.spacecraft.add(t, y, None, mode, state=state)
         b = self.balance
         values = {"energy_J": f"{self._last.energy:.17g}",
                   "energy_balance_residual_J": f"{b.residual if b is not None else 0.0:.17g}",
                   **diagnostic_strings(diagnostic_values(snap, self.spacecraft))}
-        return topics.diagnostics(t, values, self.scene.name,
-                                  name=topics.DIAGNOSTICS_STATUS_NAME)
+        return encoders.diagnostics(t, values, self.scene.name,
+                                    name=topics.DIAGNOSTICS_STATUS_NAME)
 
     def _show(self, t: float, t_ns: int, snap, encoded) -> None:
         """Pace the samples at ``rtf`` and show them in the live view."""
