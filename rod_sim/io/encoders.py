@@ -35,10 +35,19 @@ _CACHE = 64
 
 
 def _stamp(snapshot: Snapshot) -> np.ndarray:
-    t_ns = topics.time_ns(snapshot.t)
+    return _stamp_at(snapshot.t)
+
+
+@functools.lru_cache(maxsize=4)
+def _stamp_at(t: float) -> np.ndarray:
+    """The stamp (2,) uint32 of ``t`` [s] (kept: the topics of one sample share it;
+    read-only)."""
+    t_ns = topics.time_ns(t)
     if t_ns >= 2 ** 31 * 1_000_000_000:
-        raise ValueError(f"time {snapshot.t!r} s does not fit a ROS stamp (int32 seconds)")
-    return stamp_bytes(t_ns)
+        raise ValueError(f"time {t!r} s does not fit a ROS stamp (int32 seconds)")
+    out = stamp_bytes(t_ns)
+    out.flags.writeable = False
+    return out
 
 
 def _stamps(snapshot: Snapshot, k: int) -> np.ndarray:
