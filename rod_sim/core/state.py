@@ -200,10 +200,21 @@ class State:
         return self.model.plan(self.mode).locked
 
     @cached
+    def penetrating(self) -> bool:
+        """Whether a hinge is beyond one of its stops. If not, every stop term is zero: the
+        contact moments, their elastic energy and their power (adding those +-0.0 terms to the
+        hinge energy and the damper power, both >= +0.0, changes neither, bit for bit)."""
+        m = self.model
+        if not m.has_stops:
+            return False
+        s, theta = m.scene, self.hinge_angles
+        return bool(((theta - s.stop_upper) > 0.0).any() or ((s.stop_lower - theta) > 0.0).any())
+
+    @cached
     def contact_moments(self) -> np.ndarray:
         """Stop contact moments (n,) [N m] on theta (zero on locked hinges)."""
         m = self.model
-        if not m.has_stops:
+        if not self.penetrating:
             return np.zeros(m.n)
         s = m.scene
         out = hinges.contact_moments(self.hinge_angles, self.hinge_rates, s.stop_lower,
@@ -330,7 +341,7 @@ class State:
         alpha, beta = self.bending
         delta, _ = self.deflection
         hinge = 0.5 * float((p.kappa * (delta - s.hinge_rest_angle) ** 2).sum())
-        if m.has_stops:      # the stop contacts' elastic energy (no stop: none)
+        if self.penetrating:      # the stop contacts' elastic energy (none outside them)
             pen = hinges.contact_penetration(self.hinge_angles, s.stop_lower, s.stop_upper)
             pen[self.locked] = 0.0
             hinge += 0.5 * float((s.stop_stiffness * pen**2).sum())
@@ -433,7 +444,7 @@ class State:
             load_power += float(fx * vc[0] + fy * vc[1] + mz * st.psi_rate
                                 + loads[n + 1, 2] * st.wheel_rate)
         damper = float((m.params.nu * ddelta**2).sum())
-        if m.has_stops:
+        if self.penetrating:
             s = m.scene
             theta, dtheta = self.hinge_angles, self.hinge_rates
             elastic = -s.stop_stiffness * (np.maximum(0.0, theta - s.stop_upper)
