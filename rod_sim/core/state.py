@@ -155,7 +155,11 @@ class State:
         m = self.model
         if not m.has_stops:
             return np.zeros(m.n, dtype=np.int8)
-        return m.contact_of(self.hinge_angles, self.hinge_rates)
+        theta, s = self.hinge_angles, m.scene
+        if not self.penetrating and not ((theta == s.stop_upper).any()
+                                         or (theta == s.stop_lower).any()):
+            return np.zeros(m.n, dtype=np.int8)     # beyond no stop, on none
+        return m.contact_of(theta, self.hinge_rates)
 
     @cached
     def base(self):
