@@ -119,3 +119,26 @@ def test_snapshot_bytes_selection_and_errors():
         encoders.snapshot_bytes(snap, scene, names=["diagnostics"])
     with pytest.raises(ValueError, match="rods"):
         encoders.snapshot_bytes(snap, make_scene(5))
+
+
+def test_diagnostics_bytes_are_the_dict_encoders():
+    """encoders.diagnostics: the bytes of the generic encoder (and the reference one) of
+    topics.diagnostics, for keys and values of every length mod 4, empty and non-ASCII
+    strings, every level."""
+    from rod_sim.io import cdr
+
+    rng = np.random.default_rng(11)
+    fast = cdr.encoder("diagnostic_msgs/msg/DiagnosticArray")
+    ref = cdr.reference_encoder("diagnostic_msgs/msg/DiagnosticArray")
+    for case in range(40):
+        values = {"k" * int(rng.integers(0, 9)) + str(i): (
+            "" if rng.random() < 0.1 else f"{rng.normal():.17g}" + "é" * int(rng.integers(0, 3)))
+            for i in range(int(rng.integers(0, 30)))}
+        kw = dict(level=case % 4, message="m" * (case % 5), frame_id="w" * (case % 3),
+                  name="rod_sim: simulation" if case % 2 else "n" * (case % 7))
+        t = float(rng.uniform(0, 100.0))
+        msg = topics.diagnostics(t, values, "scène" * (case % 2), **kw)
+        got = encoders.diagnostics(t, values, "scène" * (case % 2), **kw)
+        assert got == fast(msg) == ref(msg)
+    with pytest.raises(ValueError):
+        encoders.diagnostics(0.0, {}, "x", level=4)

@@ -32,3 +32,28 @@ def test_points_follow_eq_4_as_printed_and_end_slopes_are_alpha_beta():
         sig, tau = shape_functions(a, L)
         assert abs((sig[1] - sig[0]) / (a[1] - a[0]) - want_sigma) < 1e-5
         assert abs((tau[1] - tau[0]) / (a[1] - a[0]) - want_tau) < 1e-5
+
+
+def test_chain_sums_are_each_chains_cumsum_bit_for_bit():
+    """chain_cumsum / chain_nodes (no loop over chains) give the values of np.cumsum over
+    each chain's slice plus its node 0, bit for bit, for chains of equal and unequal lengths
+    (signed zeros included)."""
+    from rod_sim.core.kinematics import chain_cumsum, chain_nodes, chain_table
+
+    rng = np.random.default_rng(5)
+    for counts in ((1,), (7,), (3, 3), (2, 9, 5), (12, 1, 12, 4), (16, 16, 16)):
+        seg = np.concatenate([[0], np.cumsum(counts)])
+        n, nc = seg[-1], len(counts)
+        table = chain_table(seg)
+        steps = rng.normal(size=(n, 2)) * 10.0 ** rng.integers(-8, 8, size=(n, 2))
+        steps[rng.random((n, 2)) < 0.2] = -0.0
+        origin = rng.normal(size=(nc, 2))
+        origin[0] = -0.0
+        want = np.empty((n + nc, 2))
+        for c in range(nc):
+            a, b = seg[c], seg[c + 1]
+            want[a + c] = origin[c]
+            want[a + c + 1:b + c + 1] = origin[c] + np.cumsum(steps[a:b], axis=0)
+            assert chain_cumsum(steps, table)[a:b].tobytes() == \
+                np.cumsum(steps[a:b], axis=0).tobytes()
+        assert chain_nodes(origin, steps, table).tobytes() == want.tobytes()

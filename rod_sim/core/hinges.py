@@ -74,10 +74,12 @@ def contact_moments(theta, dtheta, lower, upper, stiffness, damping) -> np.ndarr
     m = np.zeros_like(theta)
     p_hi = theta - upper
     hi = p_hi > 0.0
-    m[hi] = -np.maximum(0.0, stiffness[hi] * p_hi[hi] + damping[hi] * dtheta[hi])
+    if hi.any():
+        m[hi] = -np.maximum(0.0, stiffness[hi] * p_hi[hi] + damping[hi] * dtheta[hi])
     p_lo = lower - theta
     lo = p_lo > 0.0
-    m[lo] = np.maximum(0.0, stiffness[lo] * p_lo[lo] - damping[lo] * dtheta[lo])
+    if lo.any():
+        m[lo] = np.maximum(0.0, stiffness[lo] * p_lo[lo] - damping[lo] * dtheta[lo])
     return m
 
 

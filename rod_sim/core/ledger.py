@@ -27,17 +27,17 @@ LEDGER_KEYS = ("momentum_balance_residual_x", "momentum_balance_residual_y",
 [kg m/s], the angular one about O [kg m^2/s] and the injected work [J]."""
 
 
-def support_rates(model, t: float, y, held=None, mode=None) -> MomentumRates:
+def support_rates(model, t: float, y, held=None, mode=None, state=None) -> MomentumRates:
     """:func:`momentum_rates` plus, on a fixed or prescribed base, the support's force and
     moment about O on the chains (the same on both sides of a load jump: the reaction's jump
-    there is of the order of the jump of the loads, booked at the sample after it)."""
-    rates = momentum_rates(model, t, y, held, mode)
+    there is of the order of the jump of the loads, booked at the sample after it).
+    ``state``: a :class:`~rod_sim.core.state.State` of the arguments to share."""
+    s = model.state(t, y, held, mode) if state is None else state
+    rates = momentum_rates(model, t, y, held, mode, state=s)
     if model.base_mode == kernels.MODE_FREE:
         return rates
-    force, moment = base_reaction(model, t, y, held, mode)
-    nodes = model.node_positions(t, y)
-    nc = len(model.seg) - 1
-    root = nodes[np.asarray(model.seg[:-1]) + np.arange(nc)]
+    force, moment = base_reaction(model, t, y, held, mode, state=s)
+    root = s.nodes[model.table.roots]
     f = force.sum(axis=0)
     m = float(np.sum(_cross(root, force)) - np.sum(moment))
     before_f = rates.force if rates.force_before is None else rates.force_before
@@ -59,14 +59,16 @@ class SpacecraftLedger:
         self.work_injected = 0.0
         self._last: tuple[float, float] | None = None
 
-    def add(self, t: float, y, held=None, mode=None, momentum=None) -> None:
+    def add(self, t: float, y, held=None, mode=None, momentum=None, state=None) -> None:
         """Book the state ``y`` at ``t`` [s] (held inputs ``held``, latches ``mode``);
-        ``momentum``: :meth:`ChainModel.momentum` at (t, y) if already known."""
+        ``momentum``: :meth:`ChainModel.momentum` at (t, y) if already known; ``state``: a
+        :class:`~rod_sim.core.state.State` of these arguments whose quantities (the momentum,
+        the node positions, the right-hand side) are shared."""
         model = self.model
-        y = np.asarray(y, dtype=float)
-        mom = model.momentum(t, y, held) if momentum is None else momentum
-        self.balance.add(t, mom, support_rates(model, t, y, held, mode))
-        power = injected_power(model, t, y, held, mode)
+        s = model.state(t, y, held, mode) if state is None else state
+        mom = s.momentum if momentum is None else momentum
+        self.balance.add(t, mom, support_rates(model, t, y, held, mode, state=s))
+        power = injected_power(model, t, y, held, mode, state=s)
         if self._last is not None:
             t0, p0 = self._last
             self.work_injected += 0.5 * (t - t0) * (p0 + power)

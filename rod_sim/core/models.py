@@ -23,11 +23,12 @@ from .scipy_tables import light_dop853_tables
 
 with light_dop853_tables():     # erk's tables without scipy.integrate's import
     from . import erk, hinges, kernels, radau
-from .kinematics import chain_node_positions, node_positions
+from .kinematics import chain_table
 from .loadlaw import Loads, make_loads
 from .matrices import ChainParams
 from .scene import LOAD_AXES, Scene
 from .snapshot import Snapshot
+from .state import State
 
 class ModelError(ValueError):
     """The scene cannot be run with the requested model (e.g. a massless rod in the full
@@ -124,6 +125,36 @@ def base_table(scene) -> tuple[np.ndarray, np.ndarray]:
     return out, motion
 
 
+class RodConstants(NamedTuple):
+    """Per-rod factors of the momentum, gravity and bending-energy laws (each (n,), or
+    (n, 1) for ``*_col``), computed once per model by the laws' own expressions: ``ml`` = m
+    l, ``C`` = m l^2 / 12, ``l3_k`` = m l^3 / k (``l3_70`` = 2 m l^3 / 140), ``half_ml_l``
+    = m l^2 / 2, ``EI2_l`` = 2 EI / l, ``mass`` the chains' mass [kg], ``zeros``."""
+
+    ml: np.ndarray
+    ml_col: np.ndarray
+    mu_col: np.ndarray
+    half_l_col: np.ndarray
+    C: np.ndarray
+    l3_3: np.ndarray
+    l3_20: np.ndarray
+    l3_30: np.ndarray
+    l3_105: np.ndarray
+    l3_70: np.ndarray
+    half_ml_l: np.ndarray
+    EI2_l: np.ndarray
+    mass: float
+    zeros: np.ndarray
+
+    @classmethod
+    def of(cls, p: ChainParams) -> "RodConstants":
+        ml = p.m * p.l
+        l3 = p.m * p.l**3
+        return cls(ml, ml[:, None], p.mu[:, None], 0.5 * p.l[:, None], p.m * p.l**2 / 12.0,
+                   l3 / 3.0, l3 / 20.0, l3 / 30.0, l3 / 105.0, 2.0 * l3 / 140.0,
+                   0.5 * ml * p.l, 2.0 * p.EI / p.l, float(np.sum(ml + p.mu)), np.zeros(p.n))
+
+
 @dataclass(frozen=True, eq=False)
 class Plan:
     """What the compiled drivers need in one mode: ``extra`` (kernels' argument, see
@@ -213,11 +244,12 @@ class Model(Protocol):
     def forces(self, t: float, held=None) -> np.ndarray: ...
     def contact_state(self, y: np.ndarray) -> np.ndarray: ...
     def rhs(self, t: float, y: np.ndarray, held=None, mode=None,
-            contact=None) -> np.ndarray: ...
+            contact=None, data=None) -> np.ndarray: ...
     def mass_times(self, y: np.ndarray, v: np.ndarray | None = None) -> np.ndarray: ...
     def project_velocity(self, y: np.ndarray, mode=None) -> np.ndarray: ...
     def bending(self, t, y, held=None, mode=None) -> tuple[np.ndarray, np.ndarray]: ...
-    def rhs_bending(self, t, y, held=None, mode=None) -> tuple[np.ndarray, tuple]: ...
+    def rhs_bending(self, t, y, held=None, mode=None, contact=None,
+                    data=None) -> tuple[np.ndarray, tuple]: ...
     def bending_rates(self, t, y, held=None) -> tuple[np.ndarray, np.ndarray]: ...
     def hinge_deflection(self, t, y, held=None, bending=None,
                          mode=None) -> tuple[np.ndarray, np.ndarray]: ...
@@ -225,7 +257,10 @@ class Model(Protocol):
     def kinetic_energy(self, t, y, held=None) -> float: ...
     def energies(self, t, y, held=None, bending=None, mode=None) -> Energies: ...
     def powers(self, t, y, held=None, mode=None) -> tuple[float, float]: ...
-    def snapshot(self, t, y, held=None, mode=None, bending=None) -> Snapshot: ...
+    def snapshot(self, t, y, held=None, mode=None, bending=None,
+                 state=None) -> Snapshot: ...
+    def state(self, t, y, held=None, mode=None, f=None, bending=None,
+              data=None) -> State: ...
 
 
 def load_table(scene: Scene) -> Loads:
@@ -286,6 +321,51 @@ class ChainModel:
         """Whether any hinge has a finite stop (else no contact ever: contact_state is 0)."""
         self._check_base_features()
         self.extra = self.plan().extra         # the features of the unlatched mode (no scratch)
+        self._layout()
+
+    def _layout(self) -> None:
+        """Constants of the per-state laws (:class:`~rod_sim.core.state.State`): where the
+        chains' rods and nodes are and which shortcuts the base allows."""
+        k, b = kernels, self.chain.base
+        self.table = chain_table(self.seg)
+        """The chains' :class:`~rod_sim.core.kinematics.ChainTable`."""
+        self.rod_starts = self.table.ends - 1
+        """Row of :meth:`node_positions` where each rod starts (n,) int."""
+        self._first_rods = np.flatnonzero(self.first)
+        self._before = np.maximum(np.arange(self.n) - 1, 0)     # rod k - 1 (0 for rod 0)
+        one_fixed = self.base_mode == k.MODE_FIXED and len(self.seg) == 2
+        self._plain_powers = self._plain_rates = one_fixed
+        self._plain_angles = one_fixed and b[k.B_PSI] == 0.0
+        self._plain_nodes = one_fixed and not b[k.B_X:k.B_PSI + 1].any() \
+            and not self.chain.attach.any()
+        self._moving_hinge0 = bool(self.nb) or not one_fixed
+        self._turned_hinge0 = self._moving_hinge0 or b[k.B_PSI] != 0.0
+        self.prescribed_base = self.base_mode == k.MODE_PRESCRIBED
+        """Whether the base follows a prescribed motion (its pose and twist depend on t)."""
+        self._fixed_base = BaseState(float(b[k.B_X]), float(b[k.B_Y]), float(b[k.B_PSI]),
+                                     0.0, 0.0, 0.0)
+        self.scripted_loads = bool(self.loads.row.size)
+        """Whether the scene has scripted loads (else the loads are the held inputs alone)."""
+        self.breakpoints = tuple(self.scene.load_breakpoints())
+        """Times [s] where a scripted load or one of its derivatives jumps."""
+        self.neg_l = -self.params.l
+        self.attach_columns = (self.chain.attach[:, 0].copy(), self.chain.attach[:, 1].copy())
+        """The chains' attach points in the base frame: (x (nc,), y (nc,)) [m]."""
+        self.base_com_offset = (float(b[k.B_CX]), float(b[k.B_CY]))
+        """The base's centre of mass in its frame (x, y) [m]."""
+        self.rod_constants = RodConstants.of(self.params)
+        """Per-rod factors of the per-state laws (:class:`RodConstants`)."""
+
+    slopes_need_rhs = False
+    """Whether :meth:`bending` solves the right-hand side (then a :class:`State` keeps both)."""
+
+    def state(self, t: float, y: np.ndarray, held=None, mode=None, f=None,
+              bending=None, data: ModelData | None = None) -> State:
+        """The model's quantities at (t, y, held, mode), each computed once on first use
+        (:class:`~rod_sim.core.state.State`); ``f`` = dy/dt and ``bending`` = (alpha, beta)
+        there if known; ``data``: scratch for its right-hand side (a simulator's own, between
+        its steps; None: fresh)."""
+        return State(self, t, y, held, mode, f, bending, data)
 
     def new_data(self) -> ModelData:
         """Fresh scratch for one user of this model (a simulator, a thread):
@@ -353,13 +433,14 @@ class ChainModel:
         if self.base_mode == k.MODE_FREE:
             i, d = self.base_index, self.dof
             w = float(y[d + i + 3]) if self.nb > 3 else 0.0
-            return BaseState(*(float(v) for v in y[i:i + 3]),
-                             *(float(v) for v in y[d + i:d + i + 3]), w)
+            x, yb, psi = y[i:i + 3].tolist()
+            vx, vy, wz = y[d + i:d + i + 3].tolist()
+            return BaseState(x, yb, psi, vx, vy, wz, w)
         if self.base_mode == k.MODE_PRESCRIBED:
             vals = [k.motion_eval(self.chain.motion, r, float(t)) for r in range(3)]
             return BaseState(b[k.B_X] + vals[0][0], b[k.B_Y] + vals[1][0],
                              b[k.B_PSI] + vals[2][0], vals[0][1], vals[1][1], vals[2][1])
-        return BaseState(float(b[k.B_X]), float(b[k.B_Y]), float(b[k.B_PSI]), 0.0, 0.0, 0.0)
+        return self._fixed_base
 
     def _base_angle(self, y: np.ndarray, t: float = 0.0) -> tuple:
         """(psi, psi_rate) of the base for hinge angles (y may be (..., state_size))."""
@@ -373,10 +454,14 @@ class ChainModel:
 
     def _relative(self, a: np.ndarray, psi) -> np.ndarray:
         """a_k - a_{prev(k)} along the last axis, a_k - psi at each chain's first rod."""
-        out = np.array(a, dtype=float)
-        out[..., 1:] -= a[..., :-1]
-        out[..., 1:][..., self.first[1:]] += a[..., :-1][..., self.first[1:]]
-        first = np.flatnonzero(self.first)
+        a = np.asarray(a)
+        first = self._first_rods
+        if a.ndim == 1 and a.dtype == np.float64:
+            out = a - a[self._before]
+            out[first] = a[first] - psi
+            return out
+        out = np.empty(a.shape, dtype=np.result_type(a.dtype, np.float64))
+        np.subtract(a[..., 1:], a[..., :-1], out=out[..., 1:])
         out[..., first] = a[..., first] - np.asarray(psi)[..., None] if np.ndim(psi) else \
             a[..., first] - psi
         return out
@@ -384,14 +469,13 @@ class ChainModel:
     def hinge_angles(self, y: np.ndarray, t: float = 0.0) -> np.ndarray:
         """Rigid hinge angles theta (..., n) [rad]: phi_{k+1} - phi_k inside a chain, phi_1 -
         psi at its hinge 0 (psi the base's angle; 0 for a scene without a base)."""
-        if self.base_mode == kernels.MODE_FIXED and self.chain.base[kernels.B_PSI] == 0.0 \
-                and len(self.seg) == 2:
+        if self._plain_angles:
             return hinges.hinge_angles(self.phi(y))
         return self._relative(self.phi(y), self._base_angle(y, t)[0])
 
     def hinge_rates(self, y: np.ndarray, t: float = 0.0) -> np.ndarray:
         """Rates of :meth:`hinge_angles` [rad/s]."""
-        if self.base_mode == kernels.MODE_FIXED and len(self.seg) == 2:
+        if self._plain_rates:
             return hinges.hinge_angles(self.phi_rate(y))
         return self._relative(self.phi_rate(y), self._base_angle(y, t)[1])
 
@@ -461,18 +545,22 @@ class ChainModel:
         moving in), -1 below the lower one (or on it and moving in), 0 otherwise."""
         if not self.has_stops:      # every stop at -inf / +inf: never touched
             return np.zeros(self.n, dtype=np.int8)
+        return self.contact_of(self.hinge_angles(y), self.hinge_rates(y))
+
+    def contact_of(self, theta: np.ndarray, rate: np.ndarray) -> np.ndarray:
+        """:meth:`contact_state` from the hinge angles theta (n,) [rad] and their rates."""
         s = self.scene
-        theta = self.hinge_angles(y)
-        rate = self.hinge_rates(y)
         up = (theta > s.stop_upper) | ((theta == s.stop_upper) & (rate > 0.0))
         down = (theta < s.stop_lower) | ((theta == s.stop_lower) & (rate < 0.0))
         return (up.astype(np.int8) - down.astype(np.int8)).astype(np.int8)
 
     def rhs(self, t: float, y: np.ndarray, held: np.ndarray | None = None,
-            mode: np.ndarray | None = None, contact: np.ndarray | None = None) -> np.ndarray:
+            mode: np.ndarray | None = None, contact: np.ndarray | None = None,
+            data: ModelData | None = None) -> np.ndarray:
         """dy/dt (state_size,) at time t [s] with held inputs (see :meth:`_held`) in ``mode``
-        with the stop contacts ``contact`` (None: as implied by y)."""
-        return self._evaluate(t, y, held, mode, contact)[0]
+        with the stop contacts ``contact`` (None: as implied by y), in the scratch of
+        ``data`` (None: fresh scratch)."""
+        return self._evaluate(t, y, held, mode, contact, data)[0]
 
     def _evaluate(self, t, y, held=None, mode=None, contact=None, data=None):
         """(dy/dt, the kernel's Extra after the call) at (t, y) in scratch of ``data`` (None:
@@ -554,12 +642,13 @@ class ChainModel:
         """End slopes (alpha, beta), each (n,) [rad]."""
         raise NotImplementedError
 
-    def rhs_bending(self, t, y, held=None, mode=None) -> tuple[np.ndarray, tuple]:
+    def rhs_bending(self, t, y, held=None, mode=None, contact=None,
+                    data=None) -> tuple[np.ndarray, tuple]:
         """(:meth:`rhs`, :meth:`bending`) at (t, y): dy/dt (state_size,) and (alpha, beta)
         (n,) each [rad], the same values as the two calls give (a sample needs both: the
         snapshot and the energy balance's power rate; the reduced model gets both from one
-        right-hand side)."""
-        return self.rhs(t, y, held, mode), self.bending(t, y, held, mode)
+        right-hand side); ``contact`` and ``data`` as :meth:`rhs` takes them."""
+        return self.rhs(t, y, held, mode, contact, data), self.bending(t, y, held, mode)
 
     def bending_rates(self, t, y, held=None) -> tuple[np.ndarray, np.ndarray]:
         """Rates of the end slopes as the model's equations carry them [rad/s]."""
@@ -568,81 +657,27 @@ class ChainModel:
     def hinge_deflection(self, t, y, held=None, bending=None, mode=None):
         """Relative hinge rotations Delta phi_h of eq. (2) and their rates, each (n,).
         ``bending`` = (alpha, beta) if already known at (t, y, held)."""
-        alpha, beta = self.bending(t, y, held, mode) if bending is None else bending
-        phi = self.phi(y)
-        left = np.concatenate([[0.0], phi[:-1] + beta[:-1]])
-        if self.nb or self.base_mode != kernels.MODE_FIXED or len(self.seg) > 2 \
-                or self.chain.base[kernels.B_PSI] != 0.0:
-            left[self.first] = self._base_angle(y, t)[0]
-        return phi + alpha - left, self.hinge_deflection_rate(t, y, held)
+        return State(self, t, y, held, mode, bending=bending).deflection
 
     def hinge_deflection_rate(self, t, y, held=None) -> np.ndarray:
         """d/dt Delta phi_h (n,) [rad/s] (the reduced and rigid models carry no bending rates)."""
-        dphi = self.phi_rate(y)
-        dalpha, dbeta = self.bending_rates(t, y, held)
-        dleft = np.concatenate([[0.0], dphi[:-1] + dbeta[:-1]])
-        if self.nb or self.base_mode != kernels.MODE_FIXED or len(self.seg) > 2:
-            dleft[self.first] = self._base_angle(y, t)[1]
-        return dphi + dalpha - dleft
+        return State(self, t, y, held).deflection_rate
 
     def contact_moments(self, y: np.ndarray, mode=None) -> np.ndarray:
         """Stop contact moments (n,) [N m] on theta (zero on locked hinges)."""
-        if not self.has_stops:
-            return np.zeros(self.n)
-        s = self.scene
-        m = hinges.contact_moments(self.hinge_angles(y), self.hinge_rates(y),
-                                   s.stop_lower, s.stop_upper, s.stop_stiffness, s.stop_damping)
-        m[self.plan(mode).locked] = 0.0
-        return m
+        return State(self, 0.0, y, None, mode).contact_moments
 
     def kinetic_energy(self, t, y, held=None) -> float:
         """(1/2) x'^T M x' [J] (rigid and reduced: rod motion only; a free base and its wheel
         included; on a prescribed base the chains' motion with their node 0's velocity
         v_0: + v_0 . P_rel + M_c |v_0|^2 / 2 per chain, P_rel = sum_j (l_j M_j phi_j' +
         C_j (alpha_j' - beta_j')) e_j^perp), O(n)."""
-        ke = 0.5 * float(np.dot(y[self.dof:], self.mass_times(y)))
-        if self.base_mode != kernels.MODE_PRESCRIBED:
-            return ke
-        ch = self.chain
-        phi, dphi = self.phi(y), self.phi_rate(y)
-        w = ch.l * ch.Mt * dphi
-        if self.dof_per_rod == 3:
-            da, db = self.bending_rates(t, y, held)
-            w = w + ch.C * (da - db)
-        px, py = -w * np.sin(phi), w * np.cos(phi)
-        v = self.node_velocities(t, y)
-        for ci in range(len(self.seg) - 1):
-            a, b = self.seg[ci], self.seg[ci + 1]
-            v0 = v[a + ci]
-            ke += float(v0[0] * px[a:b].sum() + v0[1] * py[a:b].sum()
-                        + 0.5 * ch.Mc[ci] * (v0[0] ** 2 + v0[1] ** 2))
-        return ke
+        return State(self, t, y, held).kinetic_energy
 
     def gravity_energy(self, t, y, bending=None) -> float:
-        """-sum m g.r over every mass point [J] (rods with their bending, node masses, a free
-        base), 0 without gravity."""
-        b = self.chain.base
-        if b[kernels.B_GRAVITY] == 0.0:
-            return 0.0
-        g = np.array([b[kernels.B_GX], b[kernels.B_GY]])
-        p = self.params
-        alpha, beta = (np.zeros(self.n), np.zeros(self.n)) if bending is None else bending
-        nodes = self.node_positions(t, y)
-        starts = nodes[self._node_index_of_rod_start()]
-        phi = self.phi(y)
-        e = np.stack([np.cos(phi), np.sin(phi)], axis=-1)
-        ep = np.stack([-np.sin(phi), np.cos(phi)], axis=-1)
-        ml = p.m * p.l
-        # a rod: mass m l at its chord's midpoint plus int m eta ds = C (alpha - beta) along e_perp
-        first_moment = (ml[:, None] * (starts + 0.5 * p.l[:, None] * e)
-                        + (p.m * p.l**2 / 12.0 * (alpha - beta))[:, None] * ep)
-        tips = nodes[self._node_index_of_rod_start() + 1]
-        total = first_moment.sum(axis=0) + (p.mu[:, None] * tips).sum(axis=0)
-        energy = -float(np.dot(g, total))
-        if self.nb:
-            st = self.base_state(t, y)
-            energy -= float(b[kernels.B_MASS] * np.dot(g, self._base_com(st)))
-        return energy
+        """-sum m g.r over every mass point [J] (rods with their ``bending`` (alpha, beta),
+        None: straight; node masses, a free base), 0 without gravity."""
+        return State(self, t, y).gravity_energy_with(bending)
 
     def _base_com(self, st: BaseState) -> np.ndarray:
         b = self.chain.base
@@ -651,168 +686,46 @@ class ChainModel:
                          st.y + s * b[kernels.B_CX] + c * b[kernels.B_CY]])
 
     def _node_index_of_rod_start(self) -> np.ndarray:
-        """Row of :meth:`node_positions` where each rod starts (n,) int."""
-        chain_of_rod = np.cumsum(self.first) - 1
-        return np.arange(self.n) + chain_of_rod
+        """Row of :meth:`node_positions` where each rod starts (n,) int (:attr:`rod_starts`)."""
+        return self.rod_starts
 
     def node_positions(self, t: float, y: np.ndarray) -> np.ndarray:
         """Every chain's nodes 0..n_c in scene order, (n + nc, 2) [m] (one chain: (n + 1, 2),
         node 0 at its attach point on the base)."""
-        phi = self.phi(y)
-        p = self.params
-        if self.base_mode == kernels.MODE_FIXED and len(self.seg) == 2 and \
-                not self.chain.base[kernels.B_X:kernels.B_PSI + 1].any() and \
-                not self.chain.attach.any():
-            return node_positions(p.l, phi)
-        st = self.base_state(t, y)
-        return chain_node_positions(p.l, phi, self.seg, self.chain.attach, st.x, st.y, st.psi)
+        return State(self, t, y).nodes
 
     def energies(self, t: float, y: np.ndarray, held=None, bending=None, mode=None) -> Energies:
         """Kinetic, hinge (springs about their rest angles + stop contacts), bending and
         gravity energy [J] at (t, y); ``bending`` = (alpha, beta) if already known at (t, y,
         held)."""
-        alpha, beta = self.bending(t, y, held, mode) if bending is None else bending
-        delta, _ = self.hinge_deflection(t, y, held, bending=(alpha, beta))
-        p, s = self.params, self.scene
-        hinge = 0.5 * float(np.sum(p.kappa * (delta - s.hinge_rest_angle) ** 2))
-        if self.has_stops:      # the stop contacts' elastic energy (no stop: none)
-            pen = hinges.contact_penetration(self.hinge_angles(y, t), s.stop_lower,
-                                             s.stop_upper)
-            pen[self.plan(mode).locked] = 0.0
-            hinge += 0.5 * float(np.sum(s.stop_stiffness * pen**2))
-        bend = float(np.sum(2.0 * p.EI / p.l * (alpha**2 + beta**2 + alpha * beta)))
-        return Energies(self.kinetic_energy(t, y, held), hinge, bend,
-                        self.gravity_energy(t, y, (alpha, beta)))
+        return State(self, t, y, held, mode, bending=bending).energies
 
     def node_velocities(self, t: float, y: np.ndarray) -> np.ndarray:
         """Velocities of the nodes of :meth:`node_positions` (n + nc, 2) [m/s]."""
-        phi, dphi = self.phi(y), self.phi_rate(y)
-        l = self.params.l
-        st = self.base_state(t, y)
-        out = np.zeros((self.n + len(self.seg) - 1, 2))
-        c, s = np.cos(st.psi), np.sin(st.psi)
-        for ci in range(len(self.seg) - 1):
-            a, b = self.seg[ci], self.seg[ci + 1]
-            ax, ay = self.chain.attach[ci]
-            v0 = np.array([st.x_rate - st.psi_rate * (s * ax + c * ay),
-                           st.y_rate + st.psi_rate * (c * ax - s * ay)])
-            out[a + ci] = v0
-            out[a + ci + 1:b + ci + 1, 0] = v0[0] + np.cumsum(-l[a:b] * np.sin(phi[a:b]) * dphi[a:b])
-            out[a + ci + 1:b + ci + 1, 1] = v0[1] + np.cumsum(l[a:b] * np.cos(phi[a:b]) * dphi[a:b])
-        return out
+        return State(self, t, y).velocities
 
     def powers(self, t: float, y: np.ndarray, held=None, mode=None) -> tuple[float, float]:
         """(power of the applied loads and motors — nodal forces, hinge motors, gravity is in
         the energy — and of a free base's loads and wheel motor; power dissipated in the
         hinge dampers and the stop contacts) [W]."""
-        phi, dphi = self.phi(y), self.phi_rate(y)
-        loads = self.loads_at(t, held)
-        f = loads[:self.n, :2]
-        if self.base_mode == kernels.MODE_FIXED and len(self.seg) == 2:
-            l = self.params.l
-            vx = np.cumsum(-l * np.sin(phi) * dphi)
-            vy = np.cumsum(l * np.cos(phi) * dphi)
-        else:
-            v = self.node_velocities(t, y)[self._node_index_of_rod_start() + 1]
-            vx, vy = v[:, 0], v[:, 1]
-        load_power = float(np.sum(f[:, 0] * vx + f[:, 1] * vy))
-        ddelta = self.hinge_deflection_rate(t, y, held)
-        load_power += float(np.dot(loads[:self.n, 2], ddelta))    # hinge motors
-        if self.nb:
-            st = self.base_state(t, y)
-            b = self.chain.base
-            c, s = np.cos(st.psi), np.sin(st.psi)
-            rc = (c * b[kernels.B_CX] - s * b[kernels.B_CY], s * b[kernels.B_CX] + c * b[kernels.B_CY])
-            vc = (st.x_rate - st.psi_rate * rc[1], st.y_rate + st.psi_rate * rc[0])
-            load_power += float(loads[self.n, 0] * vc[0] + loads[self.n, 1] * vc[1]
-                                + loads[self.n, 2] * st.psi_rate
-                                + loads[self.n + 1, 2] * st.wheel_rate)
-        damper = float(np.sum(self.params.nu * ddelta**2))
-        s = self.scene
-        if self.has_stops:
-            theta, dtheta = self.hinge_angles(y, t), self.hinge_rates(y, t)
-            elastic = -s.stop_stiffness * (np.maximum(0.0, theta - s.stop_upper)
-                                           - np.maximum(0.0, s.stop_lower - theta))
-            elastic[self.plan(mode).locked] = 0.0
-            damper -= float(np.sum((self.contact_moments(y, mode) - elastic) * dtheta))
-        return load_power, damper
+        return State(self, t, y, held, mode).powers
 
     def momentum(self, t: float, y: np.ndarray, held=None) -> Momentum:
         """Linear and angular momentum of the whole system and its centre of mass, O(n): node
         masses, a free base and its wheel, and the rods as the model moves them — the rigid
         and reduced models their chords (the quantities they conserve: their inertia is the
         chords'), the full model the bent rods of eq. (4) with their bending rates."""
-        p = self.params
-        phi, dphi = self.phi(y), self.phi_rate(y)
-        nodes = self.node_positions(t, y)
-        vel = self.node_velocities(t, y)
-        i0 = self._node_index_of_rod_start()
-        r0, v0 = nodes[i0], vel[i0]
-        r1, v1 = nodes[i0 + 1], vel[i0 + 1]
-        e = np.stack([np.cos(phi), np.sin(phi)], axis=-1)
-        ep = np.stack([-np.sin(phi), np.cos(phi)], axis=-1)
-        ml = p.m * p.l
-        if self.dof_per_rod == 3:
-            alpha, beta = self.bending(t, y, held)
-            dalpha, dbeta = self.bending_rates(t, y, held)
-        else:
-            alpha = beta = dalpha = dbeta = np.zeros(self.n)
-        # rod k: r(s) = r0 + s e + eta e_perp, v(s) = v0 + (s phi' + eta') e_perp - eta phi' e;
-        # the integrals of m over s in closed form (sigma, tau of eq. (1))
-        C = p.m * p.l**2 / 12.0
-        eta1 = C * (alpha - beta)                                   # int m eta
-        deta1 = C * (dalpha - dbeta)                                # int m eta'
-        l3 = p.m * p.l**3
-        Isd = l3 / 30.0 * dalpha - l3 / 20.0 * dbeta                # int m s eta'
-        Iee = l3 / 105.0 * (alpha**2 + beta**2) - 2.0 * l3 / 140.0 * alpha * beta  # int m eta^2
-        lin_rods = (ml[:, None] * v0 + (0.5 * ml * p.l * dphi + deta1)[:, None] * ep
-                    - (eta1 * dphi)[:, None] * e)
+        return State(self, t, y, held).momentum
 
-        def cross(a, b):
-            return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-
-        H = float(np.sum(cross(r0, lin_rods) + 0.5 * ml[:, None].squeeze(-1) * p.l * cross(e, v0)
-                         + eta1 * cross(ep, v0) + l3 / 3.0 * dphi + Isd + Iee * dphi)
-                  + np.sum(p.mu * cross(r1, v1)))
-        P = lin_rods.sum(axis=0) + (p.mu[:, None] * v1).sum(axis=0)
-        mass = float(np.sum(ml + p.mu))
-        com_sum = ((ml[:, None] * (r0 + 0.5 * p.l[:, None] * e) + eta1[:, None] * ep).sum(axis=0)
-                   + (p.mu[:, None] * r1).sum(axis=0))
-        if self.nb:
-            b = self.chain.base
-            st = self.base_state(t, y)
-            mB = float(b[kernels.B_MASS])
-            rc = self._base_com(st)
-            off = rc - np.array([st.x, st.y])
-            vc = np.array([st.x_rate - st.psi_rate * off[1], st.y_rate + st.psi_rate * off[0]])
-            P = P + mB * vc
-            H += mB * float(cross(rc, vc)) + float(b[kernels.B_INERTIA]) * st.psi_rate
-            H += float(b[kernels.B_WHEEL]) * (st.psi_rate + st.wheel_rate)
-            com_sum = com_sum + mB * rc
-            mass += mB
-        com = com_sum / mass
-        return Momentum(P, H, H - float(cross(com, P)), com, mass)
-
-    def snapshot(self, t: float, y: np.ndarray, held=None, mode=None, bending=None) -> Snapshot:
+    def snapshot(self, t: float, y: np.ndarray, held=None, mode=None, bending=None,
+                 state: State | None = None) -> Snapshot:
         """Everything published about the chain at (t, y). hinge_moment = kappa (Delta -
         theta_rest) + nu Delta' minus the stop contact moment (the constraint reaction of a
         locked hinge is not included). ``bending`` = (alpha, beta) if already known at (t, y,
-        held, mode)."""
-        phi = np.array(self.phi(y), dtype=float)
-        dphi = np.array(self.phi_rate(y), dtype=float)
-        alpha, beta = self.bending(t, y, held, mode) if bending is None else bending
-        delta, ddelta = self.hinge_deflection(t, y, held, bending=(alpha, beta))
-        p = self.params
-        moment = (p.kappa * (delta - self.scene.hinge_rest_angle) + p.nu * ddelta
-                  - self.contact_moments(y, mode))
-        extra = self._spacecraft_fields(t, y, held, mode, (alpha, beta)) \
-            if self.is_spacecraft else {}
-        return Snapshot(
-            t=float(t), phi=phi, phi_rate=dphi, alpha=np.asarray(alpha, float),
-            beta=np.asarray(beta, float),
-            hinge_angle=self.hinge_angles(y, t), hinge_rate=self.hinge_rates(y, t),
-            hinge_moment=moment, nodes=self.node_positions(t, y), forces=self.forces(t, held),
-            **extra)
+        held, mode); ``state``: the :class:`~rod_sim.core.state.State` of these arguments, if
+        one is kept (its quantities are shared; the other arguments are then ignored)."""
+        s = State(self, t, y, held, mode, bending=bending) if state is None else state
+        return s.snapshot()
 
     @property
     def is_spacecraft(self) -> bool:
@@ -823,30 +736,7 @@ class ChainModel:
     def base_energies(self, t: float, y: np.ndarray) -> tuple[float, float]:
         """(kinetic energy of a free base: m_B |v_C|^2 / 2 + J_B psi'^2 / 2, of its wheel:
         J_W (psi' + theta_w')^2 / 2) [J]; zeros for a fixed or prescribed base."""
-        if not self.nb:
-            return 0.0, 0.0
-        b = self.chain.base
-        st = self.base_state(t, y)
-        off = self._base_com(st) - np.array([st.x, st.y])
-        vc = (st.x_rate - st.psi_rate * off[1], st.y_rate + st.psi_rate * off[0])
-        base = 0.5 * float(b[kernels.B_MASS]) * (vc[0] ** 2 + vc[1] ** 2) \
-            + 0.5 * float(b[kernels.B_INERTIA]) * st.psi_rate ** 2
-        wheel = 0.5 * float(b[kernels.B_WHEEL]) * (st.psi_rate + st.wheel_rate) ** 2
-        return base, wheel
-
-    def _spacecraft_fields(self, t, y, held, mode, bending) -> dict:
-        """The :class:`Snapshot` fields of a spacecraft scene (see its docstring), O(n)."""
-        st = self.base_state(t, y)
-        mom = self.momentum(t, y, held)
-        e = self.energies(t, y, held, bending=bending, mode=mode)
-        base_ke, wheel_ke = self.base_energies(t, y)
-        return {"base": np.array([st.x, st.y, st.psi, st.x_rate, st.y_rate, st.psi_rate]),
-                "wheel_rate": float(st.wheel_rate),
-                "momentum": np.array([mom.linear[0], mom.linear[1], mom.angular_origin,
-                                      mom.angular_com, mom.com[0], mom.com[1]]),
-                "energy_terms": {"kinetic": e.kinetic, "hinge": e.hinge, "bending": e.bending,
-                                 "gravity": e.gravity, "base_kinetic": base_ke,
-                                 "wheel_kinetic": wheel_ke, "total": e.total}}
+        return State(self, t, y).base_energies
 
 
 class RigidModel(ChainModel):
@@ -870,15 +760,16 @@ class ReducedModel(ChainModel):
     name = "reduced"
     kernel = staticmethod(kernels.reduced_rhs)
     compiled = Compiled(erk.dop853_reduced, erk.fixed_reduced, radau.radau_reduced)
+    slopes_need_rhs = True
 
     def bending(self, t, y, held=None, mode=None):
         """gamma = (alpha, beta) (n,) each [rad] from the quasi-static rows of (14), which the
         kernel solves together with phi'' (left in its work array)."""
         return self.rhs_bending(t, y, held, mode)[1]
 
-    def rhs_bending(self, t, y, held=None, mode=None):
+    def rhs_bending(self, t, y, held=None, mode=None, contact=None, data=None):
         """dy/dt and gamma = (alpha, beta) from one right-hand side (its work array)."""
-        f, extra = self._evaluate(t, y, held, mode)
+        f, extra = self._evaluate(t, y, held, mode, contact, data)
         W = extra.work
         return f, (W[:, kernels.W_A].copy(), W[:, kernels.W_B].copy())
 

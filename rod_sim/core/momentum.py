@@ -18,6 +18,10 @@ gravity (:func:`momentum_rates`); docs/spacecraft.md derives which model conserv
   I_j = int m eta ds = m_j l_j^2 (alpha_j - beta_j) / 12, r_{j-1}, a_{j-1} rod j's first node.
 A fixed or prescribed base is an external support: its reaction (:func:`base_reaction`)
 is what the ledger books for it.
+
+Each function takes the state's arguments (t, y, held, mode) or ``state``, a
+:class:`~rod_sim.core.state.State` of them whose quantities (the right-hand side, the node
+positions, the momentum) it shares; its own result is kept there too.
 """
 from __future__ import annotations
 
@@ -26,10 +30,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import kernels
-
-
-def _cross(a, b):
-    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+from .kinematics import chain_nodes, pairs
+from .state import cross as _cross
 
 
 @dataclass(frozen=True)
@@ -47,9 +49,16 @@ class MomentumRates:
     moment_before: float | None = None
 
 
-def _accelerations(model, t, y, held, mode):
-    """(phi'' (n,), alpha'' - beta'' (n,), base accelerations (x, y, psi)) from the model's rhs."""
-    dy = model.rhs(t, y, held, mode)
+def _state(model, t, y, held, mode, state):
+    """``state``, or a fresh :class:`~rod_sim.core.state.State` of the arguments."""
+    return model.state(t, y, held, mode) if state is None else state
+
+
+def _accelerations(s) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(phi'' (n,), alpha'' - beta'' (n,), base accelerations (x, y, psi)) of the State ``s``
+    from the model's rhs."""
+    model, t = s.model, s.t
+    dy = s.f
     n, d = model.n, model.dof
     ddphi = dy[d:d + n]
     dgam = dy[d + n:d + 2 * n] - dy[d + 2 * n:d + 3 * n] if model.dof_per_rod == 3 \
@@ -71,43 +80,48 @@ def node_accelerations(model, t, y, ddphi, base_acc) -> np.ndarray:
     l = model.params.l
     st = model.base_state(t, y)
     c, s = np.cos(st.psi), np.sin(st.psi)
-    out = np.zeros((model.n + len(model.seg) - 1, 2))
     tx = l * (-np.sin(phi) * ddphi - np.cos(phi) * dphi**2)
     ty = l * (np.cos(phi) * ddphi - np.sin(phi) * dphi**2)
     w2 = st.psi_rate**2
-    for ci in range(len(model.seg) - 1):
-        a, b = model.seg[ci], model.seg[ci + 1]
-        ax, ay = model.chain.attach[ci]
-        rx, ry = c * ax - s * ay, s * ax + c * ay
-        a0 = np.array([base_acc[0] - base_acc[2] * ry - w2 * rx,
-                       base_acc[1] + base_acc[2] * rx - w2 * ry])
-        out[a + ci] = a0
-        out[a + ci + 1:b + ci + 1, 0] = a0[0] + np.cumsum(tx[a:b])
-        out[a + ci + 1:b + ci + 1, 1] = a0[1] + np.cumsum(ty[a:b])
-    return out
+    ax, ay = model.chain.attach[:, 0], model.chain.attach[:, 1]
+    rx, ry = c * ax - s * ay, s * ax + c * ay
+    a0 = pairs(base_acc[0] - base_acc[2] * ry - w2 * rx,
+               base_acc[1] + base_acc[2] * rx - w2 * ry)                     # (nc, 2)
+    return chain_nodes(a0, pairs(tx, ty), model.table)
 
 
-def momentum_rates(model, t: float, y, held=None, mode=None) -> MomentumRates:
+def _node_accelerations(s) -> np.ndarray:
+    """:func:`node_accelerations` of the State ``s`` (its model's own accelerations)."""
+    ddphi, _, base_acc = s.value(_accelerations)
+    return node_accelerations(s.model, s.t, s.y, ddphi, base_acc)
+
+
+def momentum_rates(model, t: float, y, held=None, mode=None, state=None) -> MomentumRates:
     """dP/dt and dH_O/dt of the whole system by the model's equations, split into the applied
     loads with gravity (the external force and moment about O) and the model's defect."""
-    y = np.asarray(y, dtype=float)
-    nodes = model.node_positions(t, y)
-    tips = nodes[model._node_index_of_rod_start() + 1]
-    mom = model.momentum(t, y, held)
+    return _state(model, t, y, held, mode, state).value(_momentum_rates)
+
+
+def _momentum_rates(s) -> MomentumRates:
+    model, t, held = s.model, s.t, s.held
+    tips = s.nodes[model.table.ends]
+    mom = s.momentum
     b = model.chain.base
-    rc = model._base_com(model.base_state(t, y)) if model.nb else None
+    rc = s.base_com if model.nb else None
     com = mom.com
     if model.name == "reduced" and b[kernels.B_GRAVITY] != 0.0:
         # its momentum is the chords' but gravity acts on the bent rods (quasi-static slopes)
         p = model.params
-        alpha, beta = model.bending(t, y, held, mode)
-        phi = model.phi(y)
-        shift = p.m * p.l**2 / 12.0 * (alpha - beta)
-        com = com + np.array([-np.sum(shift * np.sin(phi)), np.sum(shift * np.cos(phi))]) / mom.mass
+        alpha, beta = s.bending
+        shift = model.rod_constants.C * (alpha - beta)
+        com = com + np.array([-np.sum(shift * s.sin_phi), np.sum(shift * s.cos_phi)]) / mom.mass
 
     def applied(t_side):
-        loads = np.zeros((model.n + 2, 3))
-        kernels.load_forces(t, model.loads, model._held(held), t_side, loads)
+        if t_side == t:
+            loads = s.loads
+        else:
+            loads = np.zeros((model.n + 2, 3))
+            kernels.load_forces(t, model.loads, model._held(held), t_side, loads)
         f = loads[:model.n, :2]
         force = f.sum(axis=0)
         moment = float(np.sum(_cross(tips, f)))
@@ -122,32 +136,37 @@ def momentum_rates(model, t: float, y, held=None, mode=None) -> MomentumRates:
 
     force, moment = applied(t)
     before = (force, moment)
-    if any(bp == t for bp in model.scene.load_breakpoints()):
+    if t in model.breakpoints:
         before = applied(np.nextafter(t, -np.inf))
-    dP, dH = defect_rates(model, t, y, held, mode)
+    dP, dH = s.value(_defect_rates)
     return MomentumRates(force, moment, dP, dH, before[0], before[1])
 
 
-def defect_rates(model, t: float, y, held=None, mode=None) -> tuple[np.ndarray, float]:
+def defect_rates(model, t: float, y, held=None, mode=None, state=None
+                 ) -> tuple[np.ndarray, float]:
     """(D_P (2,), D_H): the full model's momentum defect (module docstring); zeros for the
     rigid and reduced models."""
+    return _state(model, t, y, held, mode, state).value(_defect_rates)
+
+
+def _defect_rates(s) -> tuple[np.ndarray, float]:
+    model, y = s.model, s.y
     if model.dof_per_rod != 3:
         return np.zeros(2), 0.0
     n = model.n
     p = model.params
-    phi, dphi = model.phi(y), model.phi_rate(y)
+    phi, dphi = s.phi, s.phi_rate
     alpha, beta = y[n:2 * n], y[2 * n:3 * n]
-    dalpha, dbeta = model.bending_rates(t, y, held)
-    ddphi, _, base_acc = _accelerations(model, t, y, held, mode)
-    e = np.stack([np.cos(phi), np.sin(phi)], axis=-1)
-    ep = np.stack([-np.sin(phi), np.cos(phi)], axis=-1)
+    dalpha, dbeta = s.bending_rates
+    ddphi, _, base_acc = s.value(_accelerations)
+    e, ep = s.axes
     I1 = p.m * p.l**2 / 12.0 * (alpha - beta)
     l3 = p.m * p.l**3
     Iee = l3 / 105.0 * (alpha**2 + beta**2) - 2.0 * l3 / 140.0 * alpha * beta
     Ied = l3 / 105.0 * (alpha * dalpha + beta * dbeta) - l3 / 140.0 * (alpha * dbeta + beta * dalpha)
-    i0 = model._node_index_of_rod_start()
-    r = model.node_positions(t, y)[i0]
-    a = node_accelerations(model, t, y, ddphi, base_acc)[i0]
+    i0 = model.rod_starts
+    r = s.nodes[i0]
+    a = s.value(_node_accelerations)[i0]
     dP = -(I1[:, None] * (ddphi[:, None] * e + (dphi**2)[:, None] * ep)).sum(axis=0)
     dH = float(np.sum(I1 * (_cross(ep, a) - ddphi * _cross(r, e) - dphi**2 * _cross(r, ep))
                       + 2.0 * dphi * Ied + ddphi * Iee))
@@ -199,7 +218,8 @@ class MomentumBalance:
         return self.h - self.h0 - self.angular_impulse
 
 
-def base_reaction(model, t: float, y, held=None, mode=None) -> tuple[np.ndarray, np.ndarray]:
+def base_reaction(model, t: float, y, held=None, mode=None, state=None
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """What each chain needs from the base at (t, y): the force (nc, 2) [N] the base exerts on
     the chain at its node 0, and the moment (nc,) [N m] the chain exerts on the base through
     its hinge 0 (spring, damper, motor, stop, lock: the chain's generalized force on psi).
@@ -209,11 +229,15 @@ def base_reaction(model, t: float, y, held=None, mode=None) -> tuple[np.ndarray,
     full model) less its applied loads and weight; the moment is the moment about node 0 of
     the chain's loads and weight less the rate of its moment of momentum about node 0 (the sum
     of the chain's phi rows, in which every other hinge's moment cancels)."""
-    y = np.asarray(y, dtype=float)
+    return _state(model, t, y, held, mode, state).value(_base_reaction)
+
+
+def _base_reaction(s) -> tuple[np.ndarray, np.ndarray]:
+    model, y = s.model, s.y
     p = model.params
     n = model.n
-    ddphi, dgam, base_acc = _accelerations(model, t, y, held, mode)
-    phi, dphi = model.phi(y), model.phi_rate(y)
+    ddphi, dgam, base_acc = s.value(_accelerations)
+    phi, dphi = s.phi, s.phi_rate
     full = model.dof_per_rod == 3
     if full:
         dgam_rate = y[model.dof + n:model.dof + 2 * n] - y[model.dof + 2 * n:model.dof + 3 * n]
@@ -221,35 +245,34 @@ def base_reaction(model, t: float, y, held=None, mode=None) -> tuple[np.ndarray,
     else:
         dgam_rate = np.zeros(n)
         alpha = beta = np.zeros(n)
-    e = np.stack([np.cos(phi), np.sin(phi)], axis=-1)
-    ep = np.stack([-np.sin(phi), np.cos(phi)], axis=-1)
+    e, ep = s.axes
     ml = p.m * p.l
     C = p.m * p.l**2 / 12.0
     l3 = p.m * p.l**3
-    i0 = model._node_index_of_rod_start()
-    nodes = model.node_positions(t, y)
-    acc = node_accelerations(model, t, y, ddphi, base_acc)
+    i0 = model.rod_starts
+    nodes = s.nodes
+    acc = s.value(_node_accelerations)
     r0, a0 = nodes[i0], acc[i0]
     r1, a1 = nodes[i0 + 1], acc[i0 + 1]
     # int m a_lin ds over rod j and its tip mass
     rel = (0.5 * ml * p.l)[:, None] * (ddphi[:, None] * ep - (dphi**2)[:, None] * e) \
         + (C * dgam)[:, None] * ep - (2.0 * C * dphi * dgam_rate)[:, None] * e
     rod_force = ml[:, None] * a0 + rel
-    loads = model.loads_at(t, held)[:n, :2]
+    loads = s.loads[:n, :2]
     b = model.chain.base
     g = np.array([b[kernels.B_GX], b[kernels.B_GY]]) if b[kernels.B_GRAVITY] != 0.0 \
         else np.zeros(2)
     nc = len(model.seg) - 1
     force = np.zeros((nc, 2))
     moment = np.zeros(nc)
-    chain_of_rod = np.cumsum(model.first) - 1
-    root = nodes[np.asarray(model.seg[:-1]) + np.arange(nc)]
+    chain_of_rod = model.table.chain
+    root = nodes[model.table.roots]
     d0 = r0 - root[chain_of_rod]            # rod j's first node from its chain's node 0
     d1 = r1 - root[chain_of_rod]
     # moment of momentum rate about node 0: int m (d0 + s e) x a_lin + mu (d1 x a1)
     mom_rate = _cross(d0, rod_force) + 0.5 * ml * p.l * _cross(e, a0) + l3 / 3.0 * ddphi
     if full:
-        dy = model.rhs(t, y, held, mode)
+        dy = s.f
         ddal = dy[model.dof + n:model.dof + 2 * n]
         ddbe = dy[model.dof + 2 * n:model.dof + 3 * n]
         mom_rate = mom_rate + l3 / 30.0 * ddal - l3 / 20.0 * ddbe
@@ -265,15 +288,16 @@ def base_reaction(model, t: float, y, held=None, mode=None) -> tuple[np.ndarray,
     return force, moment
 
 
-def injected_power(model, t: float, y, held=None, mode=None) -> float:
+def injected_power(model, t: float, y, held=None, mode=None, state=None) -> float:
     """[W] the power a prescribed base delivers to the chains: sum over chains of F_c . v_0c
     - psi' M_c (:func:`base_reaction`; v_0c the velocity of the chain's node 0). 0 for a fixed
     or free base (a free base's work is internal to the system)."""
     if model.base_mode != kernels.MODE_PRESCRIBED:
         return 0.0
-    force, moment = base_reaction(model, t, y, held, mode)
-    v = model.node_velocities(t, y)
-    nc = len(model.seg) - 1
-    v0 = v[np.asarray(model.seg[:-1]) + np.arange(nc)]
-    st = model.base_state(t, y)
-    return float(np.sum(force * v0) - st.psi_rate * np.sum(moment))
+    return _state(model, t, y, held, mode, state).value(_injected_power)
+
+
+def _injected_power(s) -> float:
+    force, moment = s.value(_base_reaction)
+    v0 = s.velocities[s.model.table.roots]
+    return float(np.sum(force * v0) - s.base.psi_rate * np.sum(moment))

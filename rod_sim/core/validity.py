@@ -220,14 +220,16 @@ class ValidityMonitor:
     def update(self, t: float, y, held=None, alpha=None, beta=None) -> None:
         """Check one state (alpha, beta [rad] may be given to save recomputing them)."""
         n = self.model.n
-        given = np.zeros((n, 2)) if held is None else np.asarray(held, float).reshape(n, -1)
+        given = held
         held = np.zeros((n, 3))           # forces X, Y and hinge motor moments T
-        held[:, :given.shape[1]] = given
+        if given is not None:
+            given = np.asarray(given, float).reshape(n, -1)
+            held[:, :given.shape[1]] = given
         if alpha is None or beta is None:
             alpha, beta = self.model.bending(t, y, held)
         a, b = np.abs(alpha), np.abs(beta)
-        self.max_abs_alpha = max(self.max_abs_alpha, float(np.max(a, initial=0.0)))
-        self.max_abs_beta = max(self.max_abs_beta, float(np.max(b, initial=0.0)))
+        self.max_abs_alpha = max(self.max_abs_alpha, float(a.max(initial=0.0)))
+        self.max_abs_beta = max(self.max_abs_beta, float(b.max(initial=0.0)))
         worst = np.maximum(a, b)
         for k in np.flatnonzero(worst > SMALL_BENDING_RAD):
             self._add(Finding("bending", float(t), int(k) + 1, float(worst[k]),
@@ -235,7 +237,7 @@ class ValidityMonitor:
                               f"rod {k + 1}: end slope {worst[k]:.3g} rad at t = {t:.4g} s "
                               f"leaves the small-bending range (> {SMALL_BENDING_RAD} rad)"))
         if (self.model.name == "reduced" and self._held is not None
-                and not np.array_equal(held, self._held)):
+                and not (held == self._held).all()):
             jump = force_jump_slopes(self.scene, self.model.phi(y), self.model.phi_rate(y),
                                      self._held, held, y=np.asarray(y, float))
             k = int(np.argmax(jump))
@@ -247,7 +249,7 @@ class ValidityMonitor:
                                   f"vibration of ~{jump[k]:.2g} rad at rod {k % n + 1} (first "
                                   f"bending mode {self.f1:.3g} Hz) that the reduced model "
                                   f"does not carry"))
-        self._held = held.copy()
+        self._held = held                 # a fresh array, never written to again
 
     def update_energy(self, t: float, residual: float, scale: float,
                       unresolved: float = 0.0) -> None:
@@ -292,18 +294,29 @@ def _unpaired_coefficients(model, y) -> np.ndarray:
     """A_j (n,) [kg m^2/s] with P_unpaired = -sum_j A_j (alpha_j' - beta_j'):
     A_j = C_j phi_j' sum_{k<j} l_k phi_k' sin(phi_k - phi_j), C_j = m_j l_j^2 / 12 (prefix
     sums, O(n)); on a moving base or with several chains, A_j = -C_j phi_j' e_j . v_{j-1}
-    with v_{j-1} the velocity of rod j's first node (the same sum plus its node 0's)."""
+    with v_{j-1} the velocity of rod j's first node (the same sum plus its node 0's, the
+    base's twist taken at t = 0)."""
+    return model.state(0.0, y).value(_coefficients)
+
+
+def _coefficients(s) -> np.ndarray:
+    """:func:`_unpaired_coefficients` of the State ``s`` (a free or fixed base's node
+    velocities do not depend on t: the state's own are used)."""
+    model = s.model
     n = model.n
     p = model.params
     if _plain(model):
+        y = s.y
         phi, dphi = y[:n], y[3 * n:4 * n]
-        c, s = np.cos(phi), np.sin(phi)
+        c, sn = np.cos(phi), np.sin(phi)
         w = p.l * dphi
         before_c = np.concatenate([[0.0], np.cumsum(w * c)[:-1]])      # sum_{k<j}
-        before_s = np.concatenate([[0.0], np.cumsum(w * s)[:-1]])
-        return p.m * p.l**2 / 12.0 * dphi * (before_s * c - before_c * s)
-    phi, dphi = model.phi(y), model.phi_rate(y)
-    v = model.node_velocities(0.0, y)[model._node_index_of_rod_start()]
+        before_s = np.concatenate([[0.0], np.cumsum(w * sn)[:-1]])
+        return p.m * p.l**2 / 12.0 * dphi * (before_s * c - before_c * sn)
+    phi, dphi = s.phi, s.phi_rate
+    velocities = s.velocities if not model.prescribed_base or s.t == 0.0 else \
+        model.node_velocities(0.0, s.y)
+    v = velocities[model.rod_starts]
     return -p.m * p.l**2 / 12.0 * dphi * (np.cos(phi) * v[:, 0] + np.sin(phi) * v[:, 1])
 
 
@@ -326,35 +339,52 @@ def unpaired_power(model, y) -> float:
     alpha' ~ alpha omega_1 do not fall with EI (measured on config/deployment.yaml: the
     integral reaches -0.4 J of 35.8 J at EI = 2e3, 2e4 and 2e5 alike). The identity is checked
     against the model's right-hand side in test_energy_balance. O(n)."""
+    return model.state(0.0, y).value(_unpaired_power)
+
+
+def _unpaired_power(s) -> float:
+    """:func:`unpaired_power` of the State ``s``."""
+    model = s.model
     if getattr(model, "dof_per_rod", 1) != 3:
         return 0.0
     n, d = model.n, model.dof
-    y = np.asarray(y, dtype=float)
-    return -float(np.dot(_unpaired_coefficients(model, y),
-                         y[d + n:d + 2 * n] - y[d + 2 * n:d + 3 * n]))
+    y = s.y
+    return -float(np.dot(s.value(_coefficients), y[d + n:d + 2 * n] - y[d + 2 * n:d + 3 * n]))
 
 
-def net_power(model, t: float, y, held=None, mode=None) -> float:
+def net_power(model, t: float, y, held=None, mode=None, state=None) -> float:
     """[W] P_load - P_damper + P_unpaired at (t, y) with the latched hinges ``mode`` locked:
-    the rate of change of the model's mechanical energy between hinge events."""
-    load, damper = model.powers(t, y, held, mode=mode)
+    the rate of change of the model's mechanical energy between hinge events. ``state``: a
+    :class:`~rod_sim.core.state.State` of the arguments to share."""
+    return (model.state(t, y, held, mode) if state is None else state).value(_net_power)
+
+
+def _net_power(s) -> float:
+    """:func:`net_power` of the State ``s``."""
+    model = s.model
+    load, damper = s.powers
+    net = load - damper + s.value(_unpaired_power)
     if _plain(model):
-        return load - damper + unpaired_power(model, y)
+        return net
+    if not model.prescribed_base:       # injected_power is 0.0: the same sum
+        return net + 0.0
     from .momentum import injected_power        # local: momentum imports the models' kernels
 
-    return load - damper + unpaired_power(model, y) + injected_power(model, t, y, held, mode)
+    return net + injected_power(model, s.t, s.y, s.held, s.mode, state=s)
 
 
-def load_jump_power(model, t: float, y, held=None) -> float:
+def load_jump_power(model, t: float, y, held=None, state=None) -> float:
     """[W] P_load(t-) - P_load(t+): the load power a span ending at t [s] must use when a
     scripted load jumps exactly at t (a step or a constant load switched on at a sample time;
-    :func:`net_power` gives the value after the jump, which starts the next span). 0 elsewhere."""
-    if not any(b == t for b in model.scene.load_breakpoints()):
+    :func:`net_power` gives the value after the jump, which starts the next span). 0 elsewhere.
+    ``state``: a :class:`~rod_sim.core.state.State` of the arguments to share."""
+    if t not in model.breakpoints:
         return 0.0
     from .kernels import load_forces     # local: the kernels are only needed here
 
+    s = model.state(t, y, held) if state is None else state
     n = model.n
-    phi, dphi = model.phi(y), model.phi_rate(y)
+    phi, dphi = s.phi, s.phi_rate
     held = model._held(held)
     before, after = np.zeros((n + 2, 3)), np.zeros((n + 2, 3))
     load_forces(t, model.loads, held, math.nextafter(t, -math.inf), before)
@@ -365,11 +395,11 @@ def load_jump_power(model, t: float, y, held=None) -> float:
         vx = np.cumsum(-l * np.sin(phi) * dphi)
         vy = np.cumsum(l * np.cos(phi) * dphi)
         return float(np.sum(d[:n, 0] * vx + d[:n, 1] * vy))
-    v = model.node_velocities(t, y)[model._node_index_of_rod_start() + 1]
+    v = s.velocities[model.table.ends]
     power = float(np.sum(d[:n, 0] * v[:, 0] + d[:n, 1] * v[:, 1]))
     if model.nb:
-        st = model.base_state(t, y)
-        rc = model._base_com(st) - np.array([st.x, st.y])
+        st = s.base
+        rc = s.base_com - np.array([st.x, st.y])
         power += float(d[n, 0] * (st.x_rate - st.psi_rate * rc[1])
                        + d[n, 1] * (st.y_rate + st.psi_rate * rc[0])
                        + d[n, 2] * st.psi_rate + d[n + 1, 2] * st.wheel_rate)
@@ -383,8 +413,8 @@ RATE_STEP = 1e-7
 def balance_terms(model, t: float, y, held=None, mode=None, bending=None) -> tuple[float, float]:
     """(total mechanical energy [J], net power [W] of :func:`net_power`) at (t, y) with the
     latched hinges ``mode`` locked (stop contacts included in both)."""
-    energy = model.energies(t, y, held, bending=bending, mode=mode).total
-    return energy, net_power(model, t, y, held, mode)
+    s = model.state(t, y, held, mode, bending=bending)
+    return s.energies.total, s.value(_net_power)
 
 
 @dataclass(frozen=True)
@@ -411,23 +441,22 @@ class BalanceSample:
 
 
 def balance_sample(model, t: float, y, held=None, mode=None, bending=None,
-                   f=None) -> BalanceSample:
+                   f=None, state=None) -> BalanceSample:
     """The :class:`BalanceSample` of state ``y`` at ``t`` [s] with held inputs ``held`` and the
     latched hinges ``mode`` locked (``bending`` = (alpha, beta) and ``f`` = the right-hand
-    side dy/dt there, if known: ``model.rhs_bending`` gives both at once). One right-hand side
-    and a few O(n) power evaluations; the rates are central differences of
-    :data:`RATE_STEP` along the right-hand side (one-sided at a load breakpoint)."""
-    y = np.asarray(y, dtype=float)
-    if f is None:
-        f, known = model.rhs_bending(t, y, held, mode)
-        bending = known if bending is None else bending
-    energy, power = balance_terms(model, t, y, held, mode, bending)
-    before = power + load_jump_power(model, t, y, held)
+    side dy/dt there, if known: ``model.rhs_bending`` gives both at once; ``state``: a
+    :class:`~rod_sim.core.state.State` of these arguments, whose quantities are shared, in
+    place of them). One right-hand side and a few O(n) power evaluations; the rates are
+    central differences of :data:`RATE_STEP` along the right-hand side (one-sided at a load
+    breakpoint)."""
+    s = model.state(t, y, held, mode, f, bending) if state is None else state
+    t, y, held, mode, f = s.t, s.y, s.held, s.mode, s.f
+    energy, power = s.energies.total, s.value(_net_power)
+    before = power + load_jump_power(model, t, y, held, state=s)
     h = RATE_STEP
-    up, down = y + h * f, y - h * f
-    p_up = net_power(model, t + h, up, held, mode)
-    p_down = net_power(model, t - h, down, held, mode)
-    if any(b == t for b in model.scene.load_breakpoints()):
+    up, down = s.moved(t + h, y + h * f), s.moved(t - h, y - h * f)
+    p_up, p_down = up.value(_net_power), down.value(_net_power)
+    if t in model.breakpoints:
         rate, rate_before = (p_up - power) / h, (before - p_down) / h
     else:
         rate = rate_before = (p_up - p_down) / (2.0 * h)
@@ -435,11 +464,11 @@ def balance_sample(model, t: float, y, held=None, mode=None, bending=None,
         return BalanceSample(float(t), energy, power, before, rate, rate_before)
     n = model.n
     u = y[n:2 * n] - y[2 * n:3 * n]         # alpha - beta (q comes first in every layout)
-    a = _unpaired_coefficients(model, y)
-    da = (_unpaired_coefficients(model, up) - _unpaired_coefficients(model, down)) / (2.0 * h)
+    a = s.value(_coefficients)
+    da = (up.value(_coefficients) - down.value(_coefficients)) / (2.0 * h)
     return BalanceSample(float(t), energy, power, before, rate, rate_before,
-                         unpaired_power(model, y),
-                         (unpaired_power(model, up) - unpaired_power(model, down)) / (2.0 * h),
+                         s.value(_unpaired_power),
+                         (up.value(_unpaired_power) - down.value(_unpaired_power)) / (2.0 * h),
                          -float(np.dot(a, u)), float(np.dot(da, u)))
 
 
@@ -585,8 +614,9 @@ def balance_run(model, t, y, held=None, modes=None, events=()):
     for i in range(t.size):
         h = held[i] if per_sample else held
         mode = None if modes is None else modes[i]
-        slopes = model.bending(t[i], y[i], h, mode)
-        sample = balance_sample(model, t[i], y[i], h, mode, slopes)
+        state = model.state(t[i], y[i], h, mode)      # one right-hand side for both
+        slopes = state.bending
+        sample = balance_sample(model, t[i], y[i], h, mode, state=state)
         if prev is None:
             balance.start(sample.energy)
         else:

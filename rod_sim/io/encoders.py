@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import functools
 import math
+import struct
+from collections.abc import Mapping
 from typing import Callable
 
 import numpy as np
@@ -33,10 +35,26 @@ _CACHE = 64
 
 
 def _stamp(snapshot: Snapshot) -> np.ndarray:
-    t_ns = topics.time_ns(snapshot.t)
+    return _stamp_at(snapshot.t)
+
+
+@functools.lru_cache(maxsize=4)
+def _stamp_at(t: float) -> np.ndarray:
+    """The stamp (2,) uint32 of ``t`` [s] (kept: the topics of one sample share it;
+    read-only)."""
+    t_ns = topics.time_ns(t)
     if t_ns >= 2 ** 31 * 1_000_000_000:
-        raise ValueError(f"time {snapshot.t!r} s does not fit a ROS stamp (int32 seconds)")
-    return stamp_bytes(t_ns)
+        raise ValueError(f"time {t!r} s does not fit a ROS stamp (int32 seconds)")
+    out = stamp_bytes(t_ns)
+    out.flags.writeable = False
+    return out
+
+
+def _stamps(snapshot: Snapshot, k: int) -> np.ndarray:
+    """The snapshot's stamp k times (2k,) uint32: ``np.tile(_stamp(snapshot), k)``, cheaper."""
+    out = np.empty((k, 2), dtype="<u4")
+    out[:] = _stamp(snapshot)
+    return out.ravel()
 
 
 def _f64(values) -> np.ndarray:
@@ -120,21 +138,33 @@ def bending(snapshot: Snapshot, scene: Scene | None = None, frame_id: str = "wor
                         np.concatenate([snapshot.alpha, snapshot.beta]))
 
 
+@functools.lru_cache(maxsize=_CACHE)
 def _node_rods(scene: Scene | None, n: int, k: int) -> np.ndarray:
     """For each of the k node rows of a snapshot (every chain's nodes 0..n_c), the rod whose
-    direction the node takes: the rod ending there, a chain's node 0 its rod 1."""
+    direction the node takes: the rod ending there, a chain's node 0 its rod 1 (kept per
+    scene, which is immutable and hashed by identity; read-only)."""
     if scene is None or k == n + 1 or len(getattr(scene, "chains", ())) <= 1:
-        return np.concatenate([[0], np.arange(n)])[:k]
+        out = np.concatenate([[0], np.arange(n)])[:k]
+        out.flags.writeable = False
+        return out
     out = []
     for c in scene.chains:
         out.extend([c.start] + list(range(c.start, c.start + c.count)))
-    return np.asarray(out[:k])
+    out = np.asarray(out[:k])
+    out.flags.writeable = False
+    return out
 
 
 def _rod_starts(scene: Scene, nodes: np.ndarray) -> np.ndarray:
     """Rows of the snapshot's nodes (n + nc, 2) where each rod starts (n,) (one chain: 0..n-1)."""
-    chain_of_rod = np.asarray(scene.chain_of_rod)
-    return np.arange(scene.n) + chain_of_rod
+    return _scene_rod_starts(scene)
+
+
+@functools.lru_cache(maxsize=_CACHE)
+def _scene_rod_starts(scene: Scene) -> np.ndarray:
+    out = np.arange(scene.n) + np.asarray(scene.chain_of_rod)
+    out.flags.writeable = False
+    return out
 
 
 # ----- geometry_msgs/PoseArray -----
@@ -336,7 +366,7 @@ def _spacecraft_markers(snapshot: Snapshot, scene: Scene, frame_id: str,
     layout = _spacecraft_markers_layout(scene, frame_id, points_per_rod)
     nodes = np.asarray(snapshot.nodes, dtype=float)
     k = (scene.n if scene.n <= topics.MARKER_MAX_STRIPS else len(scene.chains)) + 2
-    stamps = np.tile(_stamp(snapshot), k)
+    stamps = _stamps(snapshot, k)
     starts = _rod_starts(scene, nodes)
     if scene.n <= topics.MARKER_MAX_STRIPS:
         table = topics._marker_geometry(scene, points_per_rod)[2]
@@ -344,15 +374,15 @@ def _spacecraft_markers(snapshot: Snapshot, scene: Scene, frame_id: str,
                           np.asarray(snapshot.phi, dtype=float),
                           np.asarray(snapshot.alpha, dtype=float),
                           np.asarray(snapshot.beta, dtype=float), points_per_rod, table,
-                          nodes[starts])
+                          nodes[starts], z=True)
     else:
-        rods = nodes
-    x, y, psi = (float(v) for v in snapshot.base[:3])
+        rods = _xyz(nodes)
+    x, y, psi = np.asarray(snapshot.base, dtype=float)[:3].tolist()
     cx, cy = scene.base.centre_of_mass
     c, s = math.cos(psi), math.sin(psi)
     pose = np.array([x + c * cx - s * cy, y + s * cx + c * cy, 0.0, 0.0, 0.0,
                      math.sin(0.5 * psi), math.cos(0.5 * psi)])
-    values = {"stamp": stamps, "zero": np.zeros(stamps.size, dtype="<u4"), "rods": _xyz(rods),
+    values = {"stamp": stamps, "zero": np.zeros(stamps.size, dtype="<u4"), "rods": rods,
               "nodes": _xyz(nodes[starts + 1]), "base_pose": pose}
     return layout.fill(**{k: v for k, v in values.items() if k in layout.slots})
 
@@ -370,7 +400,7 @@ def markers(snapshot: Snapshot, scene: Scene, frame_id: str = "world",
         return _spacecraft_markers(snapshot, scene, frame_id, points_per_rod)
     layout = _markers_layout(scene, frame_id, points_per_rod)
     nodes = np.asarray(snapshot.nodes, dtype=float)
-    stamps = np.tile(_stamp(snapshot), scene.n + 1 if scene.n <= topics.MARKER_MAX_STRIPS else 2)
+    stamps = _stamps(snapshot, scene.n + 1 if scene.n <= topics.MARKER_MAX_STRIPS else 2)
     values = {"stamp": stamps, "zero": np.zeros(stamps.size, dtype="<u4")}
     several = len(nodes) != scene.n + 1          # several chains: each one's nodes 0..n_c
     if scene.n > topics.MARKER_MAX_STRIPS:
@@ -378,11 +408,11 @@ def markers(snapshot: Snapshot, scene: Scene, frame_id: str = "world",
     elif scene.n:
         table = topics._marker_geometry(scene, points_per_rod)[2]
         starts = nodes[_rod_starts(scene, nodes)] if several else None
-        values["rods"] = _xyz(rod_points(np.asarray(scene.length, dtype=float),
-                                         np.asarray(snapshot.phi, dtype=float),
-                                         np.asarray(snapshot.alpha, dtype=float),
-                                         np.asarray(snapshot.beta, dtype=float),
-                                         points_per_rod, table, starts))
+        values["rods"] = rod_points(np.asarray(scene.length, dtype=float),
+                                    np.asarray(snapshot.phi, dtype=float),
+                                    np.asarray(snapshot.alpha, dtype=float),
+                                    np.asarray(snapshot.beta, dtype=float),
+                                    points_per_rod, table, starts, z=True)
     if scene.n:
         values["nodes"] = _xyz(nodes[_rod_starts(scene, nodes) + 1] if several else nodes[1:])
     return layout.fill(**{k: v for k, v in values.items() if k in layout.slots})
@@ -426,6 +456,47 @@ def torque_array(torques) -> bytes:
 def applied_forces(snapshot: Snapshot, scene: Scene | None = None, frame_id: str = "world"
                    ) -> bytes:
     return force_array(snapshot.forces)
+
+
+# ----- diagnostic_msgs/DiagnosticArray -----
+
+_U32 = struct.Struct("<I").pack
+_STAMP = struct.Struct("<iI").pack
+_ALIGN4 = (b"", b"\0\0\0", b"\0\0", b"\0")
+"""Padding to the next multiple of 4 after ``len(b) & 3`` bytes."""
+
+
+def _cdr_string(b: bytearray, text: str) -> None:
+    """Append a CDR string to ``b``: aligned uint32 length (with the NUL), UTF-8 bytes, NUL."""
+    data = text.encode()
+    b += _ALIGN4[len(b) & 3]
+    b += _U32(len(data) + 1)
+    b += data
+    b.append(0)
+
+
+def diagnostics(t: float, values: Mapping[str, object], hardware_id: str, *,
+                level: int = topics.DIAGNOSTIC_OK, message: str = "", frame_id: str = "",
+                name: str = "rod_sim") -> bytes:
+    """``/diagnostics`` (diagnostic_msgs/DiagnosticArray of one status): the bytes of
+    ``cdr.encoder(type)(topics.diagnostics(t, values, hardware_id, ...))``, written without
+    the message dicts (arguments as :func:`rod_sim.io.topics.diagnostics`)."""
+    if level not in (topics.DIAGNOSTIC_OK, topics.DIAGNOSTIC_WARN, topics.DIAGNOSTIC_ERROR,
+                     topics.DIAGNOSTIC_STALE):
+        raise ValueError(f"diagnostic level must be 0..3 (got {level!r})")
+    b = bytearray(_STAMP(*divmod(topics.time_ns(t), 1_000_000_000)))
+    _cdr_string(b, frame_id)
+    b += _ALIGN4[len(b) & 3]
+    b += _U32(1)                                       # one status
+    b.append(int(level))
+    for text in (name, message, hardware_id):
+        _cdr_string(b, str(text))
+    b += _ALIGN4[len(b) & 3]
+    b += _U32(len(values))
+    for key, value in values.items():
+        _cdr_string(b, str(key))
+        _cdr_string(b, value if isinstance(value, str) else str(value))
+    return cdr.HEADER + bytes(b)
 
 
 # ----- rosgraph_msgs/Clock, std_msgs/String -----

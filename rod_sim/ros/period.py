@@ -105,7 +105,7 @@ class PeriodRunner:
         self.events_seen = 0
         """Hinge events of ``sim.events`` already booked and published."""
         self._balance_end = None
-        """(t_ns, held, y, mode, f, bending) at the end of the last period: its inputs and
+        """(t_ns, held, y, mode, State) at the end of the last period: its inputs and
         what its balance sample needs (the next period goes on with the same span when the
         held inputs did not change)."""
         self._span_start = None
@@ -138,11 +138,12 @@ class PeriodRunner:
         self.validity = ValidityMonitor(self.model)
         self.meter.restart(time.monotonic_ns())
 
-    def _book_spacecraft(self, held) -> None:
-        """The simulator's state in the momentum ledger (a spacecraft scene)."""
+    def _book_spacecraft(self, held, state=None) -> None:
+        """The simulator's state in the momentum ledger (a spacecraft scene); ``state``: its
+        :class:`~rod_sim.core.state.State`, shared with the balance sample and snapshot."""
         if self.spacecraft is not None:
             sim = self.sim
-            self.spacecraft.add(sim.t, sim.y, held, sim.mode)
+            self.spacecraft.add(sim.t, sim.y, held, sim.mode, state=state)
 
     def spacecraft_values(self) -> dict[str, str]:
         """The spacecraft keys of ``/diagnostics`` (:func:`rod_sim.core.ledger.diagnostic_values`)
@@ -178,9 +179,11 @@ class PeriodRunner:
             self.held_for += 1
         else:       # one right-hand side gives the slopes and the rate's direction
             self.book()                      # the pending span ends here, with its inputs
-            self._span_start = balance_sample(self.model, sim.t, sim.y, held, sim.mode)
+            state = self.model.state(sim.t, sim.y, held, sim.mode, data=sim.data)
+            self._span_start = balance_sample(self.model, sim.t, sim.y, held, sim.mode,
+                                              state=state)
             self._span_ns = sim.t_ns
-            self._book_spacecraft(held)     # the inputs changed: their rates from now on
+            self._book_spacecraft(held, state)  # the inputs changed: their rates from now on
             self.held_for = 0
         kink = self._kink_in(sim.t_ns)
         if kink:
@@ -196,10 +199,11 @@ class PeriodRunner:
             self.error = self._failure(exc, work, start)
             return None
         self.meter.add_step(self.period_ns, time.perf_counter_ns() - start)
-        # one right-hand side for the snapshot's slopes and the balance's power rate
-        f, bending = self.model.rhs_bending(sim.t, sim.y, held, sim.mode)
-        snap = self.model.snapshot(sim.t, sim.y, held, sim.mode, bending)
-        self._balance_end = (sim.t_ns, held.copy(), sim.y, sim.mode, f, bending)
+        # one State for the snapshot, the balance sample and the momentum ledger: each
+        # quantity (the right-hand side with the slopes, the momentum, the powers) once
+        state = self.model.state(sim.t, sim.y, held, sim.mode, data=sim.data)
+        snap = self.model.snapshot(sim.t, sim.y, held, sim.mode, state=state)
+        self._balance_end = (sim.t_ns, held.copy(), sim.y, sim.mode, state)
         self.last_state = snap
         self.validity.update(sim.t, sim.y, held[:sim.model.n], snap.alpha, snap.beta)
         if len(sim.events) > self.events_seen or self.ahead_limit <= 1 or kink or \
@@ -220,13 +224,13 @@ class PeriodRunner:
         end = self._balance_end
         if end is None or self._span_start is None or end[0] == self._span_ns:
             return
-        t_ns, held, y, mode, f, bending = end
+        t_ns, held, y, mode, state = end
         t = t_ns / NS_PER_S
-        sample = balance_sample(self.model, t, y, held, mode, bending, f)
+        sample = balance_sample(self.model, t, y, held, mode, state=state)
         self.ledger.add(self._span_start, sample, events)
         self._span_start, self._span_ns = sample, t_ns
         if self.spacecraft is not None:
-            self.spacecraft.add(t, y, held, mode)
+            self.spacecraft.add(t, y, held, mode, state=state)
         self.validity.update_energy(t, self.ledger.residual, self.ledger.scale,
                                     self.ledger.unresolved)
 

@@ -182,10 +182,13 @@ class _LoggedRun:
         from ..core.validity import EnergyBalance, balance_sample
 
         model = self.sim.model
-        f, bending = model.rhs_bending(t, y, None, mode)     # one right-hand side for both
-        snap = model.snapshot(t, y, None, mode, bending)
+        # one State: each quantity of the sample (the right-hand side with the slopes, node
+        # velocities, momentum, powers, ...) computed once for the snapshot, the energy
+        # balance, the momentum ledger and the diagnostics
+        state = model.state(t, y, None, mode, data=self.sim.data)   # its scratch: between steps
+        snap = model.snapshot(t, y, None, mode, state=state)
         self.validity.update(snap.t, y, None, snap.alpha, snap.beta)
-        sample = balance_sample(model, t, y, None, mode, bending, f)
+        sample = balance_sample(model, t, y, None, mode, state=state)
         if self.balance is None:
             self.balance = EnergyBalance.for_model(model, sample.energy)
         else:
@@ -202,34 +205,35 @@ class _LoggedRun:
 
         t_ns = topics.time_ns(snap.t)
         encoded = encoders.snapshot_bytes(snap, self.scene, self.frame_id, self.topics)
-        diagnostics = self._diagnostics(t, y, mode, snap)
+        diagnostics = self._diagnostics(t, y, mode, snap, state)
         with signals_deferred():            # every record of a sample whole, or none
             for name, data in encoded.items():
                 self.log.write_cdr("/" + name, topics.TOPIC_TYPES[name], t_ns, data)
             if diagnostics is not None:
-                self.log.write("/diagnostics", topics.TOPIC_TYPES["diagnostics"], t_ns,
-                               diagnostics)
+                self.log.write_cdr("/diagnostics", topics.TOPIC_TYPES["diagnostics"], t_ns,
+                                   diagnostics)
             self.samples += 1
             self.t_logged = t
         if self.live is not None:
             self._show(t, t_ns, snap, encoded)
 
-    def _diagnostics(self, t: float, y, mode, snap):
-        """A spacecraft scene's ``/diagnostics`` message of the sample (None otherwise): the
-        node's energy keys and the spacecraft keys (docs/interface.md section 3), the momentum
-        ledger fed with every sample."""
+    def _diagnostics(self, t: float, y, mode, snap, state=None):
+        """A spacecraft scene's ``/diagnostics`` message of the sample as CDR bytes (None
+        otherwise): the node's energy keys and the spacecraft keys (docs/interface.md section
+        3), the momentum ledger fed with every sample (``state``: the sample's State,
+        shared)."""
         if self.spacecraft is None:
             return None
         from ..core.ledger import diagnostic_strings, diagnostic_values
-        from ..io import topics
+        from ..io import encoders, topics
 
-        self.spacecraft.add(t, y, None, mode)
+        self.spacecraft.add(t, y, None, mode, state=state)
         b = self.balance
         values = {"energy_J": f"{self._last.energy:.17g}",
                   "energy_balance_residual_J": f"{b.residual if b is not None else 0.0:.17g}",
                   **diagnostic_strings(diagnostic_values(snap, self.spacecraft))}
-        return topics.diagnostics(t, values, self.scene.name,
-                                  name=topics.DIAGNOSTICS_STATUS_NAME)
+        return encoders.diagnostics(t, values, self.scene.name,
+                                    name=topics.DIAGNOSTICS_STATUS_NAME)
 
     def _show(self, t: float, t_ns: int, snap, encoded) -> None:
         """Pace the samples at ``rtf`` and show them in the live view."""
