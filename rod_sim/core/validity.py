@@ -290,18 +290,17 @@ def latch_losses(events, t_after: float = -math.inf, t_upto: float = math.inf) -
                      if e.kind == "latch" and t_after <= e.t < t_upto))
 
 
-def _unpaired_coefficients(model, y) -> np.ndarray:
+def _unpaired_coefficients(model, y, t: float = 0.0) -> np.ndarray:
     """A_j (n,) [kg m^2/s] with P_unpaired = -sum_j A_j (alpha_j' - beta_j'):
     A_j = C_j phi_j' sum_{k<j} l_k phi_k' sin(phi_k - phi_j), C_j = m_j l_j^2 / 12 (prefix
     sums, O(n)); on a moving base or with several chains, A_j = -C_j phi_j' e_j . v_{j-1}
-    with v_{j-1} the velocity of rod j's first node (the same sum plus its node 0's, the
-    base's twist taken at t = 0)."""
-    return model.state(0.0, y).value(_coefficients)
+    with v_{j-1} the velocity of rod j's first node at time ``t`` [s] (the same sum plus its
+    node 0's: a prescribed base moves it by its motion at t)."""
+    return model.state(t, y).value(_coefficients)
 
 
 def _coefficients(s) -> np.ndarray:
-    """:func:`_unpaired_coefficients` of the State ``s`` (a free or fixed base's node
-    velocities do not depend on t: the state's own are used)."""
+    """:func:`_unpaired_coefficients` of the State ``s`` (its node velocities at its t)."""
     model = s.model
     n = model.n
     p = model.params
@@ -314,9 +313,7 @@ def _coefficients(s) -> np.ndarray:
         before_s = np.concatenate([[0.0], np.cumsum(w * sn)[:-1]])
         return p.m * p.l**2 / 12.0 * dphi * (before_s * c - before_c * sn)
     phi, dphi = s.phi, s.phi_rate
-    velocities = s.velocities if not model.prescribed_base or s.t == 0.0 else \
-        model.node_velocities(0.0, s.y)
-    v = velocities[model.rod_starts]
+    v = s.velocities[model.rod_starts]
     return -p.m * p.l**2 / 12.0 * dphi * (np.cos(phi) * v[:, 0] + np.sin(phi) * v[:, 1])
 
 
@@ -326,7 +323,7 @@ def _plain(model) -> bool:
         and not getattr(model, "nb", 0)
 
 
-def unpaired_power(model, y) -> float:
+def unpaired_power(model, y, t: float = 0.0) -> float:
     """[W] power of the full model's velocity terms that its energy E does not account for:
     dE/dt = P_load - P_damper + P_unpaired along the model's own equations (rigid and reduced
     models: 0).
@@ -339,7 +336,7 @@ def unpaired_power(model, y) -> float:
     alpha' ~ alpha omega_1 do not fall with EI (measured on config/deployment.yaml: the
     integral reaches -0.4 J of 35.8 J at EI = 2e3, 2e4 and 2e5 alike). The identity is checked
     against the model's right-hand side in test_energy_balance. O(n)."""
-    return model.state(0.0, y).value(_unpaired_power)
+    return model.state(t, y).value(_unpaired_power)
 
 
 def _unpaired_power(s) -> float:
