@@ -201,9 +201,10 @@ class PeriodRunner:
         self.meter.add_step(self.period_ns, time.perf_counter_ns() - start)
         # one State for the snapshot, the balance sample and the momentum ledger: each
         # quantity (the right-hand side with the slopes, the momentum, the powers) once
+        held = held.copy()      # the State may be evaluated later (its span's end): its own
         state = self.model.state(sim.t, sim.y, held, sim.mode, data=sim.data)
         snap = self.model.snapshot(sim.t, sim.y, held, sim.mode, state=state)
-        self._balance_end = (sim.t_ns, held.copy(), sim.y, sim.mode, state)
+        self._balance_end = (sim.t_ns, held, sim.y, sim.mode, state)
         self.last_state = snap
         self.validity.update(sim.t, sim.y, held[:sim.model.n], snap.alpha, snap.beta)
         if len(sim.events) > self.events_seen or self.ahead_limit <= 1 or kink or \
