@@ -29,21 +29,25 @@ LEDGER_KEYS = ("momentum_balance_residual_x", "momentum_balance_residual_y",
 
 def support_rates(model, t: float, y, held=None, mode=None, state=None) -> MomentumRates:
     """:func:`momentum_rates` plus, on a fixed or prescribed base, the support's force and
-    moment about O on the chains (the same on both sides of a load jump: the reaction's jump
-    there is of the order of the jump of the loads, booked at the sample after it).
+    moment about O on the chains; at a load breakpoint ``t`` the reaction before it too (from
+    the accelerations under the loads before the jump: it jumps with them).
     ``state``: a :class:`~rod_sim.core.state.State` of the arguments to share."""
     s = model.state(t, y, held, mode) if state is None else state
     rates = momentum_rates(model, t, y, held, mode, state=s)
     if model.base_mode == kernels.MODE_FREE:
         return rates
-    force, moment = base_reaction(model, t, y, held, mode, state=s)
     root = s.nodes[model.table.roots]
-    f = force.sum(axis=0)
-    m = float(np.sum(_cross(root, force)) - np.sum(moment))
+
+    def support(force, moment):
+        return force.sum(axis=0), float(np.sum(_cross(root, force)) - np.sum(moment))
+
+    f, m = support(*base_reaction(model, t, y, held, mode, state=s))
+    fb, mb = (f, m) if t not in model.breakpoints else support(
+        *base_reaction(model, float(np.nextafter(t, -np.inf)), y, held, mode))
     before_f = rates.force if rates.force_before is None else rates.force_before
     before_m = rates.moment if rates.moment_before is None else rates.moment_before
     return MomentumRates(rates.force + f, rates.moment + m, rates.defect_force,
-                         rates.defect_moment, before_f + f, before_m + m)
+                         rates.defect_moment, before_f + fb, before_m + mb)
 
 
 class SpacecraftLedger:

@@ -178,29 +178,25 @@ class _LoggedRun:
         self.topics = topics.DEFAULT_TOPICS + (topics.BASE_TOPICS if scene.moving_base else ())
         """The state topics of each sample (``base_odometry`` on a moving base)."""
 
-    def _write(self, t: float, y, mode=None) -> None:
-        from ..core.validity import EnergyBalance, balance_sample
+    def _write(self, t: float, y, mode=None, logged: bool = True) -> None:
+        """The sample (t, y, mode) into the ledgers and, if ``logged``, the log (a sample at
+        a load or base-motion breakpoint off the log's grid is booked only: no ledger span
+        then holds a jump of the loads inside it)."""
+        from ..core.validity import balance_sample
 
         model = self.sim.model
         # one State: each quantity of the sample (the right-hand side with the slopes, node
         # velocities, momentum, powers, ...) computed once for the snapshot, the energy
         # balance, the momentum ledger and the diagnostics
         state = model.state(t, y, None, mode, data=self.sim.data)   # its scratch: between steps
+        if not logged:
+            self._book(t, balance_sample(model, t, y, None, mode, state=state))
+            if self.spacecraft is not None:
+                self.spacecraft.add(t, y, None, mode, state=state)
+            return
         snap = model.snapshot(t, y, None, mode, state=state)
         self.validity.update(snap.t, y, None, snap.alpha, snap.beta)
-        sample = balance_sample(model, t, y, None, mode, state=state)
-        if self.balance is None:
-            self.balance = EnergyBalance.for_model(model, sample.energy)
-        else:
-            events = self.sim.events
-            k = self.balanced_events
-            while k < len(events) and events[k].t < t:    # a sample at a latch's time: before it
-                k += 1
-            self.balance.add(self._last, sample, events[self.balanced_events:k])
-            self.balanced_events = k
-            self.validity.update_energy(t, self.balance.residual, self.balance.scale,
-                                        self.balance.unresolved)
-        self._last = sample
+        self._book(t, balance_sample(model, t, y, None, mode, state=state))
         from ..io import encoders, topics
 
         t_ns = topics.time_ns(snap.t)
@@ -216,6 +212,24 @@ class _LoggedRun:
             self.t_logged = t
         if self.live is not None:
             self._show(t, t_ns, snap, encoded)
+
+    def _book(self, t: float, sample) -> None:
+        """The energy balance from the previous sample to ``sample`` (a BalanceSample)."""
+        from ..core.validity import EnergyBalance
+
+        model = self.sim.model
+        if self.balance is None:
+            self.balance = EnergyBalance.for_model(model, sample.energy)
+        else:
+            events = self.sim.events
+            k = self.balanced_events
+            while k < len(events) and events[k].t < t:    # a sample at a latch's time: before it
+                k += 1
+            self.balance.add(self._last, sample, events[self.balanced_events:k])
+            self.balanced_events = k
+            self.validity.update_energy(t, self.balance.residual, self.balance.scale,
+                                        self.balance.unresolved)
+        self._last = sample
 
     def _diagnostics(self, t: float, y, mode, snap, state=None):
         """A spacecraft scene's ``/diagnostics`` message of the sample as CDR bytes (None
@@ -253,14 +267,19 @@ class _LoggedRun:
                 "max_abs_alpha": float(np.max(np.abs(snap.alpha), initial=0.0)),
                 "max_abs_beta": float(np.max(np.abs(snap.beta), initial=0.0))})
 
-    def _write_traj(self, traj) -> None:
+    def _write_traj(self, traj, kink: float | None = None) -> None:
         """The samples of ``traj`` after its first (the previous call's last), then the hinge
-        events since the last call."""
+        events since the last call. ``kink``: a breakpoint [s] of the loads or the base's
+        motion that ``traj`` ends at (its last sample, the nearest whole ns): that sample is
+        booked at the breakpoint's own time, where the ledgers take the loads on either side
+        of it, and not logged."""
         from ..io.hinge_events import write_events
 
+        last = traj.t.size - 1
         for i in range(1, traj.t.size):
-            self._write(float(traj.t[i]), traj.y[i],
-                        None if traj.modes is None else traj.modes[i])
+            at_kink = kink is not None and i == last
+            self._write(kink if at_kink else float(traj.t[i]), traj.y[i],
+                        None if traj.modes is None else traj.modes[i], not at_kink)
         with signals_deferred():
             self.logged_events += write_events(self.log, self.sim.events[self.logged_events:])
 
@@ -281,6 +300,13 @@ class _LoggedRun:
             t_next = min(end_ns, _sample_grid_ns(rate_hz, k)) / 1e9
             started = time.perf_counter()
             try:
+                # up to each load or base-motion breakpoint off the grid (booked, not logged),
+                # then to the chunk's end
+                for kink in self._kinks_before(sim.t_ns, round(t_next * 1e9), rate_hz):
+                    traj = sim.run(round(kink * 1e9) / 1e9, rate_hz)
+                    self.wall += time.perf_counter() - started
+                    self._write_traj(traj, kink)
+                    started = time.perf_counter()
                 traj = sim.run(t_next, rate_hz)
             except failure as err:
                 # redo the chunk one sample at a time so the log keeps every finite sample
@@ -297,6 +323,21 @@ class _LoggedRun:
             self.wall += time.perf_counter() - started
             self._write_traj(traj)
         return EXIT_OK
+
+    def _kinks_before(self, start_ns: int, end_ns: int, rate_hz: float) -> list[float]:
+        """The breakpoints [s] of the scripted loads and a prescribed base motion (where
+        their power may jump) strictly between ``start_ns`` and ``end_ns`` [ns] and not on a
+        sample of the log's grid."""
+        scene = self.scene
+        marks = set(scene.load_breakpoints()) | set(getattr(scene, "motion_breakpoints",
+                                                            tuple)())
+        out = []
+        for b in sorted(marks):
+            b_ns = round(b * 1e9)
+            k = round(b_ns * rate_hz / 1e9)
+            if start_ns < b_ns < end_ns and _sample_grid_ns(rate_hz, k) != b_ns:
+                out.append(b)
+        return out
 
 
 class _Progress:
