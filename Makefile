@@ -29,9 +29,13 @@ venv: $(STAMP)
 $(VPY):
 	$(PYTHON) -m venv $(VENV)
 
+# pip -q is silent for a minute or more: heartbeat.py says every 8 s that it is still at work
+HEARTBEAT = $(VPY) rod_sim/tools/heartbeat.py
+
 $(STAMP): setup.py | $(VPY)
-	$(VPY) -m pip install -q --upgrade pip
-	$(VPY) -m pip install -q -e '.[ros,test,plot,peer,sweep,view]'
+	$(HEARTBEAT) "upgrading pip in $(VENV)" -- $(VPY) -m pip install -q --upgrade pip
+	$(HEARTBEAT) "installing rod_sim, the ROS 2 Jazzy wheels and the extras into $(VENV)" -- \
+		$(VPY) -m pip install -q -e '.[ros,test,plot,peer,sweep,view]'
 	touch $(STAMP)
 
 # Compile drivers into numba's cache ahead of use, in 2 processes, with a line at least every
