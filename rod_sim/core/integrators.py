@@ -546,9 +546,7 @@ def drive(model, integrator: Integrator, y0, t0: float, t_out, held=None, mode=N
         Y[done], modes[done] = y, mode
         done += 1
     mode, y = _latch(model, mode, t, y, None, events)
-    scene = model.scene
-    marks = set(scene.load_breakpoints()) | set(getattr(scene, "motion_breakpoints", tuple)())
-    breaks = np.array(sorted(b for b in marks if t < b < t_out[-1]), dtype=float)
+    breaks = np.array([b for b in model.scene.breakpoints() if t < b < t_out[-1]], dtype=float)
     carry = integrator.init(model) if carry is None else carry
     data = model.new_data() if data is None else data
     carry.steps0 = carry.stats.steps

@@ -333,6 +333,12 @@ class Scene:
         base is prescribed)."""
         return self.base.breakpoints()
 
+    def breakpoints(self) -> tuple[float, ...]:
+        """Sorted times [s] where a scripted load or the base's prescribed motion may jump
+        (:meth:`load_breakpoints` and :meth:`motion_breakpoints`): integrators end a step
+        there and the ledgers book a sample there."""
+        return tuple(sorted(set(self.load_breakpoints()) | set(self.motion_breakpoints())))
+
     def scripted_forces(self, t: float) -> np.ndarray:
         """Scripted nodal forces at time ``t`` [s]: array (n, 2) of (X_k, Y_k) [N] (the chain
         nodes' loads; base and wheel loads are in :meth:`scripted_load_table`)."""

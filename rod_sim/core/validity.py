@@ -290,17 +290,12 @@ def latch_losses(events, t_after: float = -math.inf, t_upto: float = math.inf) -
                      if e.kind == "latch" and t_after <= e.t < t_upto))
 
 
-def _unpaired_coefficients(model, y, t: float = 0.0) -> np.ndarray:
-    """A_j (n,) [kg m^2/s] with P_unpaired = -sum_j A_j (alpha_j' - beta_j'):
+def _coefficients(s) -> np.ndarray:
+    """A_j (n,) [kg m^2/s] of the State ``s`` with P_unpaired = -sum_j A_j (alpha_j' - beta_j'):
     A_j = C_j phi_j' sum_{k<j} l_k phi_k' sin(phi_k - phi_j), C_j = m_j l_j^2 / 12 (prefix
     sums, O(n)); on a moving base or with several chains, A_j = -C_j phi_j' e_j . v_{j-1}
-    with v_{j-1} the velocity of rod j's first node at time ``t`` [s] (the same sum plus its
-    node 0's: a prescribed base moves it by its motion at t)."""
-    return model.state(t, y).value(_coefficients)
-
-
-def _coefficients(s) -> np.ndarray:
-    """:func:`_unpaired_coefficients` of the State ``s`` (its node velocities at its t)."""
+    with v_{j-1} the velocity of rod j's first node at the state's time (the same sum plus
+    its node 0's: a prescribed base moves it by its motion then)."""
     model = s.model
     n = model.n
     p = model.params

@@ -113,9 +113,8 @@ class PeriodRunner:
         self._span_ns = 0
         """Its time [ns]."""
         scene = self.model.scene
-        self._breaks_ns = np.array(sorted({round(b * NS_PER_S) for b in (
-            *scene.load_breakpoints(), *getattr(scene, "motion_breakpoints", tuple)())}),
-            dtype=np.int64)
+        self._breaks_ns = np.array(sorted({round(b * NS_PER_S) for b in scene.breakpoints()}),
+                                   dtype=np.int64)
         """Breakpoints of the scripted loads and base motion [ns]: the periods holding one
         are booked on their own (as in lockstep)."""
 

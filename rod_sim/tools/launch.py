@@ -12,10 +12,10 @@ import sys
 
 def _stop_at_once(signum, frame):           # pragma: no cover - timing-dependent
     name = sys.argv[1] if len(sys.argv) > 1 and not sys.argv[1].startswith("-") else ""
+    who = f"rod-sim {name}" if name else "rod-sim"
     tail = " (SIGTERM)" if signum == signal.SIGTERM else ""
     try:
-        os.write(2, f"rod-sim {name}: interrupted{tail}\n".replace("rod-sim : ", "rod-sim: ")
-                 .encode())
+        os.write(2, f"{who}: interrupted{tail}\n".encode())
     finally:
         os._exit(128 + signum)
 

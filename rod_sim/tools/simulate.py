@@ -189,19 +189,19 @@ class _LoggedRun:
         # velocities, momentum, powers, ...) computed once for the snapshot, the energy
         # balance, the momentum ledger and the diagnostics
         state = model.state(t, y, None, mode, data=self.sim.data)   # its scratch: between steps
-        if not logged:
-            self._book(t, balance_sample(model, t, y, None, mode, state=state))
-            if self.spacecraft is not None:
-                self.spacecraft.add(t, y, None, mode, state=state)
-            return
-        snap = model.snapshot(t, y, None, mode, state=state)
-        self.validity.update(snap.t, y, None, snap.alpha, snap.beta)
+        if logged:
+            snap = model.snapshot(t, y, None, mode, state=state)
+            self.validity.update(snap.t, y, None, snap.alpha, snap.beta)
         self._book(t, balance_sample(model, t, y, None, mode, state=state))
+        if self.spacecraft is not None:
+            self.spacecraft.add(t, y, None, mode, state=state)
+        if not logged:
+            return
         from ..io import encoders, topics
 
         t_ns = topics.time_ns(snap.t)
         encoded = encoders.snapshot_bytes(snap, self.scene, self.frame_id, self.topics)
-        diagnostics = self._diagnostics(t, y, mode, snap, state)
+        diagnostics = self._diagnostics(t, snap)
         with signals_deferred():            # every record of a sample whole, or none
             for name, data in encoded.items():
                 self.log.write_cdr("/" + name, topics.TOPIC_TYPES[name], t_ns, data)
@@ -231,17 +231,15 @@ class _LoggedRun:
                                         self.balance.unresolved)
         self._last = sample
 
-    def _diagnostics(self, t: float, y, mode, snap, state=None):
+    def _diagnostics(self, t: float, snap):
         """A spacecraft scene's ``/diagnostics`` message of the sample as CDR bytes (None
         otherwise): the node's energy keys and the spacecraft keys (docs/interface.md section
-        3), the momentum ledger fed with every sample (``state``: the sample's State,
-        shared)."""
+        3), the momentum ledger as booked up to this sample."""
         if self.spacecraft is None:
             return None
         from ..core.ledger import diagnostic_strings, diagnostic_values
         from ..io import encoders, topics
 
-        self.spacecraft.add(t, y, None, mode, state=state)
         b = self.balance
         values = {"energy_J": f"{self._last.energy:.17g}",
                   "energy_balance_residual_J": f"{b.residual if b is not None else 0.0:.17g}",
@@ -328,11 +326,8 @@ class _LoggedRun:
         """The breakpoints [s] of the scripted loads and a prescribed base motion (where
         their power may jump) strictly between ``start_ns`` and ``end_ns`` [ns] and not on a
         sample of the log's grid."""
-        scene = self.scene
-        marks = set(scene.load_breakpoints()) | set(getattr(scene, "motion_breakpoints",
-                                                            tuple)())
         out = []
-        for b in sorted(marks):
+        for b in self.scene.breakpoints():
             b_ns = round(b * 1e9)
             k = round(b_ns * rate_hz / 1e9)
             if start_ns < b_ns < end_ns and _sample_grid_ns(rate_hz, k) != b_ns:
