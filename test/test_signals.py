@@ -157,3 +157,40 @@ def test_a_signal_in_the_middle_of_a_log_write_waits_for_its_end(tmp_path, monke
             counts[topic] = counts.get(topic, 0) + 1
     assert counts.pop("/scene") == 1                     # latched, written once at the start
     assert len(set(counts.values())) == 1, counts        # whole samples: every topic alike
+
+
+def test_an_interruption_python_cannot_raise_is_not_reported_as_ignored():
+    """A signal's KeyboardInterrupt raised inside a weakref callback of the import system
+    (seen: "Exception ignored in: <function _get_module_lock.<locals>.cb ...>" with a
+    traceback before `rod-sim advise: interrupted`) is not reported: the command's one line
+    says it. Other unraisable exceptions, or one with no signal received, go to the hook
+    that was there before."""
+    import sys
+    import types
+
+    from rod_sim.app import signals
+
+    before = sys.unraisablehook
+    seen = []
+    sys.unraisablehook = lambda u: seen.append(type(u.exc_value).__name__)
+    signals.reset("rod-sim test")
+    try:
+        signals.handle_sigterm()
+        signals.handle_sigterm()            # twice: still one hook, not a chain to itself
+
+        def unraisable(exc):
+            return types.SimpleNamespace(exc_type=type(exc), exc_value=exc,
+                                         exc_traceback=None, err_msg="Exception ignored in",
+                                         object=None)
+
+        sys.unraisablehook(unraisable(KeyboardInterrupt()))   # no signal yet: reported
+        signals._received.append(signal.SIGINT)
+        sys.unraisablehook(unraisable(KeyboardInterrupt()))
+        sys.unraisablehook(unraisable(signals.Terminated()))
+        sys.unraisablehook(unraisable(ValueError("other")))
+        assert seen == ["KeyboardInterrupt", "ValueError"]
+    finally:
+        signals.reset()
+        sys.unraisablehook = before
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)

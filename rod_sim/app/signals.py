@@ -120,11 +120,28 @@ def signals_deferred():
         raise stop
 
 
+def quiet_unraisable(unraisable) -> None:
+    """``sys.unraisablehook`` of a command: the interruption of a received signal raised where
+    Python cannot propagate it (a weakref callback of the import system's module locks, a
+    finaliser) is not reported there as "Exception ignored in ..." with a traceback: the
+    command reports it once, as its one line (``rod_sim.tools.cli.main`` sees the received
+    signal). Anything else goes to the hook it replaced."""
+    if received() is not None and isinstance(unraisable.exc_value, KeyboardInterrupt):
+        return
+    _replaced_unraisablehook[0](unraisable)
+
+
+_replaced_unraisablehook = [sys.__unraisablehook__]
+
+
 def handle_sigterm() -> None:
     """SIGINT and SIGTERM raise KeyboardInterrupt / :class:`Terminated` in the main thread:
     ``simulate``, ``compare``, ``sweep`` and the other commands close their files and exit
     with status 130 / 143 (the node and ``replay`` install their own handler once they run).
     Both wait for the end of a log write (:func:`signals_deferred`)."""
+    if sys.unraisablehook is not quiet_unraisable:
+        _replaced_unraisablehook[0] = sys.unraisablehook
+        sys.unraisablehook = quiet_unraisable
     if threading.current_thread() is threading.main_thread():
         # a mask inherited from the launcher (or left by a library's worker threads in this
         # process) would make the command deaf to Ctrl-C and SIGTERM
