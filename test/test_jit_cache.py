@@ -183,3 +183,74 @@ def test_the_shared_cache_switched_off_keeps_the_package_cache():
     repo = Path(jit.__file__).resolve().parents[2]
     got = _probe(repo, "off")
     assert got["path"] == str(repo / "rod_sim" / "core" / "__pycache__")
+
+
+GENERIC_PROBE = """
+import json, sys
+from rod_sim.core import jit
+
+@jit.njit
+def twice(x):
+    return 2.0 * x
+
+@jit.njit
+def thrice(x):
+    return 3.0 * x
+
+@jit.njit
+def apply(f, x):
+    return f(x)
+
+callee = twice if sys.argv[1] == "twice" else thrice
+value = apply(callee, 1.5)
+twice(0.5)
+print(json.dumps({"value": value, "plain_hits": sum(twice.stats.cache_hits.values())}))
+"""
+
+
+def test_functions_taking_compiled_functions_stay_out_of_the_disk_cache(tmp_path):
+    """A signature holding a compiled function (numba's dispatcher type, a weak reference to
+    the writing process's function) never matches in another process: each process added an
+    index entry, and once numba's keep-alive of unpickled functions had let one go, a save
+    raised "ReferenceError: underlying object has vanished" (CI, test_radau). Here the
+    keep-alive is one function, so a later process failed before: now every process gives
+    the right value, the generic function writes no index, and a plain function is cached
+    and found again."""
+    import json
+    import subprocess
+    import sys
+
+    (tmp_path / "generic_probe.py").write_text(GENERIC_PROBE)
+    cache = tmp_path / "cache"
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1]),
+           "NUMBA_CACHE_DIR": str(cache), "NUMBA_FUNCTION_CACHE_SIZE": "1"}
+    results = []
+    for callee in ("twice", "thrice", "twice", "thrice"):
+        done = subprocess.run([sys.executable, "generic_probe.py", callee], env=env,
+                              capture_output=True, text=True, timeout=300, cwd=tmp_path)
+        assert done.returncode == 0, done.stderr[-2000:]
+        results.append(json.loads(done.stdout.strip().splitlines()[-1]))
+    assert [r["value"] for r in results] == [3.0, 4.5, 3.0, 4.5]
+    indexes = sorted(p.name for p in cache.rglob("*.nbi"))
+    assert not any(".apply-" in name for name in indexes), indexes
+    assert any(".twice-" in name for name in indexes), indexes
+    assert results[0]["plain_hits"] == 0 and results[1]["plain_hits"] == 1
+
+
+def test_a_signature_names_a_function_object_inside_tuples():
+    """The check behind the skip: a dispatcher type alone, in a tuple, in a named tuple;
+    arrays and scalars do not."""
+    import numba
+
+    from rod_sim.core.radau import RadauFns
+
+    @numba.njit
+    def f(x):
+        return x
+
+    fn = numba.typeof(f)
+    arr = numba.typeof(np.zeros(3))
+    assert jit.names_a_function_object((fn, arr))
+    assert jit.names_a_function_object((arr, numba.typeof((1.0, f))))
+    assert jit.names_a_function_object((numba.typeof(RadauFns(f, f, f, f)),))
+    assert not jit.names_a_function_object((arr, numba.float64, numba.typeof((arr, 1.0))))

@@ -196,6 +196,59 @@ def _lock_cache_files(caching) -> bool:
     return True
 
 
+def names_a_function_object(signature) -> bool:
+    """Whether a compiled function's signature (a tuple of numba types) takes a compiled
+    function as an argument, alone or inside a tuple (numba's dispatcher type: a weak
+    reference to that process's function object)."""
+    from numba.core.types.functions import WeakType
+
+    stack, seen = [signature], set()
+    while stack:
+        item = stack.pop()
+        if id(item) in seen:
+            continue
+        seen.add(id(item))
+        if isinstance(item, WeakType):
+            return True
+        if isinstance(item, (tuple, list)):
+            stack.extend(item)
+        elif isinstance(getattr(item, "key", None), tuple):
+            stack.extend(item.key)
+    return False
+
+
+def _skip_function_object_signatures(caching) -> bool:
+    """Keep signatures that take compiled functions as arguments (the generic drivers:
+    ``dop853_run(rhs, ...)``, ``radau_run_work(fns, ...)``, their helpers) out of numba's disk
+    cache. Their index keys hold the writing process's function objects: no other process
+    ever matches them (each process compiled them again and added one more entry), and a
+    save re-pickles every key of the index, which fails with "ReferenceError: underlying
+    object has vanished" once numba's keep-alive of unpickled functions (128) has let one go
+    (CI, test_radau: a _newton index of ~20 processes' entries). The named drivers
+    (``dop853_reduced``, ...) take no function and are cached whole, the code of the generic
+    ones inside them. Returns False (nothing changed) where numba's internal class is
+    missing."""
+    cls = getattr(caching, "IndexDataCacheFile", None)
+    if cls is None or not all(hasattr(cls, name) for name in ("save", "load")):
+        return False
+    if getattr(cls, "_rod_sim_skips_function_objects", False):
+        return True
+    save, load = cls.save, cls.load
+
+    def save_unless_function_object(self, key, data):
+        if not names_a_function_object(key[0]):
+            save(self, key, data)
+
+    def load_unless_function_object(self, key):
+        return None if names_a_function_object(key[0]) else load(self, key)
+
+    save_unless_function_object.__wrapped__ = save
+    load_unless_function_object.__wrapped__ = load
+    cls.save, cls.load = save_unless_function_object, load_unless_function_object
+    cls._rod_sim_skips_function_objects = True
+    return True
+
+
 try:  # pragma: no cover - exercised by whichever branch the machine has
     if os.environ.get("ROD_SIM_NO_JIT"):
         raise ImportError("disabled by ROD_SIM_NO_JIT")
@@ -212,8 +265,9 @@ try:  # pragma: no cover - exercised by whichever branch the machine has
         from numba.core import caching as _caching
         CORE_LOCATORS = _install_core_locators(_caching)
         CACHE_LOCKED = _lock_cache_files(_caching)
+        CACHE_SKIPS_FUNCTION_OBJECTS = _skip_function_object_signatures(_caching)
     except ImportError:
-        CORE_LOCATORS, CACHE_LOCKED = (), False
+        CORE_LOCATORS, CACHE_LOCKED, CACHE_SKIPS_FUNCTION_OBJECTS = (), False, False
 
     def njit(fn=None, **kwargs):
         """``numba.njit(cache=True)`` with the given options."""
@@ -226,7 +280,7 @@ try:  # pragma: no cover - exercised by whichever branch the machine has
 
 except ImportError:  # pragma: no cover
     HAVE_NUMBA = False
-    CORE_LOCATORS, CACHE_LOCKED = (), False
+    CORE_LOCATORS, CACHE_LOCKED, CACHE_SKIPS_FUNCTION_OBJECTS = (), False, False
 
     def njit(fn=None, **kwargs):
         if fn is None:
