@@ -138,23 +138,30 @@ def test_the_ticker_thread_prints_while_a_fake_compile_runs():
 
 @pytest.mark.skipif(not jit.HAVE_NUMBA, reason="numba not installed")
 def test_numba_compile_events_reach_the_watch():
+    """Each compile is seen once, with whether its signature takes a compiled function (then
+    numba's disk cache does not keep it: reported as not cached)."""
     import numba
 
     seen = []
     watch = CompileWatch(lambda line: None)
-    watch.begin, watch.end = seen.append, lambda: seen.append("end")
+    watch.begin = lambda name, cached=True: seen.append((name.rpartition(".")[2], cached))
+    watch.end = lambda: seen.append("end")
     watch.install()
     try:
         @numba.njit(cache=False)
         def tiny_compiled_function(x):
             return x + 1
 
+        @numba.njit(cache=False)
+        def apply(f, x):
+            return f(x)
+
         assert tiny_compiled_function(1) == 2
         assert tiny_compiled_function(2) == 3         # compiled once
+        assert apply(tiny_compiled_function, 3) == 4
     finally:
         watch.uninstall()
-    assert seen == ["test_numba_compile_events_reach_the_watch.<locals>."
-                    "tiny_compiled_function", "end"]
+    assert seen == [("tiny_compiled_function", True), "end", ("apply", False), "end"]
 
 
 def test_every_driver_has_a_measured_estimate_and_a_name_in_words():
@@ -205,3 +212,16 @@ def test_warming_prunes_shared_cache_directories_unused_for_a_month(tmp_path):
     assert current.is_dir() and fresh.is_dir() and not stale.exists()
     assert current.stat().st_mtime == now
     assert prune_shared_cache(None) == [] and prune_shared_cache(tmp_path / "nope") == []
+
+
+def test_a_compile_taking_a_compiled_function_says_it_is_not_cached():
+    clocks, lines = Clocks(), []
+    watch = make_watch(clocks, lines)
+    watch.begin("radau_run", cached=False)
+    clocks.advance(2.5)
+    (notice,) = watch.poll()
+    assert "takes a compiled function" in notice and "not in numba's cache yet" not in notice
+    watch.end()
+    assert lines[-1].endswith("not cached (it takes a compiled function): compiled again by "
+                              "every process")
+

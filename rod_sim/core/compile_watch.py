@@ -125,6 +125,7 @@ class _Compile:
     announced: bool = False
     last_line: float = 0.0
     depth: int = 1
+    cached: bool = True
     extra: dict = field(default_factory=dict)
 
 
@@ -151,8 +152,10 @@ class CompileWatch:
         self._thread: threading.Thread | None = None
 
     # -- the compile thread's side (numba's events) ------------------------------------
-    def begin(self, name: str) -> None:
-        """A compile of ``name`` starts in the calling thread (nested ones are counted)."""
+    def begin(self, name: str, cached: bool = True) -> None:
+        """A compile of ``name`` starts in the calling thread (nested ones are counted).
+        ``cached`` False: the signature takes a compiled function, which numba's disk cache
+        does not keep (:func:`rod_sim.core.jit.names_a_function_object`)."""
         key = threading.get_ident()
         with self._lock:
             cur = self._active.get(key)
@@ -163,7 +166,7 @@ class CompileWatch:
             if name in self.table and self.kernel_ready(name):
                 cpu = max(cpu - KERNEL_CPU_S, 5.0)
             cpu *= self.inflation()
-            self._active[key] = _Compile(name, self.clock(), self.cpu(), cpu)
+            self._active[key] = _Compile(name, self.clock(), self.cpu(), cpu, cached=cached)
         self._wake.set()
 
     def end(self) -> None:
@@ -181,7 +184,9 @@ class CompileWatch:
         if cur.announced:
             self.sink(f"{COMPILE_NOTICE} {describe(cur.name)}: done in "
                       f"{self.clock() - cur.wall0:.0f} s ({self.cpu() - cur.cpu0:.0f} s CPU); "
-                      "cached for later runs")
+                      + ("cached for later runs" if cur.cached else
+                         "not cached (it takes a compiled function): compiled again by every "
+                         "process"))
 
     # -- the ticker's side -------------------------------------------------------------
     def poll(self) -> list[str]:
@@ -204,9 +209,12 @@ class CompileWatch:
         measured = (f"Measured ~{c.estimate_cpu:.0f} s of CPU at this load" if c.name in
                     self.table else
                     f"Not measured (helpers take ~{c.estimate_cpu:.0f} s of CPU)")
-        return (f"{COMPILE_NOTICE} {describe(c.name)} ({c.name}): it is not in numba's "
-                "cache yet (first use since an install or a change of rod_sim/core; compiled "
-                f"once, then cached). {measured}; expect ~{wall:.0f} s at this machine's load")
+        why = ("it is not in numba's cache yet (first use since an install or a change of "
+               "rod_sim/core; compiled once, then cached)" if c.cached else
+               "it takes a compiled function as an argument, which numba's disk cache does "
+               "not keep (compiled once per process)")
+        return (f"{COMPILE_NOTICE} {describe(c.name)} ({c.name}): {why}. {measured}; "
+                f"expect ~{wall:.0f} s at this machine's load")
 
     def _progress(self, c: _Compile, now: float) -> str:
         elapsed, used = now - c.wall0, self.cpu() - c.cpu0
@@ -242,7 +250,8 @@ class CompileWatch:
         class _Listener(event.Listener):
             def on_start(self, ev):
                 disp = ev.data.get("dispatcher")
-                watch.begin(getattr(getattr(disp, "py_func", None), "__qualname__", "?"))
+                watch.begin(getattr(getattr(disp, "py_func", None), "__qualname__", "?"),
+                            cached=not _takes_function(ev.data.get("args")))
 
             def on_end(self, ev):
                 watch.end()
@@ -267,6 +276,16 @@ class CompileWatch:
         if getattr(self, "_listener", None) is not None:
             event.unregister("numba:compile", self._listener)
             self._listener = None
+
+
+def _takes_function(args) -> bool:
+    """Whether a compile's argument types include a compiled function (False if unknown)."""
+    try:
+        from rod_sim.core.jit import names_a_function_object
+
+        return names_a_function_object(tuple(args or ()))
+    except Exception:  # noqa: BLE001 -- a notice's wording, never a failure
+        return False
 
 
 _installed: CompileWatch | None = None
