@@ -189,3 +189,13 @@ def test_simulate_reports_the_whole_run_and_its_integration_part(tmp_path, capsy
     run, rtf, integration = (float(x) for x in got.groups())
     assert 0.0 <= integration <= run
     assert rtf == pytest.approx(0.5 / run, rel=0.01 + 0.0005 / run)
+
+
+@pytest.mark.parametrize("port, message", [("0", "must be a port 1..65535 (got 0)"),
+                                           ("70000", "must be a port 1..65535 (got 70000)"),
+                                           ("x", "not a port number: 'x'")])
+def test_simulate_refuses_a_bad_live_view_port(port, message, capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["simulate", "scene.yaml", "--t-end", "1", "--out", "o.mcap",
+                  "--live-view", port])
+    assert exc.value.code == 2 and message in capsys.readouterr().err

@@ -27,6 +27,12 @@ def test_ros_args_are_not_replay_options_and_remaps_become_ros_arguments():
 @pytest.mark.parametrize("argv, message", [
     (["--remap", "rod_states"], "not a remapping FROM:=TO"),
     (["--bogus"], "unrecognized arguments: --bogus"),
+    (["--live-view", "0"], "must be a port 1..65535 (got 0)"),
+    (["--live-view", "http"], "not a port number: 'http'"),
+    (["--delay", "-1"], "must be a finite number >= 0 (got -1)"),
+    (["--start-offset", "nan"], "must be a finite number >= 0 (got nan)"),
+    (["--start-offset", "inf"], "must be a finite number >= 0 (got inf)"),
+    (["--delay", "soon"], "not a number: 'soon'"),
 ])
 def test_bad_options_print_replay_usage(argv, message, capsys):
     with pytest.raises(SystemExit) as exc:

@@ -21,6 +21,7 @@ import sys
 from types import ModuleType
 
 from ..version import __version__
+from .commands import COMMANDS, NEVER_COMPILES
 
 from rod_sim.app import signals
 from rod_sim.app.common import (EXIT_BAD_INPUT, EXIT_CHECK_FAILED, EXIT_OK, PAPER_EXAMPLE,
@@ -30,28 +31,6 @@ from rod_sim.app.signals import reset as reset_signals
 
 __all__ = ["EXIT_OK", "EXIT_CHECK_FAILED", "EXIT_BAD_INPUT", "PAPER_EXAMPLE", "UsageError",
            "COMMANDS", "command_module", "build_parser", "run", "main"]
-
-
-COMMANDS = {
-    # rod-sim NAME: module (in the order of `rod-sim --help`)
-    "simulate": "simulate",                     # offline run -> MCAP log
-    "table1": "table1",                         # Table 1 of the paper
-    "node": "node",                             # the ROS 2 node (rod_sim.ros.node)
-    "advise": "advise",                         # cheapest model/integrator for a tolerance
-    "bench": "rod_sim.bench.command",           # speed against error (docs/bench.md)
-    "compare": "rod_sim.compare.command",       # a log against the full model
-    "ctl": "ctl",                               # the node's services, parameters, topics
-    "deployment-figure": "deployment_figure",   # snapshots of a logged chain
-    "repair": "repair",                         # rewrite a damaged log
-    "replay": "replay",                         # republish a log on a ROS graph
-    "sweep": "rod_sim.sweep.command",           # batch runs over parameter grids
-    "urdf": "urdf",                             # a scene's chain as URDF
-}
-"""``rod-sim`` subcommand -> the module that implements it (of ``rod_sim.tools`` unless a full
-name: compare, sweep and bench are packages of their own)."""
-NEVER_COMPILES = frozenset({"ctl", "repair", "replay", "urdf"})
-"""Subcommands that run no compiled code (the others say what numba compiles when it does:
-:func:`rod_sim.app.common.watch_compiles`; the node installs its own)."""
 
 
 def command_module(name: str) -> ModuleType:

@@ -11,32 +11,11 @@ import argparse
 import gc
 import sys
 
-from rod_sim.app.common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, positive_float
+from rod_sim.app.common import (EXIT_CHECK_FAILED, EXIT_OK, UsageError, non_negative_float,
+                                port_number, positive_float)
 
 HELP = "republish a log's topics on a live ROS graph with their timing and /clock"
 DEFAULT_CLOCK_HZ = 100.0
-
-
-def non_negative_float(text: str) -> float:
-    """argparse type: a finite number >= 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (value >= 0 and value != float("inf")):
-        raise argparse.ArgumentTypeError(f"must be a finite number >= 0 (got {text})")
-    return value
-
-
-def port_number(text: str) -> int:
-    """argparse type: a TCP port 1..65535."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a port number: {text!r}") from None
-    if not 1 <= value <= 65535:
-        raise argparse.ArgumentTypeError(f"must be a port 1..65535 (got {text})")
-    return value
 
 
 def remap_rule(text: str) -> str:

@@ -16,6 +16,7 @@ from ..core.names import INTEGRATOR_NAMES as INTEGRATORS
 from ..core.names import MODEL_NAMES
 from rod_sim.app import limits
 from rod_sim.app.common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, new_output_path
+from rod_sim.app.common import port_number
 from rod_sim.app.common import positive_float as _positive_float
 from rod_sim.app.signals import done, signals_deferred
 
@@ -51,20 +52,13 @@ def configure(parser) -> None:
                              "(default 1e-3)")
     parser.add_argument("--frame-id", default="world",
                         help="frame of the logged headers, poses and markers (default world)")
-    parser.add_argument("--live-view", type=_port, default=0, metavar="PORT",
+    parser.add_argument("--live-view", type=port_number, default=0, metavar="PORT",
                         help="show the run live: a Foxglove WebSocket server on "
                              "127.0.0.1:PORT (foxglove-sdk; connect the Foxglove app or "
                              "Lichtblick), the samples paced at --real-time-factor")
     parser.add_argument("--real-time-factor", type=_positive_float, default=1.0,
                         metavar="F", help="with --live-view: simulated seconds per wall "
                         "second at which the samples are shown (default 1)")
-
-
-def _port(text: str) -> int:
-    """argparse type: a TCP port 1..65535."""
-    from .replay import port_number
-
-    return port_number(text)
 
 
 def _sample_grid_ns(rate_hz: float, k: int) -> int:
