@@ -199,3 +199,22 @@ def test_simulate_refuses_a_bad_live_view_port(port, message, capsys):
         cli.main(["simulate", "scene.yaml", "--t-end", "1", "--out", "o.mcap",
                   "--live-view", port])
     assert exc.value.code == 2 and message in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["simulate", "s.yaml", "--out", "o.mcap", "--t-end", "-1"],
+     "argument --t-end: must be a positive finite number (got -1)"),
+    (["simulate", "s.yaml", "--out", "o.mcap", "--t-end", "nan"],
+     "argument --t-end: must be a positive finite number (got nan)"),
+    (["simulate", "s.yaml", "--out", "o.mcap", "--t-end", "1s"],
+     "argument --t-end: not a number: '1s'"),
+    (["advise", "s.yaml", "--tolerance", "1e-3", "--repeats", "0"],
+     "argument --repeats: must be 1 .. 1000 (got 0)"),
+    (["advise", "s.yaml", "--tolerance", "1e-3", "--repeats", "2.5"],
+     "argument --repeats: not a whole number: '2.5'"),
+])
+def test_number_options_are_refused_with_the_rule(argv, message, capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(argv)
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and message in err, err

@@ -29,48 +29,40 @@ class UsageError(ValueError):
     ``rod-sim`` prints its first line and exits with status 2."""
 
 
+def _checked(text: str, convert, noun: str, valid, rule: str):
+    """``convert(text)`` if it parses (else "not NOUN: 'TEXT'") and ``valid`` holds (else
+    "must be RULE (got TEXT)"), as argparse's ArgumentTypeError."""
+    try:
+        value = convert(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not {noun}: {quote(text)}") from None
+    if not valid(value):
+        raise argparse.ArgumentTypeError(f"must be {rule} (got {quote(text, plain=True)})")
+    return value
+
+
 def positive_int(text: str, largest: int = 1000) -> int:
     """argparse type: a whole number 1 .. ``largest``."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {quote(text)}") from None
-    if not 1 <= value <= largest:
-        raise argparse.ArgumentTypeError(f"must be 1 .. {largest} (got {value})")
-    return value
+    return _checked(text, int, "a whole number", lambda v: 1 <= v <= largest,
+                    f"1 .. {largest}")
 
 
 def positive_float(text: str) -> float:
     """argparse type: a finite number > 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {quote(text)}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be a positive finite number (got {text})")
-    return value
+    return _checked(text, float, "a number", lambda v: math.isfinite(v) and v > 0,
+                    "a positive finite number")
 
 
 def non_negative_float(text: str) -> float:
     """argparse type: a finite number >= 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {quote(text)}") from None
-    if not (value >= 0 and math.isfinite(value)):
-        raise argparse.ArgumentTypeError(f"must be a finite number >= 0 (got {text})")
-    return value
+    return _checked(text, float, "a number", lambda v: math.isfinite(v) and v >= 0,
+                    "a finite number >= 0")
 
 
 def port_number(text: str) -> int:
     """argparse type: a TCP port 1..65535."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a port number: {quote(text)}") from None
-    if not 1 <= value <= 65535:
-        raise argparse.ArgumentTypeError(f"must be a port 1..65535 (got {text})")
-    return value
+    return _checked(text, int, "a port number", lambda v: 1 <= v <= 65535,
+                    "a port 1..65535")
 
 
 def load_scene(path: str):
