@@ -53,6 +53,12 @@ def inputs(tmp_path_factory):
     return d
 
 
+def shown(what: str, proc, err: str) -> str:
+    """A failed trial's message: the moment, the status and the whole stderr (pytest cuts a
+    tuple's repr, which hid where a traceback came from)."""
+    return f"{what}: status {proc.returncode}, stderr:\n{err}"
+
+
 def commands(d: Path, out: Path) -> dict[str, tuple[list[str], Path | None]]:
     """name -> (arguments, the output file it writes or None)."""
     return {
@@ -108,7 +114,7 @@ def test_a_signal_at_a_random_moment_ends_the_command_cleanly(inputs, tmp_path, 
         time.sleep(delay)
         if proc.poll() is not None:                     # finished before the signal
             _, err = proc.communicate()
-            assert proc.returncode in (0, 1) and "Traceback" not in err, (what, err)
+            assert proc.returncode in (0, 1) and "Traceback" not in err, shown(what, proc, err)
             continue
         sent = time.monotonic()
         proc.send_signal(sig)
@@ -130,7 +136,7 @@ def test_a_signal_at_a_random_moment_ends_the_command_cleanly(inputs, tmp_path, 
                 continue
         if proc.returncode in (0, 1) and (not lines or "interrupted" not in lines[-1]):
             # it ended just as the signal came (its own last line, no traceback)
-            assert "Traceback" not in err and took < 0.1, (what, proc.returncode, err)
+            assert "Traceback" not in err and took < 0.1, shown(what, proc, err)
         elif proc.returncode == -sig and "Traceback" not in err and took < 0.1 and (
                 printed.strip() if output is None else output.exists()):
             # the command had returned: the signal came in the interpreter's last teardown,
@@ -138,9 +144,10 @@ def test_a_signal_at_a_random_moment_ends_the_command_cleanly(inputs, tmp_path, 
             # run: killed by SIGTERM 0 s after it, its table already printed)
             pass
         else:
-            assert proc.returncode == 128 + sig, (what, proc.returncode, err)
-            assert "Traceback" not in err, (what, err)
-            assert lines and lines[-1].startswith(f"rod-sim {name}: interrupted"), (what, err)
+            assert proc.returncode == 128 + sig, shown(what, proc, err)
+            assert "Traceback" not in err, shown(what, proc, err)
+            assert lines and lines[-1].startswith(f"rod-sim {name}: interrupted"), \
+                shown(what, proc, err)
             assert lines[-1].endswith("(SIGTERM)") or "(SIGTERM)" not in lines[-1] and \
                 sig == signal.SIGINT or "(SIGTERM)" in lines[-1] and sig == signal.SIGTERM
             assert took < 1.0, f"{what}: ended {took:.2f} s after the signal: {err}"

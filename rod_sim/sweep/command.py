@@ -157,12 +157,18 @@ def _pool_round(tasks: list[dict], workers: int, function, marker_dir: str, rows
 
     from .worker import failed_row
 
-    executor = ProcessPoolExecutor(max_workers=workers, initializer=_worker_init,
-                                   mp_context=_pool_context())
+    executor = None
     futures = {}
     lost: list[dict] = []
     reason = ""
     try:
+        # a signal inside the constructor (it makes the pool's 5 semaphores) lost the
+        # half-made pool: the command exited without releasing them, and multiprocessing's
+        # resource tracker warned of "5 leaked semaphore objects"; here it is raised once the
+        # pool exists, and the handler below stops it
+        with signals_deferred():
+            executor = ProcessPoolExecutor(max_workers=workers, initializer=_worker_init,
+                                           mp_context=_pool_context())
         job = partial(tracked, function, marker_dir)
         futures = {executor.submit(job, task): task for task in tasks}
         for future in as_completed(futures):
@@ -179,6 +185,8 @@ def _pool_round(tasks: list[dict], workers: int, function, marker_dir: str, rows
             if on_row:
                 on_row(row)
     except KeyboardInterrupt:
+        if executor is None:
+            raise SweepInterrupted(rows) from None
         for future in futures:
             future.cancel()
         # Runs in progress would finish first; stop their processes (no public API before
