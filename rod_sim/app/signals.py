@@ -134,6 +134,21 @@ def quiet_unraisable(unraisable) -> None:
 _replaced_unraisablehook = [sys.__unraisablehook__]
 
 
+def quiet_excepthook(kind, value, traceback) -> None:
+    """``sys.excepthook`` of a command: the interruption of a received signal printed by C
+    code that catches it and prints it itself (``PyErr_Print``: numpy's ``import_array()``
+    in a C extension's initialization, when the signal lands in its import of numpy, then
+    raises "ImportError: numpy.core.multiarray failed to import") is not shown as a traceback:
+    the command reports it once, as its one line. Anything else goes to the hook it
+    replaced."""
+    if received() is not None and isinstance(value, KeyboardInterrupt):
+        return
+    _replaced_excepthook[0](kind, value, traceback)
+
+
+_replaced_excepthook = [sys.__excepthook__]
+
+
 def handle_sigterm() -> None:
     """SIGINT and SIGTERM raise KeyboardInterrupt / :class:`Terminated` in the main thread:
     ``simulate``, ``compare``, ``sweep`` and the other commands close their files and exit
@@ -142,6 +157,9 @@ def handle_sigterm() -> None:
     if sys.unraisablehook is not quiet_unraisable:
         _replaced_unraisablehook[0] = sys.unraisablehook
         sys.unraisablehook = quiet_unraisable
+    if sys.excepthook is not quiet_excepthook:
+        _replaced_excepthook[0] = sys.excepthook
+        sys.excepthook = quiet_excepthook
     if threading.current_thread() is threading.main_thread():
         # a mask inherited from the launcher (or left by a library's worker threads in this
         # process) would make the command deaf to Ctrl-C and SIGTERM
