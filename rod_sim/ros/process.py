@@ -5,6 +5,7 @@ Knows no particular node: :mod:`rod_sim.ros.node` wires its node class into :fun
 from __future__ import annotations
 
 import argparse
+import contextlib
 import gc
 import signal
 import sys
@@ -50,24 +51,46 @@ class StopRequest:
     closed between callbacks, never in the middle of a write); a second one interrupts. While
     ``starting`` (the node is being created: nothing to close yet) the first signal
     interrupts at once (KeyboardInterrupt), so a long start-up stops within its current
-    bounded call; ``signum`` is the first signal received."""
+    bounded call; ``signum`` is the first signal received.
+
+    Python cannot raise that interruption everywhere: inside a ctypes callback (numba's
+    machine-code cache, llvmlite's ``_raw_object_cache_notify``) it is printed as "Exception
+    ignored ..." and dropped, and the start-up ran on. So a signal during the start-up also
+    starts a watchdog that ends the process :data:`START_GRACE_S` later with the start-up's
+    one line and 130 / 143 unless :meth:`claim` was called first, and an interruption Python
+    drops is not printed (``sys.unraisablehook``)."""
 
     SIGNALS = (signal.SIGINT, signal.SIGTERM)
+    START_GRACE_S = 0.75
+    """[s] from a signal during the start-up to the forced end of a start-up still running."""
 
-    def __init__(self, starting: bool = False):
+    def __init__(self, starting: bool = False, prog: str = "rod_sim"):
         self.event = threading.Event()
         self.starting = starting
+        self.prog = prog
         self.signum: int | None = None
         self._previous: dict[int, Any] = {}
+        self._claimed = threading.Event()
+        self._claim_lock = threading.Lock()
+        self._unraisablehook = None
 
     def __enter__(self) -> "StopRequest":
         for sig in self.SIGNALS:
             self._previous[sig] = signal.signal(sig, self._handle)
+        self._unraisablehook = sys.unraisablehook
+        sys.unraisablehook = self._quiet_unraisable
         return self
 
     def __exit__(self, *exc) -> None:
         for sig, handler in self._previous.items():
             signal.signal(sig, handler)
+        if sys.unraisablehook == self._quiet_unraisable:
+            sys.unraisablehook = self._unraisablehook
+
+    def _quiet_unraisable(self, unraisable) -> None:
+        if self.requested and isinstance(unraisable.exc_value, KeyboardInterrupt):
+            return                  # the stop is reported once, by its one line
+        self._unraisablehook(unraisable)
 
     def _handle(self, signum, frame) -> None:
         if self.event.is_set():
@@ -77,7 +100,33 @@ class StopRequest:
         self.signum = signum
         self.event.set()
         if self.starting:
+            threading.Thread(target=self._start_watchdog, name="rod-sim-start-watchdog",
+                             daemon=True).start()
             raise KeyboardInterrupt
+
+    def interrupted_line(self) -> str:
+        """The one line of a start-up ended by the first signal."""
+        return (f"{self.prog}: interrupted during start-up"
+                + (" (SIGTERM)" if self.signum == signal.SIGTERM else ""))
+
+    def claim(self) -> bool:
+        """The caller reports the interrupted start-up (True once; then the watchdog stands
+        down), or the watchdog already has (False)."""
+        with self._claim_lock:
+            if self._claimed.is_set():
+                return False
+            self._claimed.set()
+            return True
+
+    def _start_watchdog(self) -> None:
+        if self._claimed.wait(self.START_GRACE_S) or not self.claim():
+            return
+        import os
+
+        with contextlib.suppress(Exception):
+            sys.stderr.flush()
+            os.write(2, (self.interrupted_line() + "\n").encode())
+        os._exit(128 + (self.signum or signal.SIGINT))
 
     @property
     def requested(self) -> bool:
@@ -102,12 +151,15 @@ def run_node(prog: str, make_node, args: list[str], config_errors) -> int:
     watch_compiles(prog)        # a driver not in numba's cache: what, why, how long
     rclpy.init(args=[prog, *args], signal_handler_options=SignalHandlerOptions.NO)
     node = None
-    with StopRequest(starting=True) as stop:
+    with StopRequest(starting=True, prog=prog) as stop:
+        spinning = False
         try:
             with Progress(prog):
                 node = make_node()
             stop.starting = False
             if stop.requested:
+                # a signal during the start-up whose interruption Python dropped (a ctypes
+                # callback): the start-up was interrupted all the same
                 raise KeyboardInterrupt
             # the start-up heap (numba, rclpy, the model) out of the collector's full passes:
             # they stalled a 1024-rod node ~60 ms every few seconds (rate_bench --record:
@@ -115,16 +167,16 @@ def run_node(prog: str, make_node, args: list[str], config_errors) -> int:
             gc.freeze()
             executor = SingleThreadedExecutor()
             executor.add_node(node)
+            spinning = True
             spin_until(executor, stop)
         except config_errors as exc:
             print(f"{prog}: error: {exc}", file=sys.stderr)
             return 2
         except (KeyboardInterrupt, ExternalShutdownException):
-            if node is None:        # stopped during the start-up: one line, 130 / 143
-                signum = stop.signum or signal.SIGINT
-                print(f"{prog}: interrupted during start-up"
-                      + (" (SIGTERM)" if signum == signal.SIGTERM else ""), file=sys.stderr)
-                return 128 + signum
+            if not spinning:        # stopped during the start-up: one line, 130 / 143
+                if stop.claim():
+                    print(stop.interrupted_line(), file=sys.stderr)
+                return 128 + (stop.signum or signal.SIGINT)
         finally:
             if node is not None:
                 node.destroy_node()
