@@ -142,3 +142,23 @@ def test_diagnostics_bytes_are_the_dict_encoders():
         assert got == fast(msg) == ref(msg)
     with pytest.raises(ValueError):
         encoders.diagnostics(0.0, {}, "x", level=4)
+
+
+def test_joint_state_layout_memo_is_for_its_own_names_only():
+    """The per-sample layout lookup keyed by the names' id (no hashing of n names) takes an
+    entry only for the very tuple it was made for: a tuple at a reused id gets its own
+    layout (fails if the identity check goes)."""
+    scene = make_scene(4)
+    snap = make_snapshot(scene, 3)
+    names_a = tuple(f"a_{k}" for k in range(4))
+    names_b = tuple(f"b_{k}" for k in range(4))
+    arrays = (snap.hinge_angle, snap.hinge_rate, snap.hinge_moment)
+    first = encoders._joint_state(snap, "world", names_a, *arrays)
+    assert b"a_0" in first
+    key = ("world", id(names_a), (4, 4, 4))
+    encoders._LAYOUT_BY_NAMES[("world", id(names_b), (4, 4, 4))] = \
+        encoders._LAYOUT_BY_NAMES[key]                  # as if names_b had names_a's id
+    second = encoders._joint_state(snap, "world", names_b, *arrays)
+    assert b"b_0" in second and b"a_0" not in second
+    assert second == encoders._joint_state_layout("world", names_b, (4, 4, 4)).fill(
+        stamp=encoders._stamp(snap), position=arrays[0], velocity=arrays[1], effort=arrays[2])
