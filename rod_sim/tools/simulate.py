@@ -87,9 +87,7 @@ def run(args) -> int:
     try:                # compile (or load) the kernels before the clock starts
         warm.advance(1e-3)
     except IntegrationError:
-        pass            # the run below meets the same failure and reports it
-    else:
-        _warm_sample(warm, scene, args.frame_id)
+        warm = None     # the run below meets the same failure and reports it
     sim = Simulator(model, integrator)
     metadata = {"scene": scene_to_yaml(scene), "model": model.name,
                 "integrator": integrator.describe(), "version": __version__,
@@ -116,6 +114,8 @@ def run(args) -> int:
         logged.rtf = args.real_time_factor
         print(f"rod-sim simulate: live view on ws://127.0.0.1:{logged.live.port}, "
               f"real time x{args.real_time_factor:g}", file=sys.stderr)
+    if warm is not None:    # after the monitor's set-up (see _warm_sample)
+        _warm_sample(warm, scene, args.frame_id)
     started = time.perf_counter()
     try:
         try:
@@ -148,8 +148,11 @@ def _warm_sample(sim, scene, frame_id: str) -> None:
     or logged: the kernels a sample calls from Python (the right-hand side, the loads, the
     inertia product, a prescribed base's motion) are loaded from the compile cache and the
     encoders' layouts built before the clock starts, as the integration's kernels are (they
-    cost ~0.1 s once, at the first sample, inside the run's figure otherwise). Changes no
-    value: the layouts depend on the scene and frame only, the run has its own scratch."""
+    cost ~0.08 s once, at the first sample, inside the run's figure otherwise). Called after
+    the validity monitor's set-up: its eigenvalue solve wakes OpenBLAS's worker threads, which
+    spin for ~0.1 s after it and on 2 busy cores slowed the first integration chunks by ~45 ms
+    when nothing else came between. Changes no value: the layouts depend on the scene and
+    frame only, the run has its own scratch."""
     from ..core.ledger import SpacecraftLedger
     from ..core.validity import balance_sample
     from ..io import encoders, topics
