@@ -162,3 +162,20 @@ def test_joint_state_layout_memo_is_for_its_own_names_only():
     assert b"b_0" in second and b"a_0" not in second
     assert second == encoders._joint_state_layout("world", names_b, (4, 4, 4)).fill(
         stamp=encoders._stamp(snap), position=arrays[0], velocity=arrays[1], effort=arrays[2])
+
+
+def test_layout_fill_refuses_a_slot_of_the_wrong_size():
+    """A slot filled with too few or too many bytes is an error (the per-message bytearray
+    would silently change length: every later field shifted)."""
+    from rod_sim.io.cdr_layout import LayoutWriter
+
+    w = LayoutWriter()
+    w.header("world")
+    w.f64_seq("data", 3)
+    layout = w.layout()
+    stamp = np.array([1, 2], dtype="<u4")
+    good = layout.fill(stamp=stamp, data=np.arange(3.0))
+    assert good[-24:] == np.arange(3.0).tobytes() and len(good) == len(layout.template)
+    for wrong in (np.arange(2.0), np.arange(4.0)):
+        with pytest.raises(ValueError):
+            layout.fill(stamp=stamp, data=wrong)
