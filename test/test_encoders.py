@@ -142,3 +142,40 @@ def test_diagnostics_bytes_are_the_dict_encoders():
         assert got == fast(msg) == ref(msg)
     with pytest.raises(ValueError):
         encoders.diagnostics(0.0, {}, "x", level=4)
+
+
+def test_joint_state_layout_memo_is_for_its_own_names_only():
+    """The per-sample layout lookup keyed by the names' id (no hashing of n names) takes an
+    entry only for the very tuple it was made for: a tuple at a reused id gets its own
+    layout (fails if the identity check goes)."""
+    scene = make_scene(4)
+    snap = make_snapshot(scene, 3)
+    names_a = tuple(f"a_{k}" for k in range(4))
+    names_b = tuple(f"b_{k}" for k in range(4))
+    arrays = (snap.hinge_angle, snap.hinge_rate, snap.hinge_moment)
+    first = encoders._joint_state(snap, "world", names_a, *arrays)
+    assert b"a_0" in first
+    key = ("world", id(names_a), (4, 4, 4))
+    encoders._LAYOUT_BY_NAMES[("world", id(names_b), (4, 4, 4))] = \
+        encoders._LAYOUT_BY_NAMES[key]                  # as if names_b had names_a's id
+    second = encoders._joint_state(snap, "world", names_b, *arrays)
+    assert b"b_0" in second and b"a_0" not in second
+    assert second == encoders._joint_state_layout("world", names_b, (4, 4, 4)).fill(
+        stamp=encoders._stamp(snap), position=arrays[0], velocity=arrays[1], effort=arrays[2])
+
+
+def test_layout_fill_refuses_a_slot_of_the_wrong_size():
+    """A slot filled with too few or too many bytes is an error (the per-message bytearray
+    would silently change length: every later field shifted)."""
+    from rod_sim.io.cdr_layout import LayoutWriter
+
+    w = LayoutWriter()
+    w.header("world")
+    w.f64_seq("data", 3)
+    layout = w.layout()
+    stamp = np.array([1, 2], dtype="<u4")
+    good = layout.fill(stamp=stamp, data=np.arange(3.0))
+    assert good[-24:] == np.arange(3.0).tobytes() and len(good) == len(layout.template)
+    for wrong in (np.arange(2.0), np.arange(4.0)):
+        with pytest.raises(ValueError):
+            layout.fill(stamp=stamp, data=wrong)

@@ -139,3 +139,25 @@ def test_start_up_does_not_import_scipy_integrate():
     out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True,
                          text=True, timeout=300)
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr
+
+
+def test_force_jump_around_states_without_held_inputs():
+    """The monitor keeps the zeros of a state without held inputs and does not compare two
+    such states again (no jump between them); a jump from or to them is still judged, at the
+    state where it happens."""
+    scene = load_scene(REPO / "config" / "paper_example.yaml")
+    model = make_model("reduced", scene)
+    y = model.initial_state()
+    big = _held(scene.n, 1) * 1e4
+
+    def jumps(*helds):
+        monitor = ValidityMonitor(model)
+        for k, held in enumerate(helds):
+            monitor.update(0.01 * k, y, held)
+        return [f.t for f in monitor.findings() if f.kind == "force_jump"]
+
+    assert jumps(None, None, None) == []
+    assert jumps(None, None, big) == [0.02]
+    assert jumps(big, None, None) == [0.01]
+    assert jumps(big, big, None) == [0.02]
+    assert jumps(None, np.zeros((scene.n, 3)), None) == []

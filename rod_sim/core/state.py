@@ -429,9 +429,8 @@ class State:
         f = loads[:n, :2]
         if m._plain_powers:
             dphi = self.phi_rate
-            l = m.params.l
-            vx = np.cumsum(-l * self.sin_phi * dphi)
-            vy = np.cumsum(l * self.cos_phi * dphi)
+            vx = np.cumsum(m.neg_l * self.sin_phi * dphi)        # -l: the same bits
+            vy = np.cumsum(m.params.l * self.cos_phi * dphi)
         else:
             v = self.velocities[m.table.ends]
             vx, vy = v[:, 0], v[:, 1]

@@ -209,6 +209,7 @@ class ValidityMonitor:
         self.max_abs_alpha = 0.0
         self.max_abs_beta = 0.0
         self._held = None
+        self._no_held = None        # the zeros of the last state without held inputs
         self._energy: Finding | None = None
         self.energy_residual = 0.0      # [J] the residual and scale last judged (update_energy)
         self.energy_scale = 0.0
@@ -221,10 +222,15 @@ class ValidityMonitor:
         """Check one state (alpha, beta [rad] may be given to save recomputing them)."""
         n = self.model.n
         given = held
-        held = np.zeros((n, 3))           # forces X, Y and hinge motor moments T
-        if given is not None:
-            given = np.asarray(given, float).reshape(n, -1)
-            held[:, :given.shape[1]] = given
+        if given is None and self._no_held is not None and self._held is self._no_held:
+            held = self._no_held          # zeros again: no jump (not compared again)
+        else:
+            held = np.zeros((n, 3))       # forces X, Y and hinge motor moments T
+            if given is not None:
+                given = np.asarray(given, float).reshape(n, -1)
+                held[:, :given.shape[1]] = given
+            else:
+                self._no_held = held
         if alpha is None or beta is None:
             alpha, beta = self.model.bending(t, y, held)
         a, b = np.abs(alpha), np.abs(beta)
@@ -237,7 +243,7 @@ class ValidityMonitor:
                               f"rod {k + 1}: end slope {worst[k]:.3g} rad at t = {t:.4g} s "
                               f"leaves the small-bending range (> {SMALL_BENDING_RAD} rad)"))
         if (self.model.name == "reduced" and self._held is not None
-                and not (held == self._held).all()):
+                and held is not self._held and not (held == self._held).all()):
             jump = force_jump_slopes(self.scene, self.model.phi(y), self.model.phi_rate(y),
                                      self._held, held, y=np.asarray(y, float))
             k = int(np.argmax(jump))

@@ -107,13 +107,30 @@ class Layout:
     template: np.ndarray
     slots: dict
 
+    def __post_init__(self) -> None:
+        # the template as bytes, copied into a bytearray per message: a slice slot is then
+        # one memoryview assignment (no numpy copy of the template, no tobytes of the whole)
+        object.__setattr__(self, "_bytes", self.template.tobytes())
+
     def fill(self, **values: np.ndarray) -> bytes:
         """The message with each slot's bytes: ``values[name]`` is an array whose raw
-        little-endian bytes fill the slot's positions in order (its byte count must match)."""
-        out = self.template.copy()
+        little-endian bytes fill the slot's positions in order (its byte count must match:
+        ValueError otherwise)."""
+        out = bytearray(self._bytes)
+        view = None
         for name, where in self.slots.items():
-            out[where] = np.ascontiguousarray(values[name]).view(np.uint8).ravel()
-        return out.tobytes()
+            data = memoryview(np.ascontiguousarray(values[name])).cast("B")
+            if type(where) is slice:
+                if data.nbytes != where.stop - where.start:   # a bytearray would resize
+                    raise ValueError(f"slot {name!r}: {data.nbytes} bytes for "
+                                     f"{where.stop - where.start}")
+                out[where] = data
+            else:                                           # pieces: an index array
+                if view is None:
+                    view = np.frombuffer(out, dtype=np.uint8)
+                view[where] = np.frombuffer(data, dtype=np.uint8)
+        del view                    # the bytearray's buffer export, before bytes() copies it
+        return bytes(out)
 
 
 def stamp_bytes(t_ns: int) -> np.ndarray:

@@ -74,9 +74,25 @@ def _joint_state_layout(frame_id: str, names: tuple[str, ...], sizes: tuple[int,
     return w.layout()
 
 
+_LAYOUT_BY_NAMES: dict[tuple, tuple[tuple[str, ...], Layout]] = {}
+"""(frame_id, id(names), sizes) -> (names, layout): :func:`_joint_state_layout` looked up
+without hashing the names (a tuple's hash is not kept: ~4 us per 1024 names at every sample);
+``names`` come from the lru caches of :func:`chain_names` and friends, and an entry counts only
+for the very tuple it was made for (``is``), so a reused id cannot pick a wrong layout."""
+
+
 def _joint_state(snapshot: Snapshot, frame_id: str, names: tuple[str, ...], *arrays) -> bytes:
     arrays = [_f64(a) for a in arrays] + [_f64(())] * (3 - len(arrays))
-    layout = _joint_state_layout(frame_id, names, tuple(a.size for a in arrays))
+    sizes = tuple(a.size for a in arrays)
+    key = (frame_id, id(names), sizes)
+    hit = _LAYOUT_BY_NAMES.get(key)
+    if hit is not None and hit[0] is names:
+        layout = hit[1]
+    else:
+        layout = _joint_state_layout(frame_id, names, sizes)
+        if len(_LAYOUT_BY_NAMES) >= _CACHE:
+            _LAYOUT_BY_NAMES.clear()
+        _LAYOUT_BY_NAMES[key] = (names, layout)
     return layout.fill(stamp=_stamp(snapshot), **{field: a for field, a in zip(
         ("position", "velocity", "effort"), arrays) if a.size})
 

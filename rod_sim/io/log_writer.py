@@ -137,7 +137,6 @@ class LogWriter:
             text = msgdefs.SCHEMAS[type_name]
             self._schemas[type_name] = self._writer.register_schema(
                 type_name, "ros2msg", text.encode("utf-8"))
-            self._encoders[type_name] = cdr.encoder(type_name)
         channel_id = self._writer.register_channel(
             topic=topic, message_encoding="cdr", schema_id=self._schemas[type_name],
             metadata={"offered_qos_profiles": self._qos.get(topic, offered_qos_yaml()),
@@ -151,8 +150,11 @@ class LogWriter:
         both log_time and publish_time). Raises LogWriteError for an unknown type, a field the
         type does not have, a negative time or a time before the topic's previous message."""
         channel_id = self._check(topic, type_name, t_ns)
+        encode = self._encoders.get(type_name)
+        if encode is None:          # built on first use: write_cdr's topics need none
+            encode = self._encoders[type_name] = cdr.encoder(type_name)
         try:
-            data = self._encoders[type_name](msg)  # also rejects fields the type lacks
+            data = encode(msg)  # also rejects fields the type lacks
         except (ValueError, TypeError, KeyError, AttributeError, struct.error,
                 NotImplementedError) as exc:
             raise LogWriteError(f"{topic}: cannot encode {type_name}: {exc}") from exc
