@@ -68,7 +68,6 @@ def _sample_grid_ns(rate_hz: float, k: int) -> int:
 
 def run(args) -> int:
     from ..api import IntegrationError, Simulator, load_scene, make_integrator, make_model
-    from ..core.validity import ValidityMonitor
     from ..io.log_source import SCENE_TOPIC
     from ..io.log_writer import LogWriter, offered_qos_yaml
     from ..io.scene_yaml import scene_to_yaml
@@ -84,18 +83,10 @@ def run(args) -> int:
                          f"than {limits.MAX_FIXED_STEPS:g} steps")
     model = make_model(args.model, scene)          # refuses a chain too large for memory first
     out = new_output_path(args.out)
-    # the validity monitor first: its eigenvalue solve wakes OpenBLAS's worker threads, which
-    # spin for ~0.1 s after it; with the warm-up after it their spinning ends before the clock
-    # (else they competed with the first samples and integration chunks on 2 busy cores:
-    # 40-90 ms of wall time lost at random in the run's figure)
-    validity = ValidityMonitor(model)
-    warm = Simulator(model, make_integrator(args.integrator))
     try:                # compile (or load) the kernels before the clock starts
-        warm.advance(1e-3)
+        Simulator(model, make_integrator(args.integrator)).advance(1e-3)
     except IntegrationError:
         pass            # the run below meets the same failure and reports it
-    else:
-        _warm_sample(warm, scene, args.frame_id)
     sim = Simulator(model, integrator)
     metadata = {"scene": scene_to_yaml(scene), "model": model.name,
                 "integrator": integrator.describe(), "version": __version__,
@@ -108,7 +99,7 @@ def run(args) -> int:
         log.write(SCENE_TOPIC, "std_msgs/msg/String", 0, {"data": metadata["scene"]})
     except OSError as err:
         raise UsageError(f"--out: cannot write {out}: {err.strerror or err}") from None
-    logged = _LoggedRun(sim, scene, log, args.frame_id, validity)
+    logged = _LoggedRun(sim, scene, log, args.frame_id)
     if args.live_view:
         from ..io.live_view import LiveView, LiveViewError
 
@@ -149,27 +140,6 @@ def run(args) -> int:
     return status
 
 
-def _warm_sample(sim, scene, frame_id: str) -> None:
-    """One sample's quantities and messages of the throwaway simulator ``sim``, nothing kept
-    or logged: the kernels a sample calls from Python (the right-hand side, the loads, the
-    inertia product, a prescribed base's motion) are loaded from the compile cache and the
-    encoders' layouts built before the clock starts, as the integration's kernels are (they
-    cost ~0.04 s once, at the first sample, inside the run's figure otherwise). Changes no
-    value: the layouts depend on the scene and frame only, the run has its own scratch."""
-    from ..core.ledger import SpacecraftLedger
-    from ..core.validity import balance_sample
-    from ..io import encoders, topics
-
-    model = sim.model
-    state = model.state(sim.t, sim.y, None, sim.mode, data=sim.data)
-    snap = state.snapshot()
-    balance_sample(model, sim.t, sim.y, None, sim.mode, state=state)
-    if model.is_spacecraft:
-        SpacecraftLedger(model).add(sim.t, sim.y, None, sim.mode, state=state)
-    encoders.snapshot_bytes(snap, scene, frame_id, topics.DEFAULT_TOPICS
-                            + (topics.BASE_TOPICS if scene.moving_base else ()))
-
-
 class _LoggedRun:
     """A simulator run logged sample by sample: the t = 0 state first, then chunks of at most
     CHUNK_SAMPLES samples on the grid of --rate (plus the end time), with the hinge events."""
@@ -178,13 +148,11 @@ class _LoggedRun:
     CHUNK_SECONDS = 0.5          # simulated seconds integrated per call at most
     PROGRESS_EVERY_S = 10.0      # [s] of wall time between progress lines of a slow run
 
-    def __init__(self, sim, scene, log, frame_id: str, validity=None):
-        from ..core.validity import ValidityMonitor
+    def __init__(self, sim, scene, log, frame_id: str):
+        from ..core.validity import EnergyBalance, ValidityMonitor
 
         self.sim, self.scene, self.log, self.frame_id = sim, scene, log, frame_id
-        self.validity = ValidityMonitor(sim.model) if validity is None else validity
-        """The run's :class:`~rod_sim.core.validity.ValidityMonitor` (``validity``: one made
-        for ``sim.model`` and not used yet)."""
+        self.validity = ValidityMonitor(sim.model)
         self.balance = None             # the energy balance (the node judges the same one)
         self._last = None               # BalanceSample of the previous sample
         self.balanced_events = 0
