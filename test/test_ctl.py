@@ -113,3 +113,48 @@ def test_ctl_bad_names_are_one_line_exit_2(args, rule):
     assert done.stderr.count("\n") == 1 and "Traceback" not in done.stderr, done.stderr
     assert done.stderr.startswith(f"rod-sim ctl: error: {rule}"), done.stderr
     assert ".c:" not in done.stderr and done.stdout == ""
+
+
+class _LostFirst:
+    """A service client whose first answer is lost (the server had not matched the client's
+    response reader), later ones arrive: counts the requests sent."""
+
+    def __init__(self):
+        self.sent = []
+
+    def service_is_ready(self):
+        return True
+
+    def call_async(self, request):
+        from rclpy.task import Future
+
+        future = Future()
+        if self.sent:
+            future.set_result(f"answer to request {len(self.sent) + 1}")
+        self.sent.append(request)
+        return future
+
+
+@pytest.mark.parametrize("idempotent, sent, outcome", [(True, 2, "answer to request 2"),
+                                                       (False, 1, "did not answer")])
+def test_ctl_sends_an_idempotent_request_again_when_its_answer_is_lost(idempotent, sent,
+                                                                        outcome):
+    """pause/resume and parameters are sent again every RESEND_S until an answer comes; step
+    and reset once (a late repetition would act twice): without ROS, a client whose first
+    answer is lost."""
+    import types
+
+    from rod_sim.ros.ctl_client import CtlClient, CtlError
+
+    lost = _LostFirst()
+    ctl = object.__new__(CtlClient)
+    ctl.timeout = 0.3
+    ctl.RESEND_S = 0.05
+    ctl.node = types.SimpleNamespace(create_client=lambda srv, name: lost)
+    ctl.executor = types.SimpleNamespace(spin_once=lambda timeout_sec: None)
+    try:
+        result = ctl._call(object, "/rod_sim/pause", "request", idempotent=idempotent)
+    except CtlError as err:
+        result = str(err)
+    assert outcome in result
+    assert len(lost.sent) == sent

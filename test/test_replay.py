@@ -282,6 +282,22 @@ class Listener:
         while time.monotonic() < end:
             self.executor.spin_once(timeout_sec=0.005)
 
+    def call_idempotent(self, client, request, timeout: float, what: str):
+        """The answer to ``request`` (one whose repetition changes nothing, e.g. pause), sent
+        again every 2 s until one comes: a service may be "ready" before the server has
+        matched this client's response reader, and Fast DDS then drops the response after
+        100 ms (rmw_fastrtps #390 / #467); a flake hunt under load lost one that way."""
+        futures = [client.call_async(request)]
+        resend = time.monotonic() + 2.0
+        deadline = time.monotonic() + timeout
+        while not any(f.done() for f in futures):
+            assert time.monotonic() < deadline, f"timed out waiting for {what}"
+            if time.monotonic() > resend:
+                futures.append(client.call_async(request))
+                resend = time.monotonic() + 2.0
+            self.executor.spin_once(timeout_sec=0.005)
+        return next(f for f in futures if f.done()).result()
+
     def close(self) -> None:
         self.executor.shutdown()
         self.node.destroy_node()
@@ -473,9 +489,8 @@ def test_start_paused_qos_and_resume(log_path, listener, replay):
     lis.spin_until(lambda: lis.subs["/rod_states"].get_publisher_count() > 0, 10.0, "match")
     lis.spin_for(1.0)
     assert lis.received["/rod_states"] == [] and lis.clock == [], "paused: nothing published"
-    future = client.call_async(SetBool.Request(data=False))
-    lis.spin_until(future.done, 10.0, "the pause service")
-    assert future.result().success
+    answer = lis.call_idempotent(client, SetBool.Request(data=False), 10.0, "the pause service")
+    assert answer.success
     lis.spin_until(lambda: len(lis.received["/rod_states"]) >= SAMPLES, 20.0, "rod_states",
                    proc.proc)
     assert proc.wait() == 0, proc.stderr

@@ -81,7 +81,6 @@ def test_pause_service_in_the_namespace(log_path, listener, replay):  # noqa: F8
     client = lis.node.create_client(SetBool, "/arm1/rod_sim_replay/pause")
     lis.spin_until(client.service_is_ready, STARTUP_S, "the namespaced pause service",
                    proc.proc)
-    future = client.call_async(SetBool.Request(data=False))
-    lis.spin_until(future.done, 10.0, "the pause service")
-    assert future.result().success
+    answer = lis.call_idempotent(client, SetBool.Request(data=False), 10.0, "the pause service")
+    assert answer.success
     assert proc.wait() == 0, proc.stderr

@@ -97,19 +97,35 @@ class CtlClient:
         return (f"is the node running as {self.target} in ROS_DOMAIN_ID "
                 f"{self.context.get_domain_id()}? (--ns, --node)")
 
-    def _call(self, srv_type, service: str, request):
+    RESEND_S = 2.0
+    """[s] without an answer after which a request whose repetition changes nothing is sent
+    again (:meth:`_call`)."""
+
+    def _call(self, srv_type, service: str, request, idempotent: bool = False):
+        """The answer of ``service`` to ``request``. A service is "ready" once its server is
+        discovered, which can be before the server has matched this client's response reader:
+        Fast DDS then drops the response (it waits 100 ms for the match: rmw_fastrtps #390,
+        #467), which a loaded machine makes likely. An ``idempotent`` request (pause, resume, the
+        parameters) is therefore sent again every :data:`RESEND_S` until an answer comes;
+        ``step`` and ``reset`` are sent once (a late second one would step again, or reset a
+        running node again)."""
         client = self.node.create_client(srv_type, service)
         deadline = time.monotonic() + self.timeout
         while not client.service_is_ready():
             if time.monotonic() > deadline:
                 raise CtlError(f"no service {service} within {self.timeout:g} s: {self._where()}")
             self.executor.spin_once(timeout_sec=0.05)
-        future = client.call_async(request)
-        while not future.done():
-            if time.monotonic() > deadline + self.timeout:
+        futures = [client.call_async(request)]
+        resend = time.monotonic() + self.RESEND_S
+        while not any(f.done() for f in futures):
+            now = time.monotonic()
+            if now > deadline + self.timeout:
                 raise CtlError(f"{service} did not answer within {self.timeout:g} s")
+            if idempotent and now > resend:
+                futures.append(client.call_async(request))
+                resend = now + self.RESEND_S
             self.executor.spin_once(timeout_sec=0.05)
-        return future.result()
+        return next(f for f in futures if f.done()).result()
 
     # ----- services -----
 
@@ -118,7 +134,7 @@ class CtlClient:
         succeeded, 1 when the node refused (e.g. ``step`` while running)."""
         if action in ("pause", "resume"):
             answer = self._call(SetBool, f"{self.target}/pause",
-                                SetBool.Request(data=action == "pause"))
+                                SetBool.Request(data=action == "pause"), idempotent=True)
         else:
             answer = self._call(Trigger, f"{self.target}/{action}", Trigger.Request())
         print(f"{action}: {'ok' if answer.success else 'refused'}: {answer.message}")
@@ -129,7 +145,7 @@ class CtlClient:
     def get_parameter(self, name: str):
         """The value of parameter ``name`` of the node (None when it has none)."""
         answer = self._call(GetParameters, f"{self.target}/get_parameters",
-                            GetParameters.Request(names=[name]))
+                            GetParameters.Request(names=[name]), idempotent=True)
         return from_parameter_value(answer.values[0]) if answer.values else None
 
     def set_parameter(self, name: str, text: str) -> int:
@@ -144,7 +160,7 @@ class CtlClient:
             value = float(value)
         msg = ParameterMsg(name=name, value=to_parameter_value(value))
         answer = self._call(SetParameters, f"{self.target}/set_parameters",
-                            SetParameters.Request(parameters=[msg]))
+                            SetParameters.Request(parameters=[msg]), idempotent=True)
         result = answer.results[0]
         if result.successful:
             print(f"{name}: set to {value!r}")
