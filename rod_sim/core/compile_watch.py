@@ -41,10 +41,10 @@ COMPILE_CPU_S = {
 """Process CPU seconds to compile each compiled entry point from a cold cache, its model's
 kernel included, on the 2-core development machine (numba 0.68, NUMBA_OPT 3; docs/benchmarks.md,
 "Compile time"): a kernel alone ~66 s (measured: scipy's Radau compiling it again for a
-strided state), dop853 drivers 79-94 s (150 s each since the kernels keep the sweep in
-local variables: the demo's two took 298 s of CPU, a fresh clone at load 1-1.9), radau-jit after its kernel 43-189 s, fixed-step
-after it 7-8 s (15 s with the kernel loaded from the cache: rk4 on the paper example, reduced,
-at load 8, 97 s wall); the helpers a node's checks call ~1 s (mass_times: 1 s CPU, 3 s wall at
+strided state), dop853 drivers ~150 s (the demo's two took 298 s on a fresh clone at load
+1-1.9; 79-94 s before the kernels kept their sweep in local variables), radau-jit after its
+kernel 43-189 s (measured before that change), fixed-step after it 7-8 s (15 s with the
+kernel loaded from the cache: rk4 on the paper example, reduced, at load 8, 97 s wall); the helpers a node's checks call ~1 s (mass_times: 1 s CPU, 3 s wall at
 load 7); the velocity projection of a scene with locked hinges or latches (solve_with) ~70 s
 (~450 s wall at load 9)."""
 KERNEL_CPU_S = 50.0

@@ -209,7 +209,7 @@ class ValidityMonitor:
         self.max_abs_alpha = 0.0
         self.max_abs_beta = 0.0
         self._held = None
-        self._no_held = None        # the zeros of the last state without held inputs
+        self._no_held = np.zeros((model.n, 3))   # the held inputs of a state given none (read only)
         self._energy: Finding | None = None
         self.energy_residual = 0.0      # [J] the residual and scale last judged (update_energy)
         self.energy_scale = 0.0
@@ -222,15 +222,12 @@ class ValidityMonitor:
         """Check one state (alpha, beta [rad] may be given to save recomputing them)."""
         n = self.model.n
         given = held
-        if given is None and self._no_held is not None and self._held is self._no_held:
-            held = self._no_held          # zeros again: no jump (not compared again)
+        if given is None:
+            held = self._no_held          # the same zeros: no jump from the last such state
         else:
             held = np.zeros((n, 3))       # forces X, Y and hinge motor moments T
-            if given is not None:
-                given = np.asarray(given, float).reshape(n, -1)
-                held[:, :given.shape[1]] = given
-            else:
-                self._no_held = held
+            given = np.asarray(given, float).reshape(n, -1)
+            held[:, :given.shape[1]] = given
         if alpha is None or beta is None:
             alpha, beta = self.model.bending(t, y, held)
         a, b = np.abs(alpha), np.abs(beta)
