@@ -66,6 +66,7 @@ def test_warm_in_two_processes_ticks_while_nothing_finishes(monkeypatch):
     global _TICKS
     ticks = _TICKS = multiprocessing.get_context("fork").Event()   # inherited by the workers
     monkeypatch.setattr(jit_warm, "TICK_S", 0.05)
+    monkeypatch.setattr(jit_warm, "START", "fork")       # the workers see the fake and _TICKS
     monkeypatch.setattr(jit_warm, "run_group", _fake_group)
     lines = []
 

@@ -19,6 +19,7 @@ compiling, how long it has taken and how long the rest should take.
 from __future__ import annotations
 
 import argparse
+import multiprocessing
 import os
 import sys
 import time
@@ -32,6 +33,12 @@ DEMO = (("paper_example.yaml", "full", "dop853-jit"),
 """What ``make demo`` runs: table1 (both models), the node (reduced), compare (full)."""
 TICK_S = 8.0
 """[s] between progress lines while nothing finishes."""
+START = "spawn"
+"""How the compiling processes start. Not forked: two forked workers compiling side by side
+spent up to ~70 % of their time in the kernel (~60 000 page faults a second each; the demo's
+two drivers: 142 s of system CPU in 326 s, 233-369 s of wall time at load ~3-4), two spawned
+ones 16 s in 187 s (194 s wall at the same load); one forked worker alone did not (5 s). The
+cause is not established."""
 
 
 def drivers() -> list[tuple[str, str, str]]:
@@ -151,7 +158,8 @@ def warm(log=print, todo=None, jobs: int = 1, clock=time.perf_counter) -> int:
             report(group, run_group(group))
     else:
         queue = list(plan)
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
+        with ProcessPoolExecutor(max_workers=jobs,
+                                 mp_context=multiprocessing.get_context(START)) as pool:
             pending = {}
             while queue or pending:
                 while queue and len(pending) < jobs:   # submitted = running: the ticks say
