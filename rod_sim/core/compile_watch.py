@@ -32,7 +32,7 @@ TICK_S = 8.0
 """[s] between progress lines (the issue asks for one at least every 10 s)."""
 
 COMPILE_CPU_S = {
-    "dop853_full": 95.0, "dop853_reduced": 95.0, "dop853_rigid": 95.0,
+    "dop853_full": 60.0, "dop853_reduced": 60.0, "dop853_rigid": 60.0,
     "radau_full": 240.0, "radau_reduced": 95.0, "radau_rigid": 95.0,
     "fixed_full": 65.0, "fixed_reduced": 65.0, "fixed_rigid": 65.0,
     "full_rhs": 66.0, "reduced_rhs": 66.0, "rigid_rhs": 66.0,
@@ -41,8 +41,9 @@ COMPILE_CPU_S = {
 """Process CPU seconds to compile each compiled entry point from a cold cache, its model's
 kernel included, on the 2-core development machine (numba 0.68, NUMBA_OPT 3; docs/benchmarks.md,
 "Compile time"): a kernel alone ~66 s (measured: scipy's Radau compiling it again for a
-strided state), dop853 drivers ~95 s (the demo's two: 187 s of CPU in two spawned processes;
-298-326 s in two forked ones, of which 142 s system time: jit_warm spawns), radau-jit after its
+strided state), dop853 drivers ~60 s (the driver alone in a fresh process: reduced 42 s,
+full 44 s, since the backward sweep has one call site in chain_solve; 76-80 s with three; the
+node's helpers add ~14 s), radau-jit after its
 kernel 43-189 s (measured before the kernels' speed-up), fixed-step after it 7-8 s (15 s with the
 kernel loaded from the cache: rk4 on the paper example, reduced, at load 8, 97 s wall); the helpers a node's checks call ~1 s (mass_times: 1 s CPU, 3 s wall at
 load 7); the velocity projection of a scene with locked hinges or latches (solve_with) ~70 s

@@ -867,26 +867,23 @@ def chain_solve(kind, ch, ex, W):
     seg = ch.seg
     nc = seg.shape[0] - 1
     mode = ch.base[B_MODE]
-    if mode == MODE_FIXED:
-        for ci in range(nc):
-            if not _sweep_back(kind, ch, ex, W, seg[ci], seg[ci + 1]):
-                return False
-            _sweep_fwd(kind, ch, ex, W, seg[ci], seg[ci + 1], 0.0, 0.0, 0.0, 0.0)
-        return True
     bk = ex.bk
     cps = bk[BK_COS]
     sps = bk[BK_SIN]
     w2 = bk[BK_W] * bk[BK_W]
-    if mode == MODE_PRESCRIBED:
-        ax = bk[BK_AX]
-        ay = bk[BK_AY]
-        ap = bk[BK_APSI]
-        for ci in range(nc):
-            if not _sweep_back(kind, ch, ex, W, seg[ci], seg[ci + 1]):
-                return False
-            _forward_from_base(kind, ch, ex, W, ci, cps, sps, w2, ax, ay, ap)
-        return True
-    return _free_base_solve(kind, ch, ex, W, cps, sps, w2)
+    # one call site of each sweep: numba types and lowers an inlined helper at every site,
+    # and the backward sweep is most of a kernel's compile time
+    for ci in range(nc):
+        if not _sweep_back(kind, ch, ex, W, seg[ci], seg[ci + 1]):
+            return False
+        if mode == MODE_FREE:
+            for i in range(20):
+                ex.roots[ci, i] = ex.small[i]
+        else:
+            _forward_from_base(kind, ch, ex, W, ci, cps, sps, w2, mode == MODE_PRESCRIBED)
+    if mode == MODE_FREE:
+        return _free_base_solve(kind, ch, ex, W, cps, sps, w2)
+    return True
 
 
 @njit(inline="always")
@@ -904,11 +901,6 @@ def _free_base_solve(kind, ch, ex, W, cps, sps, w2):
     sm = ex.small
     A = sm[20:29].reshape((3, 3))
     G = sm[29:44].reshape((3, 5))
-    for ci in range(nc):
-        if not _sweep_back(kind, ch, ex, W, seg[ci], seg[ci + 1]):
-            return False
-        for i in range(20):
-            ex.roots[ci, i] = sm[i]
     mB = b[B_MASS]
     rcx = cps * b[B_CX] - sps * b[B_CY]
     rcy = sps * b[B_CX] + cps * b[B_CY]
@@ -985,25 +977,35 @@ def _free_base_solve(kind, ch, ex, W, cps, sps, w2):
     bk[BK_APSI] = ap
     bk[BK_ATH] = bk[BK_FTH] / b[B_WHEEL] - ap if b[B_WHEEL] > 0.0 else 0.0 * ap
     for ci in range(nc):
-        _forward_from_base(kind, ch, ex, W, ci, cps, sps, w2, ax, ay, ap)
+        _forward_from_base(kind, ch, ex, W, ci, cps, sps, w2, True)
     return True
 
 
 @njit(inline="always")
-def _forward_from_base(kind, ch, ex, W, ci, cps, sps, w2, ax, ay, ap):
-    """Chain ci forward from its node 0, whose acceleration follows from the base's (x_B'',
-    y_B'', psi'') = (ax, ay, ap), its rate squared w2 and the cos, sin of its angle:
-    a_0 = a_B + psi'' J R a - psi'^2 R a, the root interface u = (J^T a_0, psi'' in the
-    model's rotation slot)."""
+def _forward_from_base(kind, ch, ex, W, ci, cps, sps, w2, moving):
+    """Chain ci forward from its node 0. On a fixed base (``moving`` False) the root
+    interface is u = 0; on a moving one node 0's acceleration follows from the base's
+    (x_B'', y_B'', psi'') = ex.bk[BK_AX, BK_AY, BK_APSI], its rate squared w2 and the cos, sin
+    of its angle: a_0 = a_B + psi'' J R a - psi'^2 R a, the root interface u = (J^T a_0,
+    psi'' in the model's rotation slot)."""
     seg = ch.seg
-    rax = cps * ch.attach[ci, 0] - sps * ch.attach[ci, 1]
-    ray = sps * ch.attach[ci, 0] + cps * ch.attach[ci, 1]
-    a0x = ax - ap * ray - w2 * rax
-    a0y = ay + ap * rax - w2 * ray
-    if kind == KIND_FULL:
-        _sweep_fwd(kind, ch, ex, W, seg[ci], seg[ci + 1], a0y, -a0x, ap, 0.0)
-    else:
-        _sweep_fwd(kind, ch, ex, W, seg[ci], seg[ci + 1], a0y, -a0x, 0.0, ap)
+    u0 = u1 = u2 = u3 = 0.0
+    if moving:
+        bk = ex.bk
+        ax = bk[BK_AX]
+        ay = bk[BK_AY]
+        ap = bk[BK_APSI]
+        rax = cps * ch.attach[ci, 0] - sps * ch.attach[ci, 1]
+        ray = sps * ch.attach[ci, 0] + cps * ch.attach[ci, 1]
+        a0x = ax - ap * ray - w2 * rax
+        a0y = ay + ap * rax - w2 * ray
+        u0 = a0y
+        u1 = -a0x
+        if kind == KIND_FULL:
+            u2 = ap
+        else:
+            u3 = ap
+    _sweep_fwd(kind, ch, ex, W, seg[ci], seg[ci + 1], u0, u1, u2, u3)
 
 
 @njit(inline="always")
