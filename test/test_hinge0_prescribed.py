@@ -233,12 +233,14 @@ def test_hinge0_features_on_a_prescribed_psi_are_accepted():
 def test_shipped_hub_arm_latches_at_hinge0_on_its_spinning_hub():
     """config/hub_arm_latch.yaml: the folded arm swings back to radial and latches at hinge 0
     (on its stop angle, 0) while the hub spins up; from then on theta0 = phi_1 - psi(t) stays 0
-    to integrator tolerance and the energy balance closes."""
+    to integrator tolerance and the energy balance closes (rigid model: the reduced model's
+    quasi-static bending leaves 4.5e-5 of the scale unbooked at a latch on any base, fixed
+    and free included; the full model's bending vibration needs kHz samples)."""
     from pathlib import Path
 
     from rod_sim.io.scene_yaml import load_scene
     sc = load_scene(Path(__file__).resolve().parents[1] / "config" / "hub_arm_latch.yaml")
-    sim = Simulator(make_model("reduced", sc), make_integrator("dop853-jit", rtol=1e-9))
+    sim = Simulator(make_model("rigid", sc), make_integrator("dop853-jit", rtol=1e-9))
     traj = sim.run(2.0, 100.0)
     latches = [e for e in sim.events if e.kind == "latch"]
     assert [e.hinge for e in latches] == [0] and 0.2 < latches[0].t < 1.5
