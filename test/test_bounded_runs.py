@@ -151,7 +151,7 @@ def test_radau_gives_up_after_repeated_newton_failures():
     Y = np.empty((2, 2))
     stats = np.zeros(6, dtype=np.int64)
     ev = kernels.Events(np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0, dtype=np.int64),
-                        np.zeros(0, dtype=np.int64),
+                        np.zeros(0, dtype=np.int64), np.zeros(kernels.N_MOTION),
                         np.empty(4), np.empty(4, dtype=np.int64), np.empty((4, 2)),
                         np.zeros(1, dtype=np.int64))
     y, t, h, status, written = radau.radau_run(

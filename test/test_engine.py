@@ -34,7 +34,7 @@ SHIPPED = [("deployment.yaml", 2.0, 100), ("paper_example.yaml", 0.5, 100),
 # scenes on a spacecraft base (SPEC section 8; simulate does not log their base yet): (scene file,
 # t_end [s]) simulated in every model, long enough for every chain and the base to move
 SPACECRAFT = [("two_wing_deployment.yaml", 0.2), ("spin_up_beam.yaml", 0.5),
-              ("tether_pair.yaml", 0.005)]
+              ("hub_arm_latch.yaml", 0.5), ("tether_pair.yaml", 0.005)]
 
 
 def _compare(capsys, log, *extra):

@@ -38,7 +38,8 @@ def event_buffers(hinge=(), angle=(), kind=(), size=4, cap=64):
     """erk's events for the linear problem (the 'hinge angle' of hinge 0 is y[0])."""
     return kernels.Events(np.array(hinge, dtype=np.int64), np.array(angle, dtype=float),
                           np.array(kind, dtype=np.int64),
-                          np.full(len(hinge), -1, dtype=np.int64), np.empty(cap),
+                          np.full(len(hinge), -1, dtype=np.int64),
+                          np.zeros(kernels.N_MOTION), np.empty(cap),
                           np.empty(cap, dtype=np.int64), np.empty((cap, size)),
                           np.zeros(1, dtype=np.int64))
 

@@ -44,7 +44,7 @@ class Run:
     @y.setter
     def y(self, value) -> None:
         self.sim.y = np.array(value, dtype=float)
-        self.sim.contact = self.model.contact_state(self.sim.y)
+        self.sim.contact = self.model.contact_state(self.sim.y, self.sim.t)
 
     @property
     def t_ns(self) -> int:

@@ -6,19 +6,23 @@ Both integrate a whole output grid in one compiled call, restarting at load brea
 forcing. ``rhs`` is any kernel of :mod:`rod_sim.core.kernels`.
 
 Event location (hinge latches and stop contacts, :mod:`rod_sim.core.hinges`): ``events`` =
-(hinge (m,), angle (m,), kind (m,), t_buf (cap,), code_buf (cap,), y_buf (cap, size),
-count (1,)). After every accepted step the event functions g_e = theta_{hinge_e}(y) - angle_e
-are compared at the step's ends; a sign change is bracketed on the step and its root found
-on the step's interpolant (DOP853: its 7th-order dense output; fixed-step methods: the cubic
-Hermite interpolant of the step's end values and slopes) by the Illinois method to
-|dt| <= 4 eps max(1, |t|) (a few 1e-16 s). Every event changes the mode (a latch locks the
-hinge, a stop crossing switches its contact law on or off, so that no step straddles the
-contact's jump in acceleration): the driver stops exactly at the earliest root (a latch
-first among equal roots), records it (t, code = 2 e + rising, interpolated state) and returns
-STATUS_EVENT; the caller changes the mode and restarts. A function that crosses twice within
-one step is not seen (as in scipy's solve_ivp), except in the step that starts on the root
-of the crossing just handled: there the interpolant is also sampled at x = 1/8 ... 7/8, so a
-hinge that leaves a stop and comes back within that step is caught.
+(hinge (m,), angle (m,), kind (m,), other (m,), ground (N_MOTION,), t_buf (cap,), code_buf
+(cap,), y_buf (cap, size), count (1,)), :class:`~rod_sim.core.kernels.Events`. After every
+accepted step the event functions g_e = theta_{hinge_e}(t, y) - angle_e are compared at the
+step's ends (theta = y[hinge] - y[other]; at a hinge 0 on the base, other = -1, y[hinge]
+less the prescribed part p(t) of a prescribed base's angle, :func:`kernels.ground_angle`,
+so that the function depends on time too; p = 0 for a fixed base); a sign change is
+bracketed on the step and its root found on the step's interpolant (DOP853: its 7th-order
+dense output; fixed-step methods: the cubic Hermite interpolant of the step's end values
+and slopes) by the Illinois method to |dt| <= 4 eps max(1, |t|) (a few 1e-16 s). Every
+event changes the mode (a latch locks the hinge, a stop crossing switches its contact law on
+or off, so that no step straddles the contact's jump in acceleration): the driver stops
+exactly at the earliest root (a latch first among equal roots), records it (t, code = 2 e +
+rising, interpolated state) and returns STATUS_EVENT; the caller changes the mode and
+restarts. A function that crosses twice within one step is not seen (as in scipy's
+solve_ivp), except in the step that starts on the root of the crossing just handled: there
+the interpolant is also sampled at x = 1/8 ... 7/8, so a hinge that leaves a stop and comes
+back within that step is caught.
 
 Status codes returned: 0 success, 1 step size underflow, 2 too many steps, 3 non-finite state,
 4 a terminal event (stopped at it), 5 the event buffer is full (stopped after a step; drain it
@@ -33,6 +37,7 @@ import numpy as np
 from scipy.integrate._ivp import dop853_coefficients as _dop
 
 from .jit import njit
+from .kernels import ground_angle
 
 STATUS_OK, STATUS_STEP_UNDERFLOW, STATUS_MAX_STEPS, STATUS_NONFINITE = 0, 1, 2, 3
 STATUS_EVENT, STATUS_EVENTS_FULL = 4, 5
@@ -90,33 +95,38 @@ def _dense(F, y, x, i):
 
 
 @njit(inline="always")
-def _theta(y, h, o):
-    """Rigid hinge angle theta_h of state y (phi first in every model's layout) [rad]: y[h]
-    less the angle y[o] on the hinge's other side (o = -1: the ground)."""
-    return y[h] - y[o] if o >= 0 else y[h]
+def _theta(y, h, o, t, ground):
+    """Rigid hinge angle theta_h of state y (phi first in every model's layout) at time t [s]
+    [rad]: y[h] less the angle y[o] on the hinge's other side (o = -1: the ground, whose
+    angle is p(t) of the profile ``ground`` (N_MOTION,): a prescribed base's psi less its
+    psi_0, which the event's angle holds; 0 for a fixed base)."""
+    return y[h] - y[o] if o >= 0 else y[h] - ground_angle(ground, t)
 
 
 @njit(inline="always")
-def _theta_dense(F, y, x, h, o):
+def _theta_dense(F, y, x, h, o, t, ground):
+    """:func:`_theta` on the step's interpolant at x, t [s] the time there."""
     if o < 0:
-        return _dense(F, y, x, h)
+        return _dense(F, y, x, h) - ground_angle(ground, t)
     return _dense(F, y, x, h) - _dense(F, y, x, o)
 
 
 @njit
-def _event_values(y, events, g):
+def _event_values(t, y, events, g):
+    """g (m,) = the event functions at (t [s], y)."""
     ev_h = events.hinge
     ev_o = events.other
     ev_a = events.angle
     for e in range(ev_h.shape[0]):
-        g[e] = _theta(y, ev_h[e], ev_o[e]) - ev_a[e]
+        g[e] = _theta(y, ev_h[e], ev_o[e], t, events.ground) - ev_a[e]
 
 
 @njit
-def _illinois(F, y, h, o, a, x_lo, g_lo, g_hi, tol_x):
-    """Root x in (x_lo, 1] of theta_h(x) - a on the interpolant, g_lo = g(x_lo) and g_hi =
-    g(1) of opposite signs (or g_hi = 0): the Illinois variant of regula falsi. Returns the
-    end of the final bracket on the side of g_hi (the state there has crossed)."""
+def _illinois(F, y, h, o, a, x_lo, g_lo, g_hi, tol_x, t, hs, ground):
+    """Root x in (x_lo, 1] of theta_h(x) - a on the interpolant of the step (t, t + hs] [s]
+    (``ground``: see :func:`_theta`), g_lo = g(x_lo) and g_hi = g(1) of opposite signs (or
+    g_hi = 0): the Illinois variant of regula falsi. Returns the end of the final bracket on
+    the side of g_hi (the state there has crossed)."""
     if g_hi == 0.0:
         return 1.0
     x_hi = 1.0
@@ -126,7 +136,7 @@ def _illinois(F, y, h, o, a, x_lo, g_lo, g_hi, tol_x):
         x = (x_lo * g_hi - x_hi * g_lo) / (g_hi - g_lo)
         if not (x_lo < x < x_hi):
             x = 0.5 * (x_lo + x_hi)
-        gx = _theta_dense(F, y, x, h, o) - a
+        gx = _theta_dense(F, y, x, h, o, t + x * hs, ground) - a
         if gx == 0.0:
             return x
         if (gx > 0.0) == (g_hi > 0.0):
@@ -151,10 +161,11 @@ def _on_root(g0, a):
 
 
 @njit
-def _bracket(F, y, e, g0, g1, events):
-    """(x_lo, g(x_lo)) of a crossing of event e in the step, or (-1, 0): a sign change between
-    the step's ends, or, for a step that starts on the function's root, a return across it
-    seen at x = 1/8 ... 7/8 on the interpolant (leaving and coming back within the step)."""
+def _bracket(F, y, e, g0, g1, events, t, hs):
+    """(x_lo, g(x_lo)) of a crossing of event e in the step (t, t + hs] [s], or (-1, 0): a
+    sign change between the step's ends, or, for a step that starts on the function's root, a
+    return across it seen at x = 1/8 ... 7/8 on the interpolant (leaving and coming back
+    within the step)."""
     ev_h, ev_a = events.hinge, events.angle
     if (g0[e] < 0.0 and g1[e] >= 0.0) or (g0[e] > 0.0 and g1[e] <= 0.0):
         return 0.0, g0[e]
@@ -162,19 +173,21 @@ def _bracket(F, y, e, g0, g1, events):
         return -1.0, 0.0
     x_lo, g_lo = -1.0, 0.0
     for k in range(1, 8):
-        gk = _theta_dense(F, y, k / 8.0, ev_h[e], events.other[e]) - ev_a[e]
+        x = k / 8.0
+        gk = _theta_dense(F, y, x, ev_h[e], events.other[e], t + x * hs, events.ground) \
+            - ev_a[e]
         if gk * g1[e] < 0.0:
-            x_lo, g_lo = k / 8.0, gk
+            x_lo, g_lo = x, gk
     return x_lo, g_lo
 
 
 @njit
-def _event_start(y, events):
-    """(number of event functions m, their values at y (m,), scratch for the step's end (m,),
-    capacity of the event buffer) at the start of a driver call."""
+def _event_start(t, y, events):
+    """(number of event functions m, their values at (t [s], y) (m,), scratch for the step's
+    end (m,), capacity of the event buffer) at the start of a driver call."""
     m_ev = events.hinge.shape[0]
     g0 = np.empty(m_ev)
-    _event_values(y, events, g0)
+    _event_values(t, y, events, g0)
     return m_ev, g0, np.empty(m_ev), events.t.shape[0]
 
 
@@ -194,7 +207,7 @@ def _locate(F, y, t, hs, g0, g1, events):
     """Locate the earliest crossing of the event functions in the step (t, t + hs] with
     interpolant F (a latch first among equal roots; see :func:`_bracket`) and record it;
     returns its x in (0, 1], or -1 when nothing crossed."""
-    ev_h, ev_a, ev_k, ev_o, ev_t, ev_i, ev_y, ev_n = events
+    ev_h, ev_a, ev_k, ev_o, ground, ev_t, ev_i, ev_y, ev_n = events
     tol_x = 4.0 * 2.220446049250313e-16 * max(1.0, abs(t) + abs(hs)) / hs
     x_stop = 2.0
     first = -1
@@ -203,10 +216,11 @@ def _locate(F, y, t, hs, g0, g1, events):
         for e in range(ev_h.shape[0]):
             if (ev_k[e] == EV_LATCH) != latch_pass:
                 continue
-            x_lo, g_lo = _bracket(F, y, e, g0, g1, events)
+            x_lo, g_lo = _bracket(F, y, e, g0, g1, events, t, hs)
             if x_lo < 0.0:
                 continue
-            x = _illinois(F, y, ev_h[e], ev_o[e], ev_a[e], x_lo, g_lo, g1[e], tol_x)
+            x = _illinois(F, y, ev_h[e], ev_o[e], ev_a[e], x_lo, g_lo, g1[e], tol_x, t, hs,
+                          ground)
             if x < x_stop:
                 x_stop = x
                 first = e
@@ -319,7 +333,7 @@ def dop853_run(rhs, problem, span, control, output):
         i_out += 1
     if i_out == n_out:
         return y, t, h_init, STATUS_OK, i_out
-    m_ev, g0, g1, cap = _event_start(y, events)
+    m_ev, g0, g1, cap = _event_start(t, y, events)
     h = h_init
     n_steps = 0
     nfev0 = stats[0]
@@ -403,7 +417,7 @@ def dop853_run(rhs, problem, span, control, output):
             x_stop = -1.0
             crossed = False
             if m_ev > 0:
-                _event_values(y_new, events, g1)
+                _event_values(t_new, y_new, events, g1)
                 crossed = _may_cross(g0, g1, events)
             need_out = i_out < n_out and t_out[i_out] < t_new
             if crossed or need_out:
@@ -476,7 +490,7 @@ def fixed_run(rhs, problem, span, control, tableau, output):
     t = t0
     n_out = t_out.shape[0]
     i_out = 0
-    m_ev, g0, g1, cap = _event_start(y, events)
+    m_ev, g0, g1, cap = _event_start(t, y, events)
     while i_out < n_out and t_out[i_out] <= t0:
         Y_out[i_out, :] = y0
         i_out += 1
@@ -505,7 +519,7 @@ def fixed_run(rhs, problem, span, control, tableau, output):
                 return y, ts + hs, STATUS_NONFINITE, i_out
             if m_ev == 0:
                 continue
-            _event_values(y, events, g1)
+            _event_values(ts + hs, y, events, g1)
             if _may_cross(g0, g1, events):
                 rhs(ts + hs, y, chain, extra, loads, held, t_side, f_new)
                 stats[0] += 1

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from .kernels import EventTable
+from .kernels import N_MOTION, EventTable
 from .scene import Scene
 
 # event kinds of the compiled drivers' event tables (erk.py)
@@ -95,12 +95,16 @@ def locked_hinges(scene: Scene, mode: np.ndarray | None) -> np.ndarray:
 
 
 def event_table(scene: Scene, locked: np.ndarray, other: np.ndarray | None = None,
-                offset: np.ndarray | None = None) -> EventTable:
+                offset: np.ndarray | None = None,
+                ground: np.ndarray | None = None) -> EventTable:
     """The compiled drivers' event functions g = y[h] - y[other_h] - (angle + offset_h) for
     the unlocked hinges (kind EV_LATCH terminal, EV_UPPER and EV_LOWER stop crossings,
     recorded). ``other`` (n,) int: the state index on each hinge's other side (-1: the
     ground; default: the rod before, one chain on the ground); ``offset`` (n,) [rad]: a fixed
-    angle on that side (a fixed base's psi), default 0."""
+    angle on that side (a fixed base's psi, a prescribed one's psi_0), default 0; ``ground``
+    (N_MOTION,): the profile p(t) of a prescribed base's psi = psi_0 + p(t), which the
+    ground side's angle adds (g = y[h] - p(t) - (angle + offset_h) where other_h = -1;
+    :class:`~rod_sim.core.kernels.EventTable`), default none (p = 0)."""
     n = scene.n
     other = np.arange(-1, n - 1) if other is None else np.asarray(other)
     hinge, angle, kind, oth = [], [], [], []
@@ -115,8 +119,10 @@ def event_table(scene: Scene, locked: np.ndarray, other: np.ndarray | None = Non
                 angle.append(float(value) + (0.0 if offset is None else float(offset[h])))
                 kind.append(code)
                 oth.append(int(other[h]))
+    ground = np.zeros(N_MOTION) if ground is None else \
+        np.ascontiguousarray(ground, dtype=float).reshape(N_MOTION)
     return EventTable(np.array(hinge, dtype=np.int64), np.array(angle, dtype=float),
-                      np.array(kind, dtype=np.int64), np.array(oth, dtype=np.int64))
+                      np.array(kind, dtype=np.int64), np.array(oth, dtype=np.int64), ground)
 
 
 def crossing_kind(kind: int, rising: bool) -> tuple[str, str | None]:

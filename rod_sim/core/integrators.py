@@ -27,7 +27,7 @@ from .scipy_tables import light_dop853_tables
 
 with light_dop853_tables():     # erk's tables without scipy.integrate's import
     from . import erk, hinges, radau
-from .kernels import Control, Events, Output, Problem, Span
+from .kernels import Control, Events, Output, Problem, Span, ground_angle
 
 
 
@@ -385,11 +385,16 @@ class _NonFinite(Exception):
 
 def _scipy_events(plan):
     """solve_ivp event functions (terminal) for the plan's table: latches only (stops are
-    refused, see ScipyIntegrator)."""
+    refused, see ScipyIntegrator); at a hinge 0 on a prescribed base less p(t) of its psi
+    (the table's ``ground``, by the kernels' :func:`~rod_sim.core.kernels.ground_angle`)."""
     fns = []
+    ground = plan.events.ground
+    moving = ground[0] != 0.0
     for h, angle, o in zip(plan.events.hinge, plan.events.angle, plan.events.other):
         h, o = int(h), int(o)
-        if o < 0:
+        if o < 0 and moving:
+            f = (lambda t, y, h=h, a=angle: y[h] - ground_angle(ground, t) - a)
+        elif o < 0:
             f = (lambda t, y, h=h, a=angle: y[h] - a)
         else:
             f = (lambda t, y, h=h, o=o, a=angle: y[h] - y[o] - a)
@@ -487,7 +492,7 @@ class ScipyIntegrator(Integrator):
                             first is None or plan.events.kind[e] == hinges.EV_LATCH):
                         first = e
                 h = int(plan.events.hinge[first])
-                rising = model.hinge_rates(y)[h] > 0.0
+                rising = model.hinge_rates(y, t_end)[h] > 0.0
                 crossing = (np.array([t_end]), np.array([2 * first + int(rising)]), y[None, :])
                 return Stretch(Y, done, y, t_end, first, crossing)
         return Stretch(Y, done, y, float(t_out[-1]), None, self._found())
@@ -537,7 +542,8 @@ def drive(model, integrator: Integrator, y0, t0: float, t_out, held=None, mode=N
     events = [] if events is None else events
     mode = np.zeros(model.n, dtype=bool) if mode is None else np.array(mode, dtype=bool)
     y = np.ascontiguousarray(y0, dtype=float).copy()
-    contact = model.contact_state(y) if contact is None else np.array(contact, dtype=np.int8)
+    contact = model.contact_state(y, t0) if contact is None else \
+        np.array(contact, dtype=np.int8)
     t = float(t0)
     Y = np.empty((t_out.size, y.size))
     modes = np.empty((t_out.size, model.n), dtype=bool)
@@ -577,8 +583,8 @@ def drive(model, integrator: Integrator, y0, t0: float, t_out, held=None, mode=N
         name, stop = hinges.crossing_kind(kind, rising)
         contact[h] = (1 if stop == "upper" else -1) if name == "stop_contact_begin" else 0
         events.append(hinges.HingeEvent(t, name, h, {
-            "stop": stop, "angle": float(model.hinge_angles(y)[h]),
-            "rate": float(model.hinge_rates(y)[h])}))
+            "stop": stop, "angle": float(model.hinge_angles(y, t)[h]),
+            "rate": float(model.hinge_rates(y, t)[h])}))
     return DriveResult(Y, modes, mode, y, contact)
 
 
@@ -589,7 +595,7 @@ def _latch(model, mode, t: float, y, located: int | None, events: list):
     if not model.has_latches:
         return mode, y
     s = model.scene
-    theta = model.hinge_angles(y)
+    theta = model.hinge_angles(y, t)
     gap = np.abs(theta - s.latch_angle)
     free = ~hinges.locked_hinges(s, mode) & np.isfinite(s.latch_angle)
     if located is None:
@@ -599,9 +605,9 @@ def _latch(model, mode, t: float, y, located: int | None, events: list):
         hit[located] = free[located]
     if not hit.any():
         return mode, y
-    rate = model.hinge_rates(y)
+    rate = model.hinge_rates(y, t)
     new_mode = mode | hit
-    y1 = model.project_velocity(y, new_mode)
+    y1 = model.project_velocity(y, new_mode, t)
     loss = model.kinetic_energy(t, y) - model.kinetic_energy(t, y1)
     # one impact latches every hinge of ``hit`` at once (the two wings of a symmetric bus):
     # its loss is shared out so that the events' losses sum to the impact's

@@ -242,16 +242,20 @@ class Control(NamedTuple):
 
 
 class EventTable(NamedTuple):
-    """The event functions g_e = theta_{hinge_e} - angle_e of one mode (m of them):
+    """The event functions g_e(t, y) = theta_{hinge_e} - angle_e of one mode (m of them):
     ``hinge`` (m,) int64, ``angle`` (m,) [rad], ``kind`` (m,) int64 (``hinges.EV_LATCH``:
     terminal; ``EV_UPPER``, ``EV_LOWER``: stop crossings), ``other`` (m,) int64: the state
     index of the angle on the hinge's other side (the rod before, a free base's psi; -1: a
-    fixed base, whose angle is folded into ``angle``), theta = y[hinge] - y[other]."""
+    fixed or prescribed base, whose constant angle psi_0 is folded into ``angle``), theta =
+    y[hinge] - y[other], or y[hinge] - p(t) for other = -1 with ``ground`` (N_MOTION,) the
+    profile of a prescribed base's psi = psi_0 + p(t) (a row of Chain.motion; code 0, p = 0:
+    a fixed base), :func:`ground_angle`."""
 
     hinge: np.ndarray
     angle: np.ndarray
     kind: np.ndarray
     other: np.ndarray
+    ground: np.ndarray
 
 
 class Events(NamedTuple):
@@ -263,6 +267,7 @@ class Events(NamedTuple):
     angle: np.ndarray
     kind: np.ndarray
     other: np.ndarray
+    ground: np.ndarray
     t: np.ndarray
     code: np.ndarray
     y: np.ndarray
@@ -305,6 +310,16 @@ def motion_eval(motion, r, t):
     start) at time t [s]: :func:`rod_sim.core.motion.profile_at`, the one law of Python and
     kernels (units of the coordinate: m or rad)."""
     return _profile_at(int(motion[r, 0]), motion[r, 1], motion[r, 2], motion[r, 3], t)
+
+
+@njit(inline="always")
+def ground_angle(profile, t):
+    """p(t) [rad]: the prescribed part of a base's angle psi = psi_0 + p(t) from its profile
+    ``profile`` (N_MOTION,) = (code, a, b, start) (the row MO_PSI of Chain.motion) at time t
+    [s], by :func:`rod_sim.core.motion.profile_at` (the law of :func:`motion_eval`); 0 for
+    code 0 (hold, or a fixed base's zero row). What a hinge-0 event function subtracts
+    (:class:`EventTable`)."""
+    return _profile_at(int(profile[0]), profile[1], profile[2], profile[3], t)[0]
 
 
 @njit(inline="always")

@@ -242,11 +242,11 @@ class Model(Protocol):
              contact: np.ndarray | None = None) -> Plan: ...
     def new_data(self) -> "ModelData": ...
     def forces(self, t: float, held=None) -> np.ndarray: ...
-    def contact_state(self, y: np.ndarray) -> np.ndarray: ...
+    def contact_state(self, y: np.ndarray, t: float = 0.0) -> np.ndarray: ...
     def rhs(self, t: float, y: np.ndarray, held=None, mode=None,
             contact=None, data=None) -> np.ndarray: ...
     def mass_times(self, y: np.ndarray, v: np.ndarray | None = None) -> np.ndarray: ...
-    def project_velocity(self, y: np.ndarray, mode=None) -> np.ndarray: ...
+    def project_velocity(self, y: np.ndarray, mode=None, t: float = 0.0) -> np.ndarray: ...
     def bending(self, t, y, held=None, mode=None) -> tuple[np.ndarray, np.ndarray]: ...
     def rhs_bending(self, t, y, held=None, mode=None, contact=None,
                     data=None) -> tuple[np.ndarray, tuple]: ...
@@ -319,7 +319,6 @@ class ChainModel:
         self.has_stops = bool(np.any(np.isfinite(scene.stop_lower)
                                      | np.isfinite(scene.stop_upper)))
         """Whether any hinge has a finite stop (else no contact ever: contact_state is 0)."""
-        self._check_base_features()
         self.extra = self.plan().extra         # the features of the unlatched mode (no scratch)
         self._layout()
 
@@ -371,20 +370,6 @@ class ChainModel:
         """Fresh scratch for one user of this model (a simulator, a thread):
         :class:`ModelData`."""
         return ModelData(self)
-
-    def _check_base_features(self) -> None:
-        """A stop or latch at a chain's hinge 0 needs the base's angle as a state or a
-        constant (the compiled drivers locate events on the state): refused on a base whose
-        angle follows a prescribed motion."""
-        if self.base_mode != kernels.MODE_PRESCRIBED or self.chain.motion[kernels.MO_PSI, 0] == 0:
-            return
-        s = self.scene
-        on = self.first & (np.isfinite(s.latch_angle) | np.isfinite(s.stop_lower)
-                           | np.isfinite(s.stop_upper))
-        if on.any():
-            raise ModelError(f"hinges: hinge {int(np.flatnonzero(on)[0])} joins a chain to a "
-                             f"base with a prescribed psi(t); stops and latches there are not "
-                             f"supported (use a free base, or put the stop on another hinge)")
 
     def _pinned(self) -> np.ndarray:
         """Rods whose end slopes are zero (n,) bool: the scene's rigid rods."""
@@ -509,7 +494,10 @@ class ChainModel:
             other[self.first] = self.base_index + 2
         elif self.chain.base[kernels.B_PSI] != 0.0:
             offset = np.where(self.first, float(self.chain.base[kernels.B_PSI]), 0.0)
-        return Plan(extra, hinges.event_table(self.scene, locked, other, offset), locked)
+        # a prescribed base's psi(t) = psi_0 + p(t): hinge 0's event functions subtract p(t)
+        # by the kernels' own profile (Chain.motion's psi row; zeros unless prescribed)
+        return Plan(extra, hinges.event_table(self.scene, locked, other, offset,
+                                              self.chain.motion[kernels.MO_PSI]), locked)
 
     # ----- evaluation -----
     def forces(self, t: float, held: np.ndarray | None = None) -> np.ndarray:
@@ -540,12 +528,13 @@ class ChainModel:
             out[:self.n, :2] = h.reshape(self.n, 2)
         return out
 
-    def contact_state(self, y: np.ndarray) -> np.ndarray:
-        """Stop contacts (n,) int8 implied by the state: +1 above the upper stop (or on it and
-        moving in), -1 below the lower one (or on it and moving in), 0 otherwise."""
+    def contact_state(self, y: np.ndarray, t: float = 0.0) -> np.ndarray:
+        """Stop contacts (n,) int8 implied by the state y at time t [s] (t matters on a
+        prescribed base, whose psi(t) hinge 0 measures against): +1 above the upper stop (or
+        on it and moving in), -1 below the lower one (or on it and moving in), 0 otherwise."""
         if not self.has_stops:      # every stop at -inf / +inf: never touched
             return np.zeros(self.n, dtype=np.int8)
-        return self.contact_of(self.hinge_angles(y), self.hinge_rates(y))
+        return self.contact_of(self.hinge_angles(y, t), self.hinge_rates(y, t))
 
     def contact_of(self, theta: np.ndarray, rate: np.ndarray) -> np.ndarray:
         """:meth:`contact_state` from the hinge angles theta (n,) [rad] and their rates."""
@@ -570,7 +559,7 @@ class ChainModel:
         if y.shape != out.shape:        # the kernel does not check its bounds
             raise ValueError(f"y: a state of {self.name} model has {self.state_size} "
                              f"components, got shape {y.shape}")
-        side = self.contact_state(y) if contact is None else contact
+        side = self.contact_state(y, t) if contact is None else contact
         extra = (self.new_data() if data is None else data).plan(mode, side).extra
         self.kernel(t, y, self.chain, extra, self.loads, self._held(held), t, out)
         return out, extra
@@ -606,17 +595,29 @@ class ChainModel:
                                     self._velocities_full(y, v), psi)
         return self._model_rows(out)
 
-    def project_velocity(self, y: np.ndarray, mode: np.ndarray | None = None) -> np.ndarray:
+    def project_velocity(self, y: np.ndarray, mode: np.ndarray | None = None,
+                         t: float = 0.0) -> np.ndarray:
         """y with its velocities replaced by the impulsive-constraint projection
         x'+ = T (T^T M T)^{-1} T^T M x'- (M-orthogonal for a symmetric M) in ``mode``, with T
         a basis of the locked hinges' constraints (the reduced model: M = M_r of eq. (15)),
         solved in O(n) by the kernels' chain solve with f = M x'- (a free base moves with
-        the chains: momentum is kept)."""
+        the chains: momentum is kept).
+
+        On a prescribed base (infinite mass, its motion unchanged by the impact) a locked
+        hinge 0 holds phi_1' = psi'(t) at time t [s], a constraint C x' = c(t) that is not
+        homogeneous: the projection acts on the velocities relative to the base's rotation,
+        x' - psi' r (r: every rod's phi' = 1, a rigid turn with the base, so that C r = 1 at a
+        hinge 0 and 0 at the other hinges), and psi' r is added back; the base's own velocity
+        terms of the impulse balance cancel (it does not jump)."""
         plan = self.new_data().plan(mode)
         out = np.array(y, dtype=float)
         if not plan.locked.any() and not (self.dof_per_rod == 3 and self._pinned().any()):
             return out
         n, d = self.n, self.dof
+        turn = 0.0
+        if self.prescribed_base and (plan.locked & self.first).any():
+            turn = self.base_state(t, y).psi_rate
+            out[d:d + n] -= turn
         phi = np.ascontiguousarray(self.phi(y), dtype=float)
         psi = float(self._base_angle(y)[0]) if self.nb else 0.0
         # reduced: (A v, m^{gamma phi} v) as right-hand sides give M_r x = M_r v
@@ -636,6 +637,8 @@ class ChainModel:
             out[d:] = x_all
         else:
             out[d:] = x[:d]
+        if turn != 0.0:
+            out[d:d + n] += turn
         return out
 
     def bending(self, t, y, held=None, mode=None) -> tuple[np.ndarray, np.ndarray]:

@@ -130,6 +130,22 @@ def chain_solve(chain, extra, phi_j, nex, nch, g, r, out):
         W[k, _k.W_GP] = r[m + k] + g * r[k]
         W[k, _k.W_GA] = r[m + n + k] + g * r[n + k] if full else 0.0
         W[k, _k.W_COR] = r[m + 2 * n + k] + g * r[2 * n + k] if full else 0.0
+    # a locked hinge 0 on a prescribed base holds phi_1 (+ alpha_1) = psi(t) + const: the
+    # exact Jacobian's rows of that constraint give its increments C x = C c' / g^2, not the
+    # C x = 0 of a lock between rods. Split off d r_c (r_c: chain c's rigid turn, C r_c = 1
+    # at its hinge 0 and 0 at the others; no spring, damper or bending acts on it, so A r_c
+    # = g^2 M r_c), solve the rest with C x = 0, add d r_c / g^2 back (W_TN holds d)
+    turn = chain.base[_k.B_MODE] == _k.MODE_PRESCRIBED
+    if turn:
+        seg = chain.seg
+        for ci in range(seg.shape[0] - 1):
+            k0 = seg[ci]
+            d = 0.0 * g
+            if extra.locked[k0] != 0:
+                d = W[k0, _k.W_GP] + W[k0, _k.W_GA]
+            for k in range(k0, seg[ci + 1]):
+                W[k, _k.W_GP] -= d
+                W[k, _k.W_TN] = d
     # inertia product (full kind: the slope rows get m^{gamma phi} c' even for the reduced
     # model, whose Newton system keeps them)
     _k.inertia_columns(True, chain, W, _k.W_GP, _k.W_GA, _k.W_COR, _k.W_FP, _k.W_FA, _k.W_FB,
@@ -169,6 +185,8 @@ def chain_solve(chain, extra, phi_j, nex, nch, g, r, out):
         return
     for k in range(n):
         out[k] = W[k, _k.W_X]
+        if turn:
+            out[k] += W[k, _k.W_TN] / g2
         if full:
             out[n + k] = W[k, _k.W_A]
             out[2 * n + k] = W[k, _k.W_B]

@@ -557,7 +557,7 @@ def radau_run_work(fns, problem, span, control, output, work):
         i_out += 1
     if i_out == n_out:
         return y, t, h_init, STATUS_OK, i_out
-    m_ev, g0, g1, cap = _event_start(y, events)
+    m_ev, g0, g1, cap = _event_start(t, y, events)
     F = np.zeros((7, n))
     Q = work.Q
     f = np.empty(n)
@@ -590,7 +590,7 @@ def radau_run_work(fns, problem, span, control, output, work):
             hs = t_new - t
             x_stop = -1.0
             if m_ev > 0:
-                _event_values(y_new, events, g1)
+                _event_values(t_new, y_new, events, g1)
                 if _may_cross(g0, g1, events):
                     _nested_form(Q, F)
                     x_stop = _locate(F, y, t, hs, g0, g1, events)

@@ -84,7 +84,7 @@ class Simulator:
         self.events = []    # hinge events (latch, stop contact), see rod_sim.core.hinges
         self.mode = np.zeros(self.model.n, dtype=bool)    # which latches have fired
         self.y = self.model.initial_state()
-        self.contact = self.model.contact_state(self.y)     # stop contacts (+1, -1, 0)
+        self.contact = self.model.contact_state(self.y, self.t)   # stop contacts (+1, -1, 0)
         self.held = np.zeros((self.model.n, 3))     # X, Y [N] at nodes 1..n; T [N m], hinges
         # (set_held: (n + 2, 3) with the base's and the wheel's rows)
         self.carry.restart()

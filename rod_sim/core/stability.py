@@ -23,7 +23,7 @@ def jacobian(model, t: float, y: np.ndarray, held=None, mode=None,
     max(1, |y_i|) per component); ``held`` (n, 2) [N] and ``mode`` as for ``model.rhs``."""
     y = np.asarray(y, dtype=float)
     m = y.size
-    contact = model.contact_state(y)
+    contact = model.contact_state(y, t)
     J = np.empty((m, m))
     for i in range(m):
         h = rel_step * max(1.0, abs(y[i]))
