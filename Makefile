@@ -36,24 +36,27 @@ $(VPY):
 HEARTBEAT = $(VPY) rod_sim/tools/heartbeat.py
 
 # `make demo` installs what it runs (the ROS 2 wheels and matplotlib: ~21 s from pip's cache
-# against ~65 s with the test and peer extras); every other target installs everything
-$(STAMP_DEMO): setup.py | $(VPY)
+# against ~65 s with the test and peer extras); every other target installs everything.
+# $(call install,EXTRAS,WHAT): pip upgraded, then rod_sim with EXTRAS (WHAT says it in words)
+define install
 	$(HEARTBEAT) "upgrading pip in $(VENV)" -- $(VPY) -m pip install -q --upgrade pip
-	$(HEARTBEAT) "installing rod_sim, the ROS 2 Jazzy wheels and matplotlib into $(VENV)" -- \
-		$(VPY) -m pip install -q -e '.[$(DEMO_EXTRAS)]'
+	$(HEARTBEAT) "installing rod_sim, the ROS 2 Jazzy wheels and $(2) into $(VENV)" -- \
+		$(VPY) -m pip install -q -e '.[$(1)]'
+endef
+
+$(STAMP_DEMO): setup.py | $(VPY)
+	$(call install,$(DEMO_EXTRAS),matplotlib)
 	touch $(STAMP_DEMO)
 
 $(STAMP): setup.py | $(VPY)
-	$(HEARTBEAT) "upgrading pip in $(VENV)" -- $(VPY) -m pip install -q --upgrade pip
-	$(HEARTBEAT) "installing rod_sim, the ROS 2 Jazzy wheels and the extras into $(VENV)" -- \
-		$(VPY) -m pip install -q -e '.[$(ALL_EXTRAS)]'
+	$(call install,$(ALL_EXTRAS),the extras)
 	touch $(STAMP) $(STAMP_DEMO)
 
 # Compile drivers into numba's cache ahead of use, in 2 processes, with a line at least every
 # 10 s; again whenever a module of rod_sim/core that holds compiled code changes
 # (rod_sim/core/jit.py: the modules that name njit). `make demo` compiles only what it runs
-# (warm-demo: 387 s cold at load 6-8, 214 s of CPU); `make test` every registered model x
-# integrator (warm: 966 s cold at load 4-6, 933 s of CPU). Anything not compiled ahead compiles on first use, with a notice saying what, why
+# (warm-demo: 50 s cold at load ~1.3, 96 s of CPU); `make test` every registered model x
+# integrator (warm: 258 s cold at load ~1.4, 417 s of CPU). Anything not compiled ahead compiles on first use, with a notice saying what, why
 # and how long (docs/install.md; measured times: docs/benchmarks.md).
 COMPILED = $(shell grep -l njit rod_sim/core/*.py)
 

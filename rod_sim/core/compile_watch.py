@@ -41,13 +41,13 @@ COMPILE_CPU_S = {
 """Process CPU seconds to compile each compiled entry point from a cold cache, its model's
 kernel included, on the 2-core development machine (numba 0.68, NUMBA_OPT 3; docs/benchmarks.md,
 "Compile time"): a kernel alone ~66 s (measured: scipy's Radau compiling it again for a
-strided state), dop853 drivers ~60 s (the driver alone in a fresh process: reduced 42 s,
-full 44 s, since the backward sweep has one call site in chain_solve; 76-80 s with three; the
-node's helpers add ~14 s), radau-jit after its
-kernel 43-189 s (measured before the kernels' speed-up), fixed-step after it 7-8 s (15 s with the
-kernel loaded from the cache: rk4 on the paper example, reduced, at load 8, 97 s wall); the helpers a node's checks call ~1 s (mass_times: 1 s CPU, 3 s wall at
-load 7); the velocity projection of a scene with locked hinges or latches (solve_with) ~70 s
-(~450 s wall at load 9)."""
+strided state), dop853 drivers ~60 s (the driver alone in a fresh process: reduced 42 s, full
+44 s, since the backward sweep has one call site in chain_solve; 76-80 s with three; the node's
+helpers add ~14 s), radau-jit after its kernel 43-189 s (measured before the kernels'
+speed-up), fixed-step after it 7-8 s (15 s with the kernel loaded from the cache: rk4 on the
+paper example, reduced, at load 8, 97 s wall); the helpers a node's checks call ~1 s
+(mass_times: 1 s CPU, 3 s wall at load 7); the velocity projection of a scene with locked
+hinges or latches (solve_with) ~70 s (~450 s wall at load 9)."""
 KERNEL_CPU_S = 50.0
 """CPU seconds of an entry point's estimate that a later entry point of the same model in
 the same process does not pay again (typing the model's kernel)."""
