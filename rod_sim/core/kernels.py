@@ -903,10 +903,11 @@ def chain_solve(kind, ch, ex, W):
 
 @njit(inline="always")
 def _free_base_solve(kind, ch, ex, W, cps, sps, w2):
-    """A free base: every chain's root map, then the base's 3 x 3 system for (x_B'', y_B'',
-    psi'') (the base's rows with each chain's inertia, hinge-0 moment and lock multiplier as
-    affine maps of the base's accelerations: the Schur complement of the chains), then every
-    chain forward from its node-0 acceleration. Right-hand sides of the base rows in
+    """A free base, after :func:`chain_solve`'s backward sweeps left every chain's root map
+    in ex.roots: the base's 3 x 3 system for (x_B'', y_B'', psi'') (the base's rows with each
+    chain's inertia, hinge-0 moment and lock multiplier as affine maps of the base's
+    accelerations: the Schur complement of the chains), then every chain forward from its
+    node-0 acceleration. Right-hand sides of the base rows in
     bk[BK_FX..BK_FTH]; accelerations out in bk[BK_AX], bk[BK_AY], bk[BK_APSI], bk[BK_ATH]."""
     full = kind == KIND_FULL
     b = ch.base
