@@ -203,7 +203,7 @@ def test_node_live_view_scene_services_and_a_killed_viewer(tmp_path):
         _, got, t2, answer = asyncio.run(collect(port, {"/node_poses"},
                                                  call=("pause", {"data": True})))
         assert t2 > t1, "the node stopped after the viewer was killed"
-        assert answer["success"] and answer["message"].startswith("paused at t = ")
+        assert answer["success"] and answer["message"].startswith("paused at t = "), answer
     finally:
         node.send_signal(signal.SIGINT)
         assert node.wait(30) == 0

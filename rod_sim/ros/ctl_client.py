@@ -15,12 +15,12 @@ import rclpy
 from rcl_interfaces.msg import Parameter as ParameterMsg
 from rcl_interfaces.msg import ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, SetParameters
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import SetBool, Trigger
 
 from rod_sim.io import yaml_text
 from rod_sim.ros.conversions import message_class, message_to_dict
+from rod_sim.ros.executor import LeanExecutor
 from rod_sim.ros.parameters import NODE_NAME
 
 CTL_NODE_NAME = "rod_sim_ctl"
@@ -82,7 +82,7 @@ class CtlClient:
         rclpy.init(args=[], context=self.context)
         self.node = rclpy.create_node(CTL_NODE_NAME, namespace=self.namespace,
                                       context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor = LeanExecutor(context=self.context)
         self.executor.add_node(self.node)
 
     def __enter__(self) -> "CtlClient":

@@ -126,12 +126,13 @@ def run(args: argparse.Namespace) -> int:
     isolate_ros_graph()
 
     import rclpy
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.executors import ExternalShutdownException
     from rclpy.parameter import Parameter
     from rclpy.signals import SignalHandlerOptions
 
     from rod_sim.core.scene import SceneError
     from rod_sim.ros.node import NodeConfigError, RodSimNode
+    from rod_sim.ros.executor import LeanExecutor
     from rod_sim.ros.process import StopRequest, spin_until
 
     from rod_sim.app.common import watch_compiles
@@ -151,7 +152,7 @@ def run(args: argparse.Namespace) -> int:
             nodes.append(sim)
             controller = _controller(free_base, args, str(args.scene))
             nodes.append(controller)
-            executor = SingleThreadedExecutor()
+            executor = LeanExecutor()
             for node in nodes:
                 executor.add_node(node)
             spin_until(executor, stop, done=lambda: sim.sim_time >= args.duration)

@@ -13,11 +13,12 @@ import threading
 from typing import Any, Callable
 
 import rclpy
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException
 from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 
 from rod_sim.ros.errors import one_line
+from rod_sim.ros.executor import LeanExecutor
 from rod_sim.ros.startup import Progress
 
 ROS_ARGS_HINT = "ROS arguments go after --ros-args, e.g. --ros-args -p scene_file:=SCENE.yaml"
@@ -165,7 +166,7 @@ def run_node(prog: str, make_node, args: list[str], config_errors) -> int:
             # they stalled a 1024-rod node ~60 ms every few seconds (rate_bench --record:
             # inter-arrival p99 67 ms before, 13 ms after)
             gc.freeze()
-            executor = SingleThreadedExecutor()
+            executor = LeanExecutor()
             executor.add_node(node)
             spinning = True
             spin_until(executor, stop)

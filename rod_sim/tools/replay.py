@@ -171,9 +171,10 @@ def _live_view(port: int):
 
 def _play(source, topics: list[str], args):
     import rclpy
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.executors import ExternalShutdownException
     from rclpy.signals import SignalHandlerOptions
 
+    from ..ros.executor import LeanExecutor
     from ..ros.process import StopRequest
     from ..ros.replay import PlayStats, Player, wait_for_subscribers
 
@@ -192,7 +193,7 @@ def _play(source, topics: list[str], args):
                             loop=args.loop, start_paused=args.start_paused,
                             start_offset_s=args.start_offset, live_view=view)
             stats = player.stats
-            executor = SingleThreadedExecutor()
+            executor = LeanExecutor()
             executor.add_node(player)
             player.get_logger().info(
                 f"replaying {len(topics)} topic(s) of {args.log} at rate {args.rate:g}"
