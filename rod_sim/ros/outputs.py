@@ -182,14 +182,19 @@ class Outputs:
     def state(self, snapshot: Snapshot, t_ns: int, *, record: bool = True,
               names: Iterable[str] = STATE_TOPICS) -> None:
         """Every state topic due at ``t_ns`` [ns], each encoded once from ``snapshot``:
-        recorded (if ``record``) and published (always: the transient-local store then holds
-        the latest state for a subscriber that joins later); then the taps get the snapshot
-        and the same bytes."""
+        published (always: the transient-local store then holds the latest state for a
+        subscriber that joins later), then recorded (if ``record``), the same bytes; then the
+        taps get the snapshot and the bytes. Publishing first lets a lockstep controller work
+        on its next command while the node writes the log (measured: ~0.15 ms of recording
+        per n = 8 period)."""
         encoded = {}
         for name in names:
             if self.due(name, t_ns) and BY_NAME[name].exists_for(self.scene):
                 encoded[name] = BY_NAME[name].encode(snapshot, self.scene, self.frame_id)
-                self.send(name, t_ns, encoded[name], record=record)
+                self.send(name, t_ns, encoded[name], record=False)
+        if record:
+            for name, data in encoded.items():
+                self.send(name, t_ns, data, publish=False)
         for tap in self.taps:
             tap(snapshot, t_ns, encoded)
 
