@@ -14,7 +14,10 @@ Pure (numpy only). Three checks, each giving :class:`Finding` records:
   below 1 %. A raised cosine pulse of duration D has its spectrum below ~2/D (main lobe); a
   jump of the forces (step loads, held commands changing at a control rate) excites every
   mode: the bending vibration it starts has the amplitude of the quasi-static slope jump, which
-  :func:`force_jump_slopes` computes and :data:`JUMP_SLOPE_WARN_RAD` judges.
+  :func:`force_jump_slopes` computes and :data:`JUMP_SLOPE_WARN_RAD` judges (the node gives
+  the monitor that jump instead, from the slopes it solved on both sides of it, and the
+  finding's time is the start of the period where the held inputs changed:
+  :meth:`ValidityMonitor.update`'s ``jump``).
 - **energy balance**: E - E0 - integral(P_load - P_damper + P_unpaired) dt + (kinetic energy
   lost in latch impacts) relative to the energy scale above :data:`ENERGY_RESIDUAL_WARN`
   (:class:`EnergyBalance`, fed with :func:`balance_sample` s; E includes the stop contacts'
@@ -218,8 +221,17 @@ class ValidityMonitor:
     def _add(self, f: Finding) -> None:
         self._found.setdefault((f.kind, f.rod), f)
 
-    def update(self, t: float, y, held=None, alpha=None, beta=None) -> None:
-        """Check one state (alpha, beta [rad] may be given to save recomputing them)."""
+    def update(self, t: float, y, held=None, alpha=None, beta=None, jump=None) -> None:
+        """Check one state (alpha, beta [rad] may be given to save recomputing them).
+
+        A change of the held inputs since the last update is judged as a jump of the forces
+        (:func:`force_jump_slopes`): by default solved here, at this state ``y``, and reported
+        at ``t``. ``jump`` = (t_jump [s], |jump of the slopes| (2n,) [rad]): the caller has
+        the states on both sides of the change (the node: the end of its last period and the
+        start of this one, at the same time and state, with the old and the new held inputs,
+        :class:`~rod_sim.ros.period.PeriodRunner`) and gives their slopes' difference, which is
+        judged instead, at t_jump (where the jump happened); the held inputs are then not
+        compared (the caller says they changed)."""
         n = self.model.n
         given = held
         if given is None:
@@ -239,20 +251,35 @@ class ValidityMonitor:
                               SMALL_BENDING_RAD,
                               f"rod {k + 1}: end slope {worst[k]:.3g} rad at t = {t:.4g} s "
                               f"leaves the small-bending range (> {SMALL_BENDING_RAD} rad)"))
-        if (self.model.name == "reduced" and self._held is not None
+        if self.judges_jumps and jump is not None:
+            self._judge_jump(*jump)
+        elif (self.judges_jumps and jump is None and self._held is not None
                 and held is not self._held and not (held == self._held).all()):
-            jump = force_jump_slopes(self.scene, self.model.phi(y), self.model.phi_rate(y),
-                                     self._held, held, y=np.asarray(y, float))
-            k = int(np.argmax(jump))
-            if jump[k] > JUMP_SLOPE_WARN_RAD:
-                self._add(Finding("force_jump", float(t), k % n + 1, float(jump[k]),
-                                  JUMP_SLOPE_WARN_RAD,
-                                  f"a jump of the held forces or hinge torques at t = {t:.4g} s "
-                                  f"starts bending "
-                                  f"vibration of ~{jump[k]:.2g} rad at rod {k % n + 1} (first "
-                                  f"bending mode {self.f1:.3g} Hz) that the reduced model "
-                                  f"does not carry"))
+            self._judge_jump(t, force_jump_slopes(self.scene, self.model.phi(y),
+                                                  self.model.phi_rate(y), self._held, held,
+                                                  y=np.asarray(y, float)))
         self._held = held                 # a fresh array, never written to again
+
+    @property
+    def judges_jumps(self) -> bool:
+        """Whether jumps of the held inputs are judged (the reduced model only: the full
+        model carries the bending vibration they start, the rigid model has none)."""
+        return self.model.name == "reduced"
+
+    def _judge_jump(self, t: float, jump) -> None:
+        """A ``force_jump`` finding when the largest of the slopes' jumps ``jump`` (2n,)
+        [rad] (alpha jumps, then beta jumps) at time ``t`` [s] exceeds
+        :data:`JUMP_SLOPE_WARN_RAD`."""
+        n = self.model.n
+        k = int(np.argmax(jump))
+        if jump[k] > JUMP_SLOPE_WARN_RAD:
+            self._add(Finding("force_jump", float(t), k % n + 1, float(jump[k]),
+                              JUMP_SLOPE_WARN_RAD,
+                              f"a jump of the held forces or hinge torques at t = {t:.4g} s "
+                              f"starts bending "
+                              f"vibration of ~{jump[k]:.2g} rad at rod {k % n + 1} (first "
+                              f"bending mode {self.f1:.3g} Hz) that the reduced model "
+                              f"does not carry"))
 
     def update_energy(self, t: float, residual: float, scale: float,
                       unresolved: float = 0.0) -> None:

@@ -11,7 +11,9 @@ the simulator stays at the period's start).
 
 Per period, beyond the integration: one snapshot, one or two balance samples (two when the
 held inputs changed at the period's start, since the net power jumps there) and the monitor's
-O(n) checks: vectorised, no loop over rods. Outside lockstep, while the held inputs stay the
+O(n) checks: vectorised, no loop over rods. A change of the held inputs is judged as a force
+jump at the period's start from the slopes of the last period's end and of the new start
+(no extra solve). Outside lockstep, while the held inputs stay the
 same and no hinge event or breakpoint of a scripted load happens, the ledgers book one span per
 :data:`LEDGER_SPAN_S` instead of one per period (the span's end sample is taken when it closes: its state, inputs and
 right-hand side are kept), and one drive may cover several periods
@@ -174,6 +176,7 @@ class PeriodRunner:
         if at_start is not None:
             at_start(sim.t_ns)
         last = self._balance_end
+        jump = None
         if last is not None and last[0] == sim.t_ns and np.array_equal(last[1], held):
             self.held_for += 1
         else:       # one right-hand side gives the slopes and the rate's direction
@@ -184,6 +187,7 @@ class PeriodRunner:
             self._span_ns = sim.t_ns
             self._book_spacecraft(held, state)  # the inputs changed: their rates from now on
             self.held_for = 0
+            jump = self._jump(last, state)
         kink = self._kink_in(sim.t_ns)
         if kink:
             self.book()              # a span never holds a scripted load's breakpoint inside
@@ -205,11 +209,28 @@ class PeriodRunner:
         snap = self.model.snapshot(sim.t, sim.y, held, sim.mode, state=state)
         self._balance_end = (sim.t_ns, held, sim.y, sim.mode, state)
         self.last_state = snap
-        self.validity.update(sim.t, sim.y, held[:sim.model.n], snap.alpha, snap.beta)
+        self.validity.update(sim.t, sim.y, held[:sim.model.n], snap.alpha, snap.beta, jump)
         if len(sim.events) > self.events_seen or self.ahead_limit <= 1 or kink or \
                 sim.t_ns - self._span_ns >= LEDGER_SPAN_S * NS_PER_S:
             self.book(events=sim.events[self.events_seen:])
         return snap
+
+    def _jump(self, last, state):
+        """The jump of the quasi-static end slopes at the period's start, where the held
+        inputs changed: (t [s], |slopes after - slopes before| (2n,) [rad], alpha then beta)
+        from the last period's end State ``last[4]`` (the old inputs) and the start's
+        ``state`` (the new ones), at the same time, state and latches: what the validity
+        monitor judges (:meth:`~rod_sim.core.validity.ValidityMonitor.update`), both slopes
+        already solved for the snapshot and the balance sample. None when there is no such
+        end (the first period, after a reset) or the monitor judges no jumps: it then checks
+        the held inputs itself."""
+        sim = self.sim
+        if (last is None or last[0] != sim.t_ns or last[2] is not sim.y
+                or not self.validity.judges_jumps):
+            return None
+        a0, b0 = last[4].bending
+        a1, b1 = state.bending
+        return sim.t, np.abs(np.concatenate([a1 - a0, b1 - b0]))
 
     def _kink_in(self, t_ns: int) -> bool:
         """Whether a scripted load or a prescribed base motion has a breakpoint in the period
