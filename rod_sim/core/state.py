@@ -82,6 +82,20 @@ class State:
             out.loads = self.loads
         return out
 
+    def with_held(self, held) -> "State":
+        """The State at the same time, state, latches and scratch with other held inputs
+        ``held`` (a jump of the commands: the span that starts there): it shares every
+        quantity already computed that the held inputs do not change (:data:`HELD_FREE`;
+        with the slopes of the full and rigid models, which do not depend on them,
+        :data:`HELD_FREE_SLOPES` too)."""
+        out = State(self.model, self.t, self.y, held, self.mode, data=self.data)
+        mine, theirs = self.__dict__, out.__dict__
+        names = HELD_FREE if self.model.slopes_need_rhs else HELD_FREE + HELD_FREE_SLOPES
+        for name in names:
+            if name in mine:
+                theirs[name] = mine[name]
+        return out
+
     def value(self, law: Callable[["State"], object]):
         """``law(self)``, computed once per state (keyed by the function)."""
         memo = self._memo
@@ -419,6 +433,34 @@ class State:
         return Momentum(P, H, H - float(cross(com, P)), com, mass)
 
     @cached
+    def end_velocities(self) -> tuple[np.ndarray, np.ndarray]:
+        """(vx, vy) (n,) each [m/s]: the velocity of each rod's end node (nodes 1..n of one
+        chain on a fixed base at the origin: prefix sums of the rods' tip velocities)."""
+        m = self.model
+        if m._plain_powers:
+            dphi = self.phi_rate
+            return ((m.neg_l * self.sin_phi * dphi).cumsum(),        # -l: the same bits
+                    (m.params.l * self.cos_phi * dphi).cumsum())
+        v = self.velocities[m.table.ends]
+        return v[:, 0], v[:, 1]
+
+    @cached
+    def damper_power(self) -> float:
+        """Power dissipated in the hinge dampers and the stop contacts [W] (the second of
+        :attr:`powers`)."""
+        m = self.model
+        ddelta = self.deflection_rate
+        damper = float((m.params.nu * ddelta**2).sum())
+        if self.penetrating:
+            s = m.scene
+            theta, dtheta = self.hinge_angles, self.hinge_rates
+            elastic = -s.stop_stiffness * (np.maximum(0.0, theta - s.stop_upper)
+                                           - np.maximum(0.0, s.stop_lower - theta))
+            elastic[self.locked] = 0.0
+            damper -= float(((self.contact_moments - elastic) * dtheta).sum())
+        return damper
+
+    @cached
     def powers(self) -> tuple[float, float]:
         """(power of the applied loads and motors, and of a free base's loads and wheel
         motor; power dissipated in the hinge dampers and the stop contacts) [W]
@@ -427,13 +469,7 @@ class State:
         n = m.n
         loads = self.loads
         f = loads[:n, :2]
-        if m._plain_powers:
-            dphi = self.phi_rate
-            vx = np.cumsum(m.neg_l * self.sin_phi * dphi)        # -l: the same bits
-            vy = np.cumsum(m.params.l * self.cos_phi * dphi)
-        else:
-            v = self.velocities[m.table.ends]
-            vx, vy = v[:, 0], v[:, 1]
+        vx, vy = self.end_velocities
         load_power = float((f[:, 0] * vx + f[:, 1] * vy).sum())
         ddelta = self.deflection_rate
         load_power += float(np.dot(loads[:n, 2], ddelta))    # hinge motors
@@ -446,15 +482,7 @@ class State:
             fx, fy, mz = loads[n].tolist()
             load_power += float(fx * vc[0] + fy * vc[1] + mz * st.psi_rate
                                 + loads[n + 1, 2] * st.wheel_rate)
-        damper = float((m.params.nu * ddelta**2).sum())
-        if self.penetrating:
-            s = m.scene
-            theta, dtheta = self.hinge_angles, self.hinge_rates
-            elastic = -s.stop_stiffness * (np.maximum(0.0, theta - s.stop_upper)
-                                           - np.maximum(0.0, s.stop_lower - theta))
-            elastic[self.locked] = 0.0
-            damper -= float(((self.contact_moments - elastic) * dtheta).sum())
-        return load_power, damper
+        return load_power, self.damper_power
 
     # ----- what is published -----
     def snapshot(self) -> Snapshot:
@@ -489,3 +517,15 @@ class State:
                 "energy_terms": {"kinetic": e.kinetic, "hinge": e.hinge, "bending": e.bending,
                                  "gravity": e.gravity, "base_kinetic": base_ke,
                                  "wheel_kinetic": wheel_ke, "total": e.total}}
+
+
+HELD_FREE = ("phi", "phi_rate", "cos_phi", "sin_phi", "axes", "contact", "base", "base_trig",
+             "base_com", "base_angle", "hinge_angles", "hinge_rates", "locked", "penetrating",
+             "contact_moments", "nodes", "velocities", "bending_rates", "deflection_rate",
+             "kinetic_energy", "base_energies", "end_velocities", "damper_power")
+"""The :class:`State` quantities that depend on the time, the state and the latches only,
+not on the held inputs (:meth:`State.with_held` shares them)."""
+HELD_FREE_SLOPES = ("bending", "deflection", "energies", "momentum")
+"""The quantities that depend on the held inputs only through the slopes: shared too when
+the slopes do not depend on them (the full model carries them in its state, the rigid
+model has none; the reduced model solves them from the loads)."""

@@ -442,7 +442,7 @@ def balance_terms(model, t: float, y, held=None, mode=None, bending=None) -> tup
 @dataclass(frozen=True)
 class BalanceSample:
     """What the energy balance needs of one state (:func:`balance_sample`): time ``t`` [s],
-    ``energy`` [J], net power ``power`` [W] (after a load that jumps at t: it starts a span)
+    ``energy`` [J] (nan when only starting a span), net power ``power`` [W] (after a load that jumps at t: it starts a span)
     and ``power_before`` (before it: it ends one), ``rate`` [W/s] its time derivative after t
     and ``rate_before`` before t (one-sided at a load breakpoint, where the load's derivative
     may jump; else both the central difference), and of the full model's unpaired term
@@ -463,17 +463,19 @@ class BalanceSample:
 
 
 def balance_sample(model, t: float, y, held=None, mode=None, bending=None,
-                   f=None, state=None) -> BalanceSample:
+                   f=None, state=None, energy: bool = True) -> BalanceSample:
     """The :class:`BalanceSample` of state ``y`` at ``t`` [s] with held inputs ``held`` and the
     latched hinges ``mode`` locked (``bending`` = (alpha, beta) and ``f`` = the right-hand
     side dy/dt there, if known: ``model.rhs_bending`` gives both at once; ``state``: a
     :class:`~rod_sim.core.state.State` of these arguments, whose quantities are shared, in
     place of them). One right-hand side and a few O(n) power evaluations; the rates are
     central differences of :data:`RATE_STEP` along the right-hand side (one-sided at a load
-    breakpoint)."""
+    breakpoint). ``energy`` False: the sample only starts a span (:meth:`EnergyBalance.add`
+    reads the energy at a span's end only) and its energy is not computed (nan)."""
     s = model.state(t, y, held, mode, f, bending) if state is None else state
     t, y, held, mode, f = s.t, s.y, s.held, s.mode, s.f
-    energy, power = s.energies.total, s.value(_net_power)
+    energy = s.energies.total if energy else math.nan
+    power = s.value(_net_power)
     before = power + load_jump_power(model, t, y, held, state=s)
     h = RATE_STEP
     up, down = s.moved(t + h, y + h * f), s.moved(t - h, y - h * f)

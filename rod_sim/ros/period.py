@@ -175,19 +175,23 @@ class PeriodRunner:
         sim.set_held(held)
         if at_start is not None:
             at_start(sim.t_ns)
+        held = sim.held         # its own copy: a State may be evaluated later (its span's end)
         last = self._balance_end
         jump = None
-        if last is not None and last[0] == sim.t_ns and np.array_equal(last[1], held):
+        here = last is not None and last[0] == sim.t_ns and last[2] is sim.y
+        if here and last[1].shape == held.shape and (last[1] == held).all():
             self.held_for += 1
         else:       # one right-hand side gives the slopes and the rate's direction
             self.book()                      # the pending span ends here, with its inputs
-            state = self.model.state(sim.t, sim.y, held, sim.mode, data=sim.data)
+            # the last period's end with the new inputs: what they do not change is shared
+            state = (last[4].with_held(held) if here else
+                     self.model.state(sim.t, sim.y, held, sim.mode, data=sim.data))
             self._span_start = balance_sample(self.model, sim.t, sim.y, held, sim.mode,
-                                              state=state)
+                                              state=state, energy=False)
             self._span_ns = sim.t_ns
             self._book_spacecraft(held, state)  # the inputs changed: their rates from now on
             self.held_for = 0
-            jump = self._jump(last, state)
+            jump = self._jump(last, state) if here else None
         kink = self._kink_in(sim.t_ns)
         if kink:
             self.book()              # a span never holds a scripted load's breakpoint inside
@@ -204,7 +208,6 @@ class PeriodRunner:
         self.meter.add_step(self.period_ns, time.perf_counter_ns() - start)
         # one State for the snapshot, the balance sample and the momentum ledger: each
         # quantity (the right-hand side with the slopes, the momentum, the powers) once
-        held = held.copy()      # the State may be evaluated later (its span's end): its own
         state = self.model.state(sim.t, sim.y, held, sim.mode, data=sim.data)
         snap = self.model.snapshot(sim.t, sim.y, held, sim.mode, state=state)
         self._balance_end = (sim.t_ns, held, sim.y, sim.mode, state)
@@ -221,12 +224,11 @@ class PeriodRunner:
         from the last period's end State ``last[4]`` (the old inputs) and the start's
         ``state`` (the new ones), at the same time, state and latches: what the validity
         monitor judges (:meth:`~rod_sim.core.validity.ValidityMonitor.update`), both slopes
-        already solved for the snapshot and the balance sample. None when there is no such
-        end (the first period, after a reset) or the monitor judges no jumps: it then checks
-        the held inputs itself."""
+        already solved for the snapshot and the balance sample. None when the monitor judges
+        no jumps. (Without such an end, the first period or after a reset, the caller gives
+        None: the monitor then checks the held inputs itself.)"""
         sim = self.sim
-        if (last is None or last[0] != sim.t_ns or last[2] is not sim.y
-                or not self.validity.judges_jumps):
+        if not self.validity.judges_jumps:
             return None
         a0, b0 = last[4].bending
         a1, b1 = state.bending
