@@ -80,6 +80,8 @@ class State:
         out.locked = self.locked
         if not self.model.scripted_loads:
             out.loads = self.loads
+        else:
+            out.held_rows = self.held_rows
         return out
 
     def with_held(self, held) -> "State":
@@ -241,9 +243,14 @@ class State:
         return out
 
     @cached
+    def held_rows(self) -> np.ndarray:
+        """The held inputs as the kernels take them (n + 2, 3) (:meth:`ChainModel._held`)."""
+        return self.model._held(self.held)
+
+    @cached
     def loads(self) -> np.ndarray:
         """Every applied load (n + 2, 3) at t (:meth:`ChainModel.loads_at`)."""
-        return self.model.loads_at(self.t, self.held)
+        return self.model.loads_of(self.t, self.held_rows)
 
     @cached
     def nodes(self) -> np.ndarray:

@@ -236,6 +236,8 @@ class ValidityMonitor:
         given = held
         if given is None:
             held = self._no_held          # the same zeros: no jump from the last such state
+        elif np.shape(given) == (n, 3):
+            held = np.array(given, dtype=float)      # its own copy
         else:
             held = np.zeros((n, 3))       # forces X, Y and hinge motor moments T
             given = np.asarray(given, float).reshape(n, -1)
@@ -243,14 +245,16 @@ class ValidityMonitor:
         if alpha is None or beta is None:
             alpha, beta = self.model.bending(t, y, held)
         a, b = np.abs(alpha), np.abs(beta)
-        self.max_abs_alpha = max(self.max_abs_alpha, float(a.max(initial=0.0)))
-        self.max_abs_beta = max(self.max_abs_beta, float(b.max(initial=0.0)))
-        worst = np.maximum(a, b)
-        for k in np.flatnonzero(worst > SMALL_BENDING_RAD):
-            self._add(Finding("bending", float(t), int(k) + 1, float(worst[k]),
-                              SMALL_BENDING_RAD,
-                              f"rod {k + 1}: end slope {worst[k]:.3g} rad at t = {t:.4g} s "
-                              f"leaves the small-bending range (> {SMALL_BENDING_RAD} rad)"))
+        a_max, b_max = float(a.max(initial=0.0)), float(b.max(initial=0.0))
+        self.max_abs_alpha = max(self.max_abs_alpha, a_max)
+        self.max_abs_beta = max(self.max_abs_beta, b_max)
+        if not (a_max <= SMALL_BENDING_RAD and b_max <= SMALL_BENDING_RAD):  # (or a nan)
+            worst = np.maximum(a, b)
+            for k in np.flatnonzero(worst > SMALL_BENDING_RAD):
+                self._add(Finding("bending", float(t), int(k) + 1, float(worst[k]),
+                                  SMALL_BENDING_RAD,
+                                  f"rod {k + 1}: end slope {worst[k]:.3g} rad at t = {t:.4g} s "
+                                  f"leaves the small-bending range (> {SMALL_BENDING_RAD} rad)"))
         if self.judges_jumps and jump is not None:
             self._judge_jump(*jump)
         elif (self.judges_jumps and jump is None and self._held is not None

@@ -21,6 +21,7 @@ right-hand side are kept), and one drive may cover several periods
 """
 from __future__ import annotations
 
+import bisect
 import time
 from typing import Callable
 
@@ -115,10 +116,9 @@ class PeriodRunner:
         self._span_ns = 0
         """Its time [ns]."""
         scene = self.model.scene
-        self._breaks_ns = np.array(sorted({round(b * NS_PER_S) for b in scene.breakpoints()}),
-                                   dtype=np.int64)
-        """Breakpoints of the scripted loads and base motion [ns]: the periods holding one
-        are booked on their own (as in lockstep)."""
+        self._breaks_ns = sorted({int(round(b * NS_PER_S)) for b in scene.breakpoints()})
+        """Breakpoints of the scripted loads and base motion [ns], sorted: the periods
+        holding one are booked on their own (as in lockstep)."""
 
     def energy(self, held: np.ndarray) -> float:
         sim = self.sim
@@ -237,8 +237,9 @@ class PeriodRunner:
     def _kink_in(self, t_ns: int) -> bool:
         """Whether a scripted load or a prescribed base motion has a breakpoint in the period
         (t_ns, t_ns + period] (its power, or the power's rate, may jump there)."""
-        k = int(np.searchsorted(self._breaks_ns, t_ns, side="right"))
-        return k < self._breaks_ns.size and self._breaks_ns[k] <= t_ns + self.period_ns
+        breaks = self._breaks_ns
+        k = bisect.bisect_right(breaks, t_ns)
+        return k < len(breaks) and breaks[k] <= t_ns + self.period_ns
 
     def book(self, events=()) -> None:
         """Book the span from the last booked sample to the end of the last period (its
