@@ -458,7 +458,7 @@ class State:
         m = self.model
         ddelta = self.deflection_rate
         damper = float((m.params.nu * ddelta**2).sum())
-        if self.penetrating:
+        if m.has_stops and self.penetrating:
             s = m.scene
             theta, dtheta = self.hinge_angles, self.hinge_rates
             elastic = -s.stop_stiffness * (np.maximum(0.0, theta - s.stop_upper)
@@ -501,8 +501,9 @@ class State:
         alpha, beta = self.bending
         delta, ddelta = self.deflection
         p = m.params
-        moment = (p.kappa * (delta - m.scene.hinge_rest_angle) + p.nu * ddelta
-                  - self.contact_moments)
+        moment = p.kappa * (delta - m.scene.hinge_rest_angle) + p.nu * ddelta
+        if self.penetrating:        # else zeros, and x - (+0.0) is x, bit for bit
+            moment = moment - self.contact_moments
         extra = self._spacecraft_fields() if m.is_spacecraft else {}
         return Snapshot(
             t=float(self.t), phi=np.array(self.phi, dtype=float),
@@ -529,10 +530,11 @@ class State:
 HELD_FREE = ("phi", "phi_rate", "cos_phi", "sin_phi", "axes", "contact", "base", "base_trig",
              "base_com", "base_angle", "hinge_angles", "hinge_rates", "locked", "penetrating",
              "contact_moments", "nodes", "velocities", "bending_rates", "deflection_rate",
-             "kinetic_energy", "base_energies", "end_velocities", "damper_power")
+             "kinetic_energy", "base_energies", "end_velocities", "damper_power", "momentum")
 """The :class:`State` quantities that depend on the time, the state and the latches only,
-not on the held inputs (:meth:`State.with_held` shares them)."""
-HELD_FREE_SLOPES = ("bending", "deflection", "energies", "momentum")
+not on the held inputs (:meth:`State.with_held` shares them; the momentum takes the slopes
+of the full model only, which it carries in its state)."""
+HELD_FREE_SLOPES = ("bending", "deflection", "energies")
 """The quantities that depend on the held inputs only through the slopes: shared too when
 the slopes do not depend on them (the full model carries them in its state, the rigid
 model has none; the reduced model solves them from the loads)."""

@@ -389,7 +389,8 @@ def _net_power(s) -> float:
     """:func:`net_power` of the State ``s``."""
     model = s.model
     load, damper = s.powers
-    net = load - damper + s.value(_unpaired_power)
+    full = getattr(model, "dof_per_rod", 1) == 3
+    net = load - damper + (s.value(_unpaired_power) if full else 0.0)
     if _plain(model):
         return net
     if not model.prescribed_base:       # injected_power is 0.0: the same sum
@@ -482,7 +483,8 @@ def balance_sample(model, t: float, y, held=None, mode=None, bending=None,
     power = s.value(_net_power)
     before = power + load_jump_power(model, t, y, held, state=s)
     h = RATE_STEP
-    up, down = s.moved(t + h, y + h * f), s.moved(t - h, y - h * f)
+    hf = h * f
+    up, down = s.moved(t + h, y + hf), s.moved(t - h, y - hf)
     p_up, p_down = up.value(_net_power), down.value(_net_power)
     if t in model.breakpoints:
         rate, rate_before = (p_up - power) / h, (before - p_down) / h

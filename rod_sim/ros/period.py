@@ -232,7 +232,11 @@ class PeriodRunner:
             return None
         a0, b0 = last[4].bending
         a1, b1 = state.bending
-        return sim.t, np.abs(np.concatenate([a1 - a0, b1 - b0]))
+        n = a0.size
+        jump = np.empty(2 * n)
+        np.subtract(a1, a0, out=jump[:n])
+        np.subtract(b1, b0, out=jump[n:])
+        return sim.t, np.abs(jump, out=jump)
 
     def _kink_in(self, t_ns: int) -> bool:
         """Whether a scripted load or a prescribed base motion has a breakpoint in the period
