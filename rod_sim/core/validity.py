@@ -257,8 +257,8 @@ class ValidityMonitor:
                                   f"leaves the small-bending range (> {SMALL_BENDING_RAD} rad)"))
         if self.judges_jumps and jump is not None:
             self._judge_jump(*jump)
-        elif (self.judges_jumps and jump is None and self._held is not None
-                and held is not self._held and not (held == self._held).all()):
+        elif (self.judges_jumps and self._held is not None and held is not self._held
+                and not (held == self._held).all()):
             self._judge_jump(t, force_jump_slopes(self.scene, self.model.phi(y),
                                                   self.model.phi_rate(y), self._held, held,
                                                   y=np.asarray(y, float)))
@@ -447,8 +447,9 @@ def balance_terms(model, t: float, y, held=None, mode=None, bending=None) -> tup
 @dataclass(frozen=True)
 class BalanceSample:
     """What the energy balance needs of one state (:func:`balance_sample`): time ``t`` [s],
-    ``energy`` [J] (nan when only starting a span), net power ``power`` [W] (after a load that jumps at t: it starts a span)
-    and ``power_before`` (before it: it ends one), ``rate`` [W/s] its time derivative after t
+    ``energy`` [J] (nan when the sample only starts a span), net power ``power`` [W] (after a
+    load that jumps at t: it starts a span) and ``power_before`` (before it: it ends one),
+    ``rate`` [W/s] its time derivative after t
     and ``rate_before`` before t (one-sided at a load breakpoint, where the load's derivative
     may jump; else both the central difference), and of the full model's unpaired term
     (zeros otherwise): ``unpaired``
