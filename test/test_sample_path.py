@@ -183,3 +183,15 @@ def test_a_state_with_other_held_inputs_gives_a_fresh_states_values(scene_name, 
         for name in ("energies", "powers", "momentum", "base_energies", "loads", "f"):
             assert _same(getattr(shared, name), getattr(fresh, name)), name
         assert not _same(fresh.powers, before.powers)       # the inputs do matter
+
+
+@pytest.mark.parametrize("model_name", MODELS)
+def test_a_span_start_sample_skips_only_the_energy(model_name):
+    """balance_sample(energy=False) (the node's period start: EnergyBalance.add reads the
+    energy at a span's end only) gives every other field of the full sample, bit for bit."""
+    for model, sim in _states("deployment.yaml", model_name, count=2):
+        t, y, held, mode = sim.t, sim.y, sim.held, sim.mode
+        full = balance_sample(model, t, y, held, mode)
+        start = balance_sample(model, t, y, held, mode, energy=False)
+        assert np.isnan(start.energy) and np.isfinite(full.energy)
+        assert _same(dataclasses.replace(start, energy=full.energy), full)
