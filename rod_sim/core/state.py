@@ -67,6 +67,8 @@ class State:
         self.held = held
         self.mode = mode
         self._memo: dict = {}
+        self._moves: dict = {}          # the States moved from this one, by their time
+        self._source: State | None = None   # the State this one is with other held inputs
         if f is not None:
             self.f = f
         if bending is not None:
@@ -75,13 +77,24 @@ class State:
     def moved(self, t: float, y) -> "State":
         """The State at another time and state with the same held inputs, latches and scratch
         (the central difference of a balance sample): it shares the locked hinges and, when
-        the scene has no scripted load (the loads then do not depend on t), the loads."""
+        the scene has no scripted load (the loads then do not depend on t), the loads. When
+        this State is another one with other held inputs (:meth:`with_held`) and that one
+        was moved to the same time with the same rod angles, bit for bit (a balance sample
+        on each side of a jump of the commands: the angles move by h phi', which the held
+        inputs do not change), their cosines and sines are shared too."""
         out = State(self.model, t, y, self.held, self.mode, data=self.data)
         out.locked = self.locked
         if not self.model.scripted_loads:
             out.loads = self.loads
         else:
             out.held_rows = self.held_rows
+        self._moves[t] = out
+        twin = None if self._source is None else self._source._moves.get(t)
+        if twin is not None and twin.phi.tobytes() == out.phi.tobytes():
+            mine, theirs = twin.__dict__, out.__dict__
+            for name in ANGLE_ONLY:
+                if name in mine:
+                    theirs[name] = mine[name]
         return out
 
     def with_held(self, held) -> "State":
@@ -91,6 +104,7 @@ class State:
         with the slopes of the full and rigid models, which do not depend on them,
         :data:`HELD_FREE_SLOPES` too)."""
         out = State(self.model, self.t, self.y, held, self.mode, data=self.data)
+        out._source = self
         mine, theirs = self.__dict__, out.__dict__
         names = HELD_FREE if self.model.slopes_need_rhs else HELD_FREE + HELD_FREE_SLOPES
         for name in names:
@@ -538,3 +552,6 @@ HELD_FREE_SLOPES = ("bending", "deflection", "energies")
 """The quantities that depend on the held inputs only through the slopes: shared too when
 the slopes do not depend on them (the full model carries them in its state, the rigid
 model has none; the reduced model solves them from the loads)."""
+ANGLE_ONLY = ("cos_phi", "sin_phi", "axes")
+"""The :class:`State` quantities of the rod angles alone (:meth:`State.moved` shares them
+between two States with the same angles)."""
