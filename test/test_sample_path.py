@@ -161,3 +161,37 @@ def test_force_jump_around_states_without_held_inputs():
     assert jumps(big, None, None) == [0.01]
     assert jumps(big, big, None) == [0.02]
     assert jumps(None, np.zeros((scene.n, 3)), None) == []
+
+
+@pytest.mark.parametrize("scene_name", SCENES + ("spin_up_beam.yaml",))
+@pytest.mark.parametrize("model_name", MODELS)
+def test_a_state_with_other_held_inputs_gives_a_fresh_states_values(scene_name, model_name):
+    """State.with_held (the node's period start: the last end with the new commands) shares
+    only what the held inputs do not change: every value bit for bit that of a fresh State."""
+    for model, sim in _states(scene_name, model_name, count=2):
+        t, y, mode, n = sim.t, sim.y, sim.mode, model.n
+        old, new = _held(n, 7), _held(n, 8) * 3.0
+        before = model.state(t, y, old, mode, data=sim.data)
+        before.snapshot()
+        balance_sample(model, t, y, old, mode, state=before)
+        _ = before.momentum, before.base_energies, before.energies     # every cache filled
+        shared = before.with_held(new)
+        fresh = model.state(t, y, new, mode)
+        assert _same(shared.snapshot(), fresh.snapshot())
+        assert _same(balance_sample(model, t, y, new, mode, state=shared),
+                     balance_sample(model, t, y, new, mode, state=fresh))
+        for name in ("energies", "powers", "momentum", "base_energies", "loads", "f"):
+            assert _same(getattr(shared, name), getattr(fresh, name)), name
+        assert not _same(fresh.powers, before.powers)       # the inputs do matter
+
+
+@pytest.mark.parametrize("model_name", MODELS)
+def test_a_span_start_sample_skips_only_the_energy(model_name):
+    """balance_sample(energy=False) (the node's period start: EnergyBalance.add reads the
+    energy at a span's end only) gives every other field of the full sample, bit for bit."""
+    for model, sim in _states("deployment.yaml", model_name, count=2):
+        t, y, held, mode = sim.t, sim.y, sim.held, sim.mode
+        full = balance_sample(model, t, y, held, mode)
+        start = balance_sample(model, t, y, held, mode, energy=False)
+        assert np.isnan(start.energy) and np.isfinite(full.energy)
+        assert _same(dataclasses.replace(start, energy=full.energy), full)

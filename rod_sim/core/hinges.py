@@ -56,7 +56,8 @@ def hinge_angles(phi: np.ndarray) -> np.ndarray:
     phi_1 - 0, phi_2 - phi_1, ... (the values of ``np.diff(phi, prepend=0.0)``, without its
     concatenation: this runs several times per sample)."""
     a = np.asarray(phi)
-    out = np.empty(a.shape, dtype=np.result_type(a.dtype, np.float64))
+    dtype = a.dtype if a.dtype == np.float64 else np.result_type(a.dtype, np.float64)
+    out = np.empty(a.shape, dtype=dtype)
     np.subtract(a[..., :1], 0.0, out=out[..., :1])
     np.subtract(a[..., 1:], a[..., :-1], out=out[..., 1:])
     return out

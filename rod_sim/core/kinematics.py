@@ -13,8 +13,8 @@ def node_positions(length: np.ndarray, phi: np.ndarray, trig=None) -> np.ndarray
     """
     c, s = (np.cos(phi), np.sin(phi)) if trig is None else trig
     out = np.zeros((len(phi) + 1, 2))
-    out[1:, 0] = np.cumsum(length * c)
-    out[1:, 1] = np.cumsum(length * s)
+    out[1:, 0] = (length * c).cumsum()      # np.cumsum's own call, without its wrapper
+    out[1:, 1] = (length * s).cumsum()
     return out
 
 

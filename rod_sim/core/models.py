@@ -507,8 +507,13 @@ class ChainModel:
     def loads_at(self, t: float, held: np.ndarray | None = None) -> np.ndarray:
         """Every applied load (n + 2, 3) at t (rows as :meth:`_held`): held inputs plus
         scripted loads, by the kernels' one scripted-load law."""
-        out = np.zeros((self.n + 2, 3))
-        kernels.load_forces(t, self.loads, self._held(held), t, out)
+        return self.loads_of(t, self._held(held))
+
+    def loads_of(self, t: float, rows: np.ndarray) -> np.ndarray:
+        """:meth:`loads_at` from the kernels' held inputs ``rows`` (n + 2, 3) (:meth:`_held`;
+        read only): the held inputs plus the scripted loads at t (a new array)."""
+        out = np.empty((self.n + 2, 3))         # every element written
+        kernels.load_forces(t, self.loads, rows, t, out)
         return out
 
     def _held(self, held):

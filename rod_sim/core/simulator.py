@@ -114,7 +114,7 @@ class Simulator:
         if h.shape not in ((n, 3), (n + 2, 3)):
             raise ValueError(f"held inputs: expected shape ({n}, 3) or ({n + 2}, 3), got "
                              f"{h.shape}")
-        if not np.all(np.isfinite(h)):
+        if not np.isfinite(h).all():
             raise ValueError("held inputs: non-finite value")
         self.held = h
 

@@ -67,6 +67,8 @@ class State:
         self.held = held
         self.mode = mode
         self._memo: dict = {}
+        self._moves: dict = {}          # the States moved from this one, by their time
+        self._source: State | None = None   # the State this one is with other held inputs
         if f is not None:
             self.f = f
         if bending is not None:
@@ -75,11 +77,39 @@ class State:
     def moved(self, t: float, y) -> "State":
         """The State at another time and state with the same held inputs, latches and scratch
         (the central difference of a balance sample): it shares the locked hinges and, when
-        the scene has no scripted load (the loads then do not depend on t), the loads."""
+        the scene has no scripted load (the loads then do not depend on t), the loads. When
+        this State is another one with other held inputs (:meth:`with_held`) and that one
+        was moved to the same time with the same rod angles, bit for bit (a balance sample
+        on each side of a jump of the commands: the angles move by h phi', which the held
+        inputs do not change), their cosines and sines are shared too."""
         out = State(self.model, t, y, self.held, self.mode, data=self.data)
         out.locked = self.locked
         if not self.model.scripted_loads:
             out.loads = self.loads
+        else:
+            out.held_rows = self.held_rows
+        self._moves[t] = out
+        twin = None if self._source is None else self._source._moves.get(t)
+        if twin is not None and twin.phi.tobytes() == out.phi.tobytes():
+            mine, theirs = twin.__dict__, out.__dict__
+            for name in ANGLE_ONLY:
+                if name in mine:
+                    theirs[name] = mine[name]
+        return out
+
+    def with_held(self, held) -> "State":
+        """The State at the same time, state, latches and scratch with other held inputs
+        ``held`` (a jump of the commands: the span that starts there): it shares every
+        quantity already computed that the held inputs do not change (:data:`HELD_FREE`;
+        with the slopes of the full and rigid models, which do not depend on them,
+        :data:`HELD_FREE_SLOPES` too)."""
+        out = State(self.model, self.t, self.y, held, self.mode, data=self.data)
+        out._source = self
+        mine, theirs = self.__dict__, out.__dict__
+        names = HELD_FREE if self.model.slopes_need_rhs else HELD_FREE + HELD_FREE_SLOPES
+        for name in names:
+            if name in mine:
+                theirs[name] = mine[name]
         return out
 
     def value(self, law: Callable[["State"], object]):
@@ -227,9 +257,14 @@ class State:
         return out
 
     @cached
+    def held_rows(self) -> np.ndarray:
+        """The held inputs as the kernels take them (n + 2, 3) (:meth:`ChainModel._held`)."""
+        return self.model._held(self.held)
+
+    @cached
     def loads(self) -> np.ndarray:
         """Every applied load (n + 2, 3) at t (:meth:`ChainModel.loads_at`)."""
-        return self.model.loads_at(self.t, self.held)
+        return self.model.loads_of(self.t, self.held_rows)
 
     @cached
     def nodes(self) -> np.ndarray:
@@ -419,6 +454,34 @@ class State:
         return Momentum(P, H, H - float(cross(com, P)), com, mass)
 
     @cached
+    def end_velocities(self) -> tuple[np.ndarray, np.ndarray]:
+        """(vx, vy) (n,) each [m/s]: the velocity of each rod's end node (nodes 1..n of one
+        chain on a fixed base at the origin: prefix sums of the rods' tip velocities)."""
+        m = self.model
+        if m._plain_powers:
+            dphi = self.phi_rate
+            return ((m.neg_l * self.sin_phi * dphi).cumsum(),        # -l: the same bits
+                    (m.params.l * self.cos_phi * dphi).cumsum())
+        v = self.velocities[m.table.ends]
+        return v[:, 0], v[:, 1]
+
+    @cached
+    def damper_power(self) -> float:
+        """Power dissipated in the hinge dampers and the stop contacts [W] (the second of
+        :attr:`powers`)."""
+        m = self.model
+        ddelta = self.deflection_rate
+        damper = float((m.params.nu * ddelta**2).sum())
+        if m.has_stops and self.penetrating:
+            s = m.scene
+            theta, dtheta = self.hinge_angles, self.hinge_rates
+            elastic = -s.stop_stiffness * (np.maximum(0.0, theta - s.stop_upper)
+                                           - np.maximum(0.0, s.stop_lower - theta))
+            elastic[self.locked] = 0.0
+            damper -= float(((self.contact_moments - elastic) * dtheta).sum())
+        return damper
+
+    @cached
     def powers(self) -> tuple[float, float]:
         """(power of the applied loads and motors, and of a free base's loads and wheel
         motor; power dissipated in the hinge dampers and the stop contacts) [W]
@@ -427,13 +490,7 @@ class State:
         n = m.n
         loads = self.loads
         f = loads[:n, :2]
-        if m._plain_powers:
-            dphi = self.phi_rate
-            vx = np.cumsum(m.neg_l * self.sin_phi * dphi)        # -l: the same bits
-            vy = np.cumsum(m.params.l * self.cos_phi * dphi)
-        else:
-            v = self.velocities[m.table.ends]
-            vx, vy = v[:, 0], v[:, 1]
+        vx, vy = self.end_velocities
         load_power = float((f[:, 0] * vx + f[:, 1] * vy).sum())
         ddelta = self.deflection_rate
         load_power += float(np.dot(loads[:n, 2], ddelta))    # hinge motors
@@ -446,15 +503,7 @@ class State:
             fx, fy, mz = loads[n].tolist()
             load_power += float(fx * vc[0] + fy * vc[1] + mz * st.psi_rate
                                 + loads[n + 1, 2] * st.wheel_rate)
-        damper = float((m.params.nu * ddelta**2).sum())
-        if self.penetrating:
-            s = m.scene
-            theta, dtheta = self.hinge_angles, self.hinge_rates
-            elastic = -s.stop_stiffness * (np.maximum(0.0, theta - s.stop_upper)
-                                           - np.maximum(0.0, s.stop_lower - theta))
-            elastic[self.locked] = 0.0
-            damper -= float(((self.contact_moments - elastic) * dtheta).sum())
-        return load_power, damper
+        return load_power, self.damper_power
 
     # ----- what is published -----
     def snapshot(self) -> Snapshot:
@@ -466,8 +515,9 @@ class State:
         alpha, beta = self.bending
         delta, ddelta = self.deflection
         p = m.params
-        moment = (p.kappa * (delta - m.scene.hinge_rest_angle) + p.nu * ddelta
-                  - self.contact_moments)
+        moment = p.kappa * (delta - m.scene.hinge_rest_angle) + p.nu * ddelta
+        if self.penetrating:        # else zeros, and x - (+0.0) is x, bit for bit
+            moment = moment - self.contact_moments
         extra = self._spacecraft_fields() if m.is_spacecraft else {}
         return Snapshot(
             t=float(self.t), phi=np.array(self.phi, dtype=float),
@@ -489,3 +539,19 @@ class State:
                 "energy_terms": {"kinetic": e.kinetic, "hinge": e.hinge, "bending": e.bending,
                                  "gravity": e.gravity, "base_kinetic": base_ke,
                                  "wheel_kinetic": wheel_ke, "total": e.total}}
+
+
+HELD_FREE = ("phi", "phi_rate", "cos_phi", "sin_phi", "axes", "contact", "base", "base_trig",
+             "base_com", "base_angle", "hinge_angles", "hinge_rates", "locked", "penetrating",
+             "contact_moments", "nodes", "velocities", "bending_rates", "deflection_rate",
+             "kinetic_energy", "base_energies", "end_velocities", "damper_power", "momentum")
+"""The :class:`State` quantities that depend on the time, the state and the latches only,
+not on the held inputs (:meth:`State.with_held` shares them; the momentum takes the slopes
+of the full model only, which it carries in its state)."""
+HELD_FREE_SLOPES = ("bending", "deflection", "energies")
+"""The quantities that depend on the held inputs only through the slopes: shared too when
+the slopes do not depend on them (the full model carries them in its state, the rigid
+model has none; the reduced model solves them from the loads)."""
+ANGLE_ONLY = ("cos_phi", "sin_phi", "axes")
+"""The :class:`State` quantities of the rod angles alone (:meth:`State.moved` shares them
+between two States with the same angles)."""

@@ -14,7 +14,10 @@ Pure (numpy only). Three checks, each giving :class:`Finding` records:
   below 1 %. A raised cosine pulse of duration D has its spectrum below ~2/D (main lobe); a
   jump of the forces (step loads, held commands changing at a control rate) excites every
   mode: the bending vibration it starts has the amplitude of the quasi-static slope jump, which
-  :func:`force_jump_slopes` computes and :data:`JUMP_SLOPE_WARN_RAD` judges.
+  :func:`force_jump_slopes` computes and :data:`JUMP_SLOPE_WARN_RAD` judges (the node gives
+  the monitor that jump instead, from the slopes it solved on both sides of it, and the
+  finding's time is the start of the period where the held inputs changed:
+  :meth:`ValidityMonitor.update`'s ``jump``).
 - **energy balance**: E - E0 - integral(P_load - P_damper + P_unpaired) dt + (kinetic energy
   lost in latch impacts) relative to the energy scale above :data:`ENERGY_RESIDUAL_WARN`
   (:class:`EnergyBalance`, fed with :func:`balance_sample` s; E includes the stop contacts'
@@ -218,12 +221,23 @@ class ValidityMonitor:
     def _add(self, f: Finding) -> None:
         self._found.setdefault((f.kind, f.rod), f)
 
-    def update(self, t: float, y, held=None, alpha=None, beta=None) -> None:
-        """Check one state (alpha, beta [rad] may be given to save recomputing them)."""
+    def update(self, t: float, y, held=None, alpha=None, beta=None, jump=None) -> None:
+        """Check one state (alpha, beta [rad] may be given to save recomputing them).
+
+        A change of the held inputs since the last update is judged as a jump of the forces
+        (:func:`force_jump_slopes`): by default solved here, at this state ``y``, and reported
+        at ``t``. ``jump`` = (t_jump [s], |jump of the slopes| (2n,) [rad]): the caller has
+        the states on both sides of the change (the node: the end of its last period and the
+        start of this one, at the same time and state, with the old and the new held inputs,
+        :class:`~rod_sim.ros.period.PeriodRunner`) and gives their slopes' difference, which is
+        judged instead, at t_jump (where the jump happened); the held inputs are then not
+        compared (the caller says they changed)."""
         n = self.model.n
         given = held
         if given is None:
             held = self._no_held          # the same zeros: no jump from the last such state
+        elif np.shape(given) == (n, 3):
+            held = np.array(given, dtype=float)      # its own copy
         else:
             held = np.zeros((n, 3))       # forces X, Y and hinge motor moments T
             given = np.asarray(given, float).reshape(n, -1)
@@ -231,28 +245,45 @@ class ValidityMonitor:
         if alpha is None or beta is None:
             alpha, beta = self.model.bending(t, y, held)
         a, b = np.abs(alpha), np.abs(beta)
-        self.max_abs_alpha = max(self.max_abs_alpha, float(a.max(initial=0.0)))
-        self.max_abs_beta = max(self.max_abs_beta, float(b.max(initial=0.0)))
-        worst = np.maximum(a, b)
-        for k in np.flatnonzero(worst > SMALL_BENDING_RAD):
-            self._add(Finding("bending", float(t), int(k) + 1, float(worst[k]),
-                              SMALL_BENDING_RAD,
-                              f"rod {k + 1}: end slope {worst[k]:.3g} rad at t = {t:.4g} s "
-                              f"leaves the small-bending range (> {SMALL_BENDING_RAD} rad)"))
-        if (self.model.name == "reduced" and self._held is not None
-                and held is not self._held and not (held == self._held).all()):
-            jump = force_jump_slopes(self.scene, self.model.phi(y), self.model.phi_rate(y),
-                                     self._held, held, y=np.asarray(y, float))
-            k = int(np.argmax(jump))
-            if jump[k] > JUMP_SLOPE_WARN_RAD:
-                self._add(Finding("force_jump", float(t), k % n + 1, float(jump[k]),
-                                  JUMP_SLOPE_WARN_RAD,
-                                  f"a jump of the held forces or hinge torques at t = {t:.4g} s "
-                                  f"starts bending "
-                                  f"vibration of ~{jump[k]:.2g} rad at rod {k % n + 1} (first "
-                                  f"bending mode {self.f1:.3g} Hz) that the reduced model "
-                                  f"does not carry"))
+        a_max, b_max = float(a.max(initial=0.0)), float(b.max(initial=0.0))
+        self.max_abs_alpha = max(self.max_abs_alpha, a_max)
+        self.max_abs_beta = max(self.max_abs_beta, b_max)
+        if not (a_max <= SMALL_BENDING_RAD and b_max <= SMALL_BENDING_RAD):  # (or a nan)
+            worst = np.maximum(a, b)
+            for k in np.flatnonzero(worst > SMALL_BENDING_RAD):
+                self._add(Finding("bending", float(t), int(k) + 1, float(worst[k]),
+                                  SMALL_BENDING_RAD,
+                                  f"rod {k + 1}: end slope {worst[k]:.3g} rad at t = {t:.4g} s "
+                                  f"leaves the small-bending range (> {SMALL_BENDING_RAD} rad)"))
+        if self.judges_jumps and jump is not None:
+            self._judge_jump(*jump)
+        elif (self.judges_jumps and self._held is not None and held is not self._held
+                and not (held == self._held).all()):
+            self._judge_jump(t, force_jump_slopes(self.scene, self.model.phi(y),
+                                                  self.model.phi_rate(y), self._held, held,
+                                                  y=np.asarray(y, float)))
         self._held = held                 # a fresh array, never written to again
+
+    @property
+    def judges_jumps(self) -> bool:
+        """Whether jumps of the held inputs are judged (the reduced model only: the full
+        model carries the bending vibration they start, the rigid model has none)."""
+        return self.model.name == "reduced"
+
+    def _judge_jump(self, t: float, jump) -> None:
+        """A ``force_jump`` finding when the largest of the slopes' jumps ``jump`` (2n,)
+        [rad] (alpha jumps, then beta jumps) at time ``t`` [s] exceeds
+        :data:`JUMP_SLOPE_WARN_RAD`."""
+        n = self.model.n
+        k = int(np.argmax(jump))
+        if jump[k] > JUMP_SLOPE_WARN_RAD:
+            self._add(Finding("force_jump", float(t), k % n + 1, float(jump[k]),
+                              JUMP_SLOPE_WARN_RAD,
+                              f"a jump of the held forces or hinge torques at t = {t:.4g} s "
+                              f"starts bending "
+                              f"vibration of ~{jump[k]:.2g} rad at rod {k % n + 1} (first "
+                              f"bending mode {self.f1:.3g} Hz) that the reduced model "
+                              f"does not carry"))
 
     def update_energy(self, t: float, residual: float, scale: float,
                       unresolved: float = 0.0) -> None:
@@ -358,7 +389,8 @@ def _net_power(s) -> float:
     """:func:`net_power` of the State ``s``."""
     model = s.model
     load, damper = s.powers
-    net = load - damper + s.value(_unpaired_power)
+    full = getattr(model, "dof_per_rod", 1) == 3
+    net = load - damper + (s.value(_unpaired_power) if full else 0.0)
     if _plain(model):
         return net
     if not model.prescribed_base:       # injected_power is 0.0: the same sum
@@ -415,8 +447,9 @@ def balance_terms(model, t: float, y, held=None, mode=None, bending=None) -> tup
 @dataclass(frozen=True)
 class BalanceSample:
     """What the energy balance needs of one state (:func:`balance_sample`): time ``t`` [s],
-    ``energy`` [J], net power ``power`` [W] (after a load that jumps at t: it starts a span)
-    and ``power_before`` (before it: it ends one), ``rate`` [W/s] its time derivative after t
+    ``energy`` [J] (nan when the sample only starts a span), net power ``power`` [W] (after a
+    load that jumps at t: it starts a span) and ``power_before`` (before it: it ends one),
+    ``rate`` [W/s] its time derivative after t
     and ``rate_before`` before t (one-sided at a load breakpoint, where the load's derivative
     may jump; else both the central difference), and of the full model's unpaired term
     (zeros otherwise): ``unpaired``
@@ -436,20 +469,23 @@ class BalanceSample:
 
 
 def balance_sample(model, t: float, y, held=None, mode=None, bending=None,
-                   f=None, state=None) -> BalanceSample:
+                   f=None, state=None, energy: bool = True) -> BalanceSample:
     """The :class:`BalanceSample` of state ``y`` at ``t`` [s] with held inputs ``held`` and the
     latched hinges ``mode`` locked (``bending`` = (alpha, beta) and ``f`` = the right-hand
     side dy/dt there, if known: ``model.rhs_bending`` gives both at once; ``state``: a
     :class:`~rod_sim.core.state.State` of these arguments, whose quantities are shared, in
     place of them). One right-hand side and a few O(n) power evaluations; the rates are
     central differences of :data:`RATE_STEP` along the right-hand side (one-sided at a load
-    breakpoint)."""
+    breakpoint). ``energy`` False: the sample only starts a span (:meth:`EnergyBalance.add`
+    reads the energy at a span's end only) and its energy is not computed (nan)."""
     s = model.state(t, y, held, mode, f, bending) if state is None else state
     t, y, held, mode, f = s.t, s.y, s.held, s.mode, s.f
-    energy, power = s.energies.total, s.value(_net_power)
+    energy = s.energies.total if energy else math.nan
+    power = s.value(_net_power)
     before = power + load_jump_power(model, t, y, held, state=s)
     h = RATE_STEP
-    up, down = s.moved(t + h, y + h * f), s.moved(t - h, y - h * f)
+    hf = h * f
+    up, down = s.moved(t + h, y + hf), s.moved(t - h, y - hf)
     p_up, p_down = up.value(_net_power), down.value(_net_power)
     if t in model.breakpoints:
         rate, rate_before = (p_up - power) / h, (before - p_down) / h

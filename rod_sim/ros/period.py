@@ -11,7 +11,9 @@ the simulator stays at the period's start).
 
 Per period, beyond the integration: one snapshot, one or two balance samples (two when the
 held inputs changed at the period's start, since the net power jumps there) and the monitor's
-O(n) checks: vectorised, no loop over rods. Outside lockstep, while the held inputs stay the
+O(n) checks: vectorised, no loop over rods. A change of the held inputs is judged as a force
+jump at the period's start from the slopes of the last period's end and of the new start
+(no extra solve). Outside lockstep, while the held inputs stay the
 same and no hinge event or breakpoint of a scripted load happens, the ledgers book one span per
 :data:`LEDGER_SPAN_S` instead of one per period (the span's end sample is taken when it closes: its state, inputs and
 right-hand side are kept), and one drive may cover several periods
@@ -19,6 +21,7 @@ right-hand side are kept), and one drive may cover several periods
 """
 from __future__ import annotations
 
+import bisect
 import time
 from typing import Callable
 
@@ -113,10 +116,9 @@ class PeriodRunner:
         self._span_ns = 0
         """Its time [ns]."""
         scene = self.model.scene
-        self._breaks_ns = np.array(sorted({round(b * NS_PER_S) for b in scene.breakpoints()}),
-                                   dtype=np.int64)
-        """Breakpoints of the scripted loads and base motion [ns]: the periods holding one
-        are booked on their own (as in lockstep)."""
+        self._breaks_ns = sorted({int(round(b * NS_PER_S)) for b in scene.breakpoints()})
+        """Breakpoints of the scripted loads and base motion [ns], sorted: the periods
+        holding one are booked on their own (as in lockstep)."""
 
     def energy(self, held: np.ndarray) -> float:
         sim = self.sim
@@ -173,17 +175,23 @@ class PeriodRunner:
         sim.set_held(held)
         if at_start is not None:
             at_start(sim.t_ns)
+        held = sim.held         # its own copy: a State may be evaluated later (its span's end)
         last = self._balance_end
-        if last is not None and last[0] == sim.t_ns and np.array_equal(last[1], held):
+        jump = None
+        here = last is not None and last[0] == sim.t_ns and last[2] is sim.y
+        if here and last[1].shape == held.shape and (last[1] == held).all():
             self.held_for += 1
         else:       # one right-hand side gives the slopes and the rate's direction
             self.book()                      # the pending span ends here, with its inputs
-            state = self.model.state(sim.t, sim.y, held, sim.mode, data=sim.data)
+            # the last period's end with the new inputs: what they do not change is shared
+            state = (last[4].with_held(held) if here else
+                     self.model.state(sim.t, sim.y, held, sim.mode, data=sim.data))
             self._span_start = balance_sample(self.model, sim.t, sim.y, held, sim.mode,
-                                              state=state)
+                                              state=state, energy=False)
             self._span_ns = sim.t_ns
             self._book_spacecraft(held, state)  # the inputs changed: their rates from now on
             self.held_for = 0
+            jump = self._jump(last, state) if here else None
         kink = self._kink_in(sim.t_ns)
         if kink:
             self.book()              # a span never holds a scripted load's breakpoint inside
@@ -200,22 +208,42 @@ class PeriodRunner:
         self.meter.add_step(self.period_ns, time.perf_counter_ns() - start)
         # one State for the snapshot, the balance sample and the momentum ledger: each
         # quantity (the right-hand side with the slopes, the momentum, the powers) once
-        held = held.copy()      # the State may be evaluated later (its span's end): its own
         state = self.model.state(sim.t, sim.y, held, sim.mode, data=sim.data)
         snap = self.model.snapshot(sim.t, sim.y, held, sim.mode, state=state)
         self._balance_end = (sim.t_ns, held, sim.y, sim.mode, state)
         self.last_state = snap
-        self.validity.update(sim.t, sim.y, held[:sim.model.n], snap.alpha, snap.beta)
+        self.validity.update(sim.t, sim.y, held[:sim.model.n], snap.alpha, snap.beta, jump)
         if len(sim.events) > self.events_seen or self.ahead_limit <= 1 or kink or \
                 sim.t_ns - self._span_ns >= LEDGER_SPAN_S * NS_PER_S:
             self.book(events=sim.events[self.events_seen:])
         return snap
 
+    def _jump(self, last, state):
+        """The jump of the quasi-static end slopes at the period's start, where the held
+        inputs changed: (t [s], |slopes after - slopes before| (2n,) [rad], alpha then beta)
+        from the last period's end State ``last[4]`` (the old inputs) and the start's
+        ``state`` (the new ones), at the same time, state and latches: what the validity
+        monitor judges (:meth:`~rod_sim.core.validity.ValidityMonitor.update`), both slopes
+        already solved for the snapshot and the balance sample. None when the monitor judges
+        no jumps. (Without such an end, the first period or after a reset, the caller gives
+        None: the monitor then checks the held inputs itself.)"""
+        sim = self.sim
+        if not self.validity.judges_jumps:
+            return None
+        a0, b0 = last[4].bending
+        a1, b1 = state.bending
+        n = a0.size
+        jump = np.empty(2 * n)
+        np.subtract(a1, a0, out=jump[:n])
+        np.subtract(b1, b0, out=jump[n:])
+        return sim.t, np.abs(jump, out=jump)
+
     def _kink_in(self, t_ns: int) -> bool:
         """Whether a scripted load or a prescribed base motion has a breakpoint in the period
         (t_ns, t_ns + period] (its power, or the power's rate, may jump there)."""
-        k = int(np.searchsorted(self._breaks_ns, t_ns, side="right"))
-        return k < self._breaks_ns.size and self._breaks_ns[k] <= t_ns + self.period_ns
+        breaks = self._breaks_ns
+        k = bisect.bisect_right(breaks, t_ns)
+        return k < len(breaks) and breaks[k] <= t_ns + self.period_ns
 
     def book(self, events=()) -> None:
         """Book the span from the last booked sample to the end of the last period (its
