@@ -5,9 +5,9 @@ samples) over scripted runs, and compare two dumps bit for bit.
 A change of the node's per-period bookkeeping must not change a single published or booked
 number: run the dump on the tree before and after the change and compare::
 
-    PYTHONPATH=/work/main python test/period_dump.py dump /tmp/main.pkl
-    PYTHONPATH=.          python test/period_dump.py dump /tmp/branch.pkl
-    python test/period_dump.py compare /tmp/main.pkl /tmp/branch.pkl
+    PYTHONPATH=<the tree before> python test/period_dump.py dump /tmp/before.pkl
+    PYTHONPATH=<the tree after>  python test/period_dump.py dump /tmp/after.pkl
+    python test/period_dump.py compare /tmp/before.pkl /tmp/after.pkl
 
 (run it from a directory that is not another tree: ``python -m`` and a script's directory
 come before PYTHONPATH.) Cases: the shipped scenes (plain chains, stops and latches, free,
@@ -28,19 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-CONFIG = Path(__file__).resolve().parents[1] / "config"
-
-
-def _scene(name):
-    from rod_sim.io.scene_yaml import load_scene, scene_from_yaml_text
-    if name != "paper_shapes":
-        return load_scene(CONFIG / f"{name}.yaml")
-    text = (CONFIG / "paper_example.yaml").read_text() + (
-        "  - {node: 3, axis: x, shape: step, amplitude: 40.0, start: 0.1, duration: 0.2}\n"
-        "  - {node: 5, axis: y, shape: constant, amplitude: -25.0, start: 0.25}\n"
-        "  - {node: 8, axis: x, shape: raised_cosine_pulse, amplitude: 60.0, start: 0.3,"
-        " duration: 0.2}\n")
-    return scene_from_yaml_text(text)
+sys.path.insert(0, str(Path(__file__).parent))
+from trajectory_dump import _scene  # noqa: E402  (its scenes, paper_shapes included)
 
 
 def _held(k: int, n: int, rows: int, amp: float) -> np.ndarray:

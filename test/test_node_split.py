@@ -132,6 +132,18 @@ def test_outputs_send_one_encoding_to_every_sink():
     out.applied(10_000_000, forces.copy(), np.zeros(3))   # unchanged: recorded only
     assert len(pubs["applied_forces"].items) == 1
     assert sum(item[0] == "/ns/applied_forces" for item in log.items) == 2
+    # a sign of zero is a change of the bytes: recorded as encoded, published again
+    out.applied(20_000_000, forces, -np.zeros(3))
+    recorded = [item[3] for item in log.items if item[0] == "/ns/applied_torques"]
+    oracle = serialize_message(Float64MultiArray(data=[-0.0] * 3))
+    assert recorded[-1][-24:] == oracle[-24:] and recorded[-1] != recorded[0]
+    assert len(pubs["applied_torques"].items) == 2
+    # every record is the encoding of the values of its period
+    for (_, _, t_ns, data), values in zip(
+            [item for item in log.items if item[0] == "/ns/applied_forces"],
+            [forces, forces, forces]):
+        assert data[-48:] == serialize_message(
+            Float64MultiArray(data=[float(v) for v in values.ravel()]))[-48:]
 
 
 def test_period_runner_books_the_ledger_and_reports_a_failure():

@@ -247,31 +247,22 @@ class LeanExecutor(SingleThreadedExecutor):
                     yield self._make_handler(w, node, self._take_waitable), w, node
 
             by_pointer = plan.by_pointer
-            for pointer in timers_ready:
-                tmr, node = by_pointer[pointer]
-                # rclpy's check: a cancelled timer may be reported ready
-                if tmr.handle.is_timer_ready() and tmr.callback_group.can_execute(tmr):
-                    yielded_work = True
-                    yield self._make_handler(tmr, node, self._take_timer), tmr, node
-            for pointer in subs_ready:
-                sub, node = by_pointer[pointer]
-                if sub.callback_group.can_execute(sub):
-                    yielded_work = True
-                    yield self._make_handler(sub, node, self._take_subscription), sub, node
-            for gc, node in plan.guards:
-                if gc._executor_triggered and gc.callback_group.can_execute(gc):
-                    yielded_work = True
-                    yield self._make_handler(gc, node, self._take_guard_condition), gc, node
-            for pointer in clients_ready:
-                cli, node = by_pointer[pointer]
-                if cli.callback_group.can_execute(cli):
-                    yielded_work = True
-                    yield self._make_handler(cli, node, self._take_client), cli, node
-            for pointer in services_ready:
-                srv, node = by_pointer[pointer]
-                if srv.callback_group.can_execute(srv):
-                    yielded_work = True
-                    yield self._make_handler(srv, node, self._take_service), srv, node
+            # rclpy's order: timers, subscriptions, guard conditions, clients, services
+            ready = (
+                ([by_pointer[p] for p in timers_ready], self._take_timer),
+                ([by_pointer[p] for p in subs_ready], self._take_subscription),
+                ([(gc, node) for gc, node in plan.guards if gc._executor_triggered],
+                 self._take_guard_condition),
+                ([by_pointer[p] for p in clients_ready], self._take_client),
+                ([by_pointer[p] for p in services_ready], self._take_service))
+            for entities, take in ready:
+                for entity, node in entities:
+                    # rclpy's check of timers: a cancelled timer may be reported ready
+                    if take == self._take_timer and not entity.handle.is_timer_ready():
+                        continue
+                    if entity.callback_group.can_execute(entity):
+                        yielded_work = True
+                        yield self._make_handler(entity, node, take), entity, node
 
             if not yielded_work and (timeout_nsec == 0 or (
                     deadline is not None and time.monotonic_ns() >= deadline)):

@@ -159,7 +159,8 @@ class Outputs:
         self.taps: list[Callable[[Snapshot, int, dict], None]] = []
         """Called with every published state: ``tap(snapshot, t_ns, encoded)``, ``encoded``
         the bytes of the topics sent (e.g. the live view)."""
-        self._applied_last: dict[str, np.ndarray] = {}
+        self._applied_last: dict[str, tuple[np.ndarray, bytes]] = {}
+        """Per applied topic: the values last published and their bytes."""
 
     def encode(self, name: str, snapshot: Snapshot) -> bytes:
         """The CDR bytes of state topic ``name`` for ``snapshot``."""
@@ -202,18 +203,23 @@ class Outputs:
                 base: np.ndarray | None = None) -> None:
         """The applied forces (n, 2) [N] and hinge torques (n,) [N m] from ``t_ns`` on, and on
         a free base ``base`` (4,) = [Fx, Fy, M, T_w] (:mod:`rod_sim.ros.applied_base`): each
-        recorded every period, published when it changes (and the first time)."""
+        recorded every period, published when it changes (and the first time; compared bit
+        for bit)."""
         sent = [("applied_forces", forces, encoders.force_array),
                 ("applied_torques", torques, encoders.torque_array)]
         if base is not None:
             sent.append((APPLIED_BASE_TOPIC, base,
                          lambda v: encoders.labelled_array(v, APPLIED_BASE_LABEL)))
         for name, values, encode in sent:
+            values = np.ascontiguousarray(values, dtype=float)
             last = self._applied_last.get(name)
-            changed = last is None or not np.array_equal(values, last)
+            # compared bit for bit (-0.0 is not 0.0: its bytes differ); unchanged values are
+            # recorded as the same bytes again, not encoded again
+            changed = (last is None or values.shape != last[0].shape
+                       or values.tobytes() != last[0].tobytes())
             if changed:
-                self._applied_last[name] = np.array(values, dtype=float)
-            self.send(name, t_ns, encode(values), publish=changed)
+                last = self._applied_last[name] = (values.copy(), encode(values))
+            self.send(name, t_ns, last[1], publish=changed)
 
     def forget_applied(self) -> None:
         """After a reset: the next applied inputs are published whatever they are."""

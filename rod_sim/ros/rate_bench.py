@@ -39,7 +39,9 @@ controller sends them) or, with ``--held-constant``, zero; it reports CPU time p
 drive per period), the period (integration as the node's real-time mode does it: with inputs
 held, several periods per drive, :mod:`rod_sim.core.ahead`; snapshot, energy ledger,
 validity) and the period with its outputs (what the node does per period besides the executor
-and DDS). ``--rtol`` sets the node's ``rtol`` parameter (every mode). CPU time is what a loaded machine
+and DDS). It runs in this process, on the code this process imports: to measure
+another tree, run it from inside that tree (``python -m`` puts the current directory first on
+``sys.path``, before ``PYTHONPATH``). ``--rtol`` sets the node's ``rtol`` parameter (every mode). CPU time is what a loaded machine
 disturbs least.
 
 ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is LOCALHOST and ``ROS_DOMAIN_ID`` is ``--domain`` (default
