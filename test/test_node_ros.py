@@ -105,8 +105,14 @@ class Harness:
     def wait_matched(self, *topics) -> None:
         """Until the node's publishers see our subscriptions and it hears our commands."""
         self.spin_until(lambda: self.commands.get_subscription_count() > 0
-                        and all(self.node.matched_subscribers(t) > 0 for t in topics),
+                        and all(self.matched(t) > 0 for t in topics),
                         what="discovery")
+
+    def matched(self, topic: str) -> int:
+        """Subscriptions matched to the node's publisher of ``topic`` (relative name)."""
+        name = self.node.resolve_topic_name(topic)
+        return next(p for p in self.node.publishers if p.topic_name == name
+                    ).get_subscription_count()
 
     def call(self, srv_type, name: str, request):
         client = self.client.create_client(srv_type, name)

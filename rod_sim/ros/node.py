@@ -203,11 +203,6 @@ class RodSimNode(Node):
     commands_rejected = property(lambda self: self.inputs.forces.rejected)
     log_path = property(lambda self: self._recording.path, doc="The log being written.")
 
-    def matched_subscribers(self, topic: str) -> int:
-        """Subscriptions matched to our publisher of the output ``topic`` (relative name)."""
-        return self._pubs[topic].get_subscription_count()
-
-
     def _on_command_bytes(self, data: bytes, intake: CommandIntake | None = None) -> None:
         """A serialized command: checked, recorded, validated, held (lockstep: queued)."""
         intake = self.inputs.forces if intake is None else intake
