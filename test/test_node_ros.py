@@ -109,10 +109,9 @@ class Harness:
                         what="discovery")
 
     def matched(self, topic: str) -> int:
-        """Subscriptions matched to the node's publisher of ``topic`` (relative name)."""
-        name = self.node.resolve_topic_name(topic)
-        return next(p for p in self.node.publishers if p.topic_name == name
-                    ).get_subscription_count()
+        """Subscriptions matched to the node's publisher of the output ``topic`` (its name
+        in the output table: ``diagnostics`` is published on the absolute /diagnostics)."""
+        return self.node._pubs[topic].get_subscription_count()
 
     def call(self, srv_type, name: str, request):
         client = self.client.create_client(srv_type, name)
