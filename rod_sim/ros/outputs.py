@@ -159,8 +159,9 @@ class Outputs:
         self.taps: list[Callable[[Snapshot, int, dict], None]] = []
         """Called with every published state: ``tap(snapshot, t_ns, encoded)``, ``encoded``
         the bytes of the topics sent (e.g. the live view)."""
-        self._applied_last: dict[str, tuple[np.ndarray, bytes]] = {}
-        """Per applied topic: the values last published and their bytes."""
+        self._applied_last: dict[str, tuple[tuple, bytes]] = {}
+        """Per applied topic: (shape, raw bytes) of the values last published, and their
+        encoding."""
 
     def encode(self, name: str, snapshot: Snapshot) -> bytes:
         """The CDR bytes of state topic ``name`` for ``snapshot``."""
@@ -212,13 +213,13 @@ class Outputs:
                          lambda v: encoders.labelled_array(v, APPLIED_BASE_LABEL)))
         for name, values, encode in sent:
             values = np.ascontiguousarray(values, dtype=float)
+            raw = (values.shape, values.tobytes())
             last = self._applied_last.get(name)
             # compared bit for bit (-0.0 is not 0.0: its bytes differ); unchanged values are
             # recorded as the same bytes again, not encoded again
-            changed = (last is None or values.shape != last[0].shape
-                       or values.tobytes() != last[0].tobytes())
+            changed = last is None or raw != last[0]
             if changed:
-                last = self._applied_last[name] = (values.copy(), encode(values))
+                last = self._applied_last[name] = (raw, encode(values))
             self.send(name, t_ns, last[1], publish=changed)
 
     def forget_applied(self) -> None:
