@@ -101,7 +101,8 @@ def scripted_run(kind: str, ctx) -> list:
             response.success = True
             return response
 
-        node.create_service(Trigger, "lean_sliced", sliced, callback_group=ReentrantCallbackGroup())
+        node.create_service(Trigger, "lean_sliced", sliced,
+                            callback_group=ReentrantCallbackGroup())
         node.create_service(Trigger, "lean_plain", plain)
         client_s = node.create_client(Trigger, "lean_sliced")
         client_p = node.create_client(Trigger, "lean_plain")
