@@ -234,3 +234,18 @@ def test_stepping_slower_than_real_time_keeps_the_old_bound():
     assert pacer.affordable_backlog(15 * MS) == pacer.max_periods
     assert pacer.per_tick(15 * MS) == pacer.max_periods
     assert pacer.affordable_backlog(None) == pacer.per_tick(None) == pacer.max_periods
+
+
+def test_cost_estimate_is_the_median_of_the_last_ticks():
+    """The pacer's cost per period: the median of the last ``ticks`` ticks' costs (numpy's
+    median of the same window is the oracle), odd and even windows, bit for bit."""
+    from rod_sim.ros.pacing import CostEstimate
+
+    rng = np.random.default_rng(7)
+    costs = rng.uniform(1e4, 1e6, 130)
+    est = CostEstimate(ticks=50)
+    assert est.value is None
+    for k, c in enumerate(costs):
+        est.add(c)
+        window = costs[max(0, k + 1 - 50):k + 1]
+        assert est.value == float(np.median(window)), k
