@@ -63,11 +63,8 @@ class _Plan:
         for kind in (self.timers, self.subs, self.clients, self.services):
             for entity, node in kind:
                 self.by_pointer[entity.handle.pointer] = (entity, node)
-        every = [e for kind in (self.waitables, self.timers, self.subs, self.guards,
-                                self.clients, self.services) for e, _ in kind]
-        self.entities = every
-        self.groups = list({id(e.callback_group): (e.callback_group, e) for e in every}.values())
-        self.same_answer = all(type(g) in _SAME_ANSWER_GROUPS for g, _ in self.groups)
+        self.entities = [e for kind in (self.waitables, self.timers, self.subs, self.guards,
+                                        self.clients, self.services) for e, _ in kind]
         self.all_runnable = None
         """(waitables, timers, subs, clients, services, guards, sizes) when every entity
         can run (the usual wait), built on first use."""
@@ -119,19 +116,6 @@ class LeanExecutor(SingleThreadedExecutor):
             plan = self._plan = _Plan(key, nodes)
         return plan
 
-    @staticmethod
-    def _all_can_run(plan: _Plan) -> bool:
-        """Whether every entity of ``plan`` can run now (none taken, no group busy)."""
-        if not plan.same_answer:
-            return False
-        for group, entity in plan.groups:
-            if not group.can_execute(entity):
-                return False
-        for entity in plan.entities:
-            if entity._executor_event:
-                return False
-        return True
-
     def _make_handler(self, entity, node, take_from_wait_list):
         """rclpy's handler Task for ``entity``, told not to wake the executor: rclpy's
         handler triggers the executor's guard condition after taking the entity and after its
@@ -158,6 +142,8 @@ class LeanExecutor(SingleThreadedExecutor):
         return task
 
     def _can_run(self, entity, groups: dict) -> bool:
+        """rclpy's ``can_execute``: not taken, and its callback group can run it (``groups``
+        memoises the answer of groups whose answer is the same for each of their entities)."""
         if entity._executor_event:
             return False
         group = entity.callback_group
@@ -192,11 +178,11 @@ class LeanExecutor(SingleThreadedExecutor):
 
             plan = self._current_plan(nodes_to_use)
             extra = (self._guard, self._sigint_gc)
-            if self._all_can_run(plan):
+            groups: dict = {}
+            if all(self._can_run(e, groups) for e in plan.entities):    # the usual wait
                 waitables, timers, subs, clients, services, guards, sizes = \
                     plan.everything(extra)
             else:
-                groups: dict = {}
                 waitables, timers, subs, clients, services, guards, sizes = _select(
                     plan, lambda e: self._can_run(e, groups), extra)
             for gc in guards[:-2]:
