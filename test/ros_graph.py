@@ -62,14 +62,16 @@ class NodeProcess(Child):
 
 
 class Client:
-    """A client node ``name`` (in ``namespace``) in its own context in ROS domain ``domain``;
-    :meth:`close` ends it. The environment must already name the domain (monkeypatch ROS_DOMAIN_ID)."""
+    """A client node ``name`` (in ``namespace``) in its own context in ROS domain ``domain``,
+    spun by an ``executor_class`` (rclpy's executor by default); :meth:`close` ends it. The
+    environment must already name the domain (monkeypatch ROS_DOMAIN_ID)."""
 
-    def __init__(self, domain: int, name: str = "test_client", namespace: str = ""):
+    def __init__(self, domain: int, name: str = "test_client", namespace: str = "",
+                 executor_class=SingleThreadedExecutor):
         self.context = rclpy.Context()
         rclpy.init(context=self.context, domain_id=domain)
         self.node = Node(name, context=self.context, namespace=namespace)
-        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor = executor_class(context=self.context)
         self.executor.add_node(self.node)
 
     def spin_until(self, condition, timeout: float, what, process: Child | None = None):

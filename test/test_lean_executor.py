@@ -21,53 +21,45 @@ from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from std_msgs.msg import Int32  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
+from ros_graph import Client  # noqa: E402
 from rod_sim.ros.executor import LeanExecutor  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
 
 EXECUTORS = {"rclpy": SingleThreadedExecutor, "lean": LeanExecutor}
+LIMIT_S = 30.0
+"""[s] for anything the executor is to run: a bound no load reaches."""
 
 
 @pytest.fixture
-def context(monkeypatch):
+def domain(monkeypatch):
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     domain = next_domain()
     monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=domain)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
+    return domain
 
 
-def spin_until(executor, done, limit_s: float = 30.0) -> None:
-    end = time.monotonic() + limit_s
-    while not done():
-        assert time.monotonic() < end, "the executor never ran what was due"
-        executor.spin_once(timeout_sec=0.05)
-
-
-def scripted_run(kind: str, ctx) -> list:
+def scripted_run(kind: str, domain: int) -> list:
     """A script of entity events on one node, spun by ``kind``: returns the callbacks' log."""
     log = []
-    node = rclpy.create_node("lean_script", context=ctx)
-    executor = EXECUTORS[kind](context=ctx)
-    executor.add_node(node)
+    graph = Client(domain, "lean_script", executor_class=EXECUTORS[kind])
+    node, executor = graph.node, graph.executor
     steady = Clock(clock_type=ClockType.STEADY_TIME)
     try:
         # a guard condition triggered before spinning, twice: one call
         gc = node.create_guard_condition(lambda: log.append("guard"))
         gc.trigger()
         gc.trigger()
-        spin_until(executor, lambda: "guard" in log)
+        graph.spin_until(lambda: "guard" in log, LIMIT_S, "the guard condition's callback")
         # a raw subscription gets the bytes of each message, in order
         sub_msgs = []
         node.create_subscription(Int32, "lean_topic", lambda data: sub_msgs.append(bytes(data)),
                                  10, raw=True)
         pub = node.create_publisher(Int32, "lean_topic", 10)
-        spin_until(executor, lambda: pub.get_subscription_count() > 0)
+        graph.spin_until(lambda: pub.get_subscription_count() > 0, LIMIT_S, "the subscription's discovery")
         for k in range(3):
             pub.publish(Int32(data=k))
-        spin_until(executor, lambda: len(sub_msgs) == 3)
+        graph.spin_until(lambda: len(sub_msgs) == 3, LIMIT_S, "3 messages")
         log.append(("sub", [m[-4:] for m in sub_msgs]))
         # a timer destroyed from its own callback, another created in its place
         fired = []
@@ -77,7 +69,7 @@ def scripted_run(kind: str, ctx) -> list:
             node.destroy_timer(timers[0])
             timers[0] = node.create_timer(0.001, lambda: fired.append("second"), clock=steady)
         timers = [node.create_timer(0.001, first, clock=steady)]
-        spin_until(executor, lambda: fired.count("second") >= 3)
+        graph.spin_until(lambda: fired.count("second") >= 3, LIMIT_S, "the re-created timer")
         log.append(("timers", fired.count("first"), fired[:2]))
         node.destroy_timer(timers[0])
         # a coroutine service callback in a reentrant group that yields the executor between
@@ -106,29 +98,28 @@ def scripted_run(kind: str, ctx) -> list:
         node.create_service(Trigger, "lean_plain", plain)
         client_s = node.create_client(Trigger, "lean_sliced")
         client_p = node.create_client(Trigger, "lean_plain")
-        spin_until(executor, lambda: client_s.service_is_ready() and client_p.service_is_ready())
+        graph.spin_until(lambda: client_s.service_is_ready() and client_p.service_is_ready(), LIMIT_S, "the services")
         fs = client_s.call_async(Trigger.Request())
-        spin_until(executor, lambda: "slice 0" in log)
+        graph.spin_until(lambda: "slice 0" in log, LIMIT_S, "the sliced service's first slice")
         fp = client_p.call_async(Trigger.Request())
-        spin_until(executor, lambda: fs.done() and fp.done())
+        graph.spin_until(lambda: fs.done() and fp.done(), LIMIT_S, "both responses")
         log.append(("responses", fs.result().success, fp.result().success))
         # a task created on the executor runs, its result is the callback's
         task = executor.create_task(lambda: 42)
-        spin_until(executor, task.done)
+        graph.spin_until(task.done, LIMIT_S, "the task")
         log.append(("task", task.result()))
         # nothing ready: spin_once(timeout) returns (no wait without end)
         start = time.monotonic()
         executor.spin_once(timeout_sec=0.05)
         log.append(("timeout returned", time.monotonic() - start < 20.0))
     finally:
-        executor.shutdown()
-        node.destroy_node()
+        graph.close()
     return log
 
 
 @pytest.mark.parametrize("kind", ["rclpy", "lean"])
-def test_the_script_runs_each_callback_once(kind, context):
-    log = scripted_run(kind, context)
+def test_the_script_runs_each_callback_once(kind, domain):
+    log = scripted_run(kind, domain)
     assert log.count("guard") == 1
     assert ("sub", [(0).to_bytes(4, "little"), (1).to_bytes(4, "little"),
                     (2).to_bytes(4, "little")]) in log
@@ -141,18 +132,17 @@ def test_the_script_runs_each_callback_once(kind, context):
     assert ("timeout returned", True) in log
 
 
-def test_lean_runs_the_script_as_rclpy_does(context):
+def test_lean_runs_the_script_as_rclpy_does(domain):
     """The oracle is rclpy's executor: the same log, entry for entry (the plain service's
     place among the slices included: the order in which ready callbacks run)."""
-    assert scripted_run("lean", context) == scripted_run("rclpy", context)
+    assert scripted_run("lean", domain) == scripted_run("rclpy", domain)
 
 
-def test_a_busy_mutually_exclusive_group_keeps_its_other_callbacks_out(context):
+def test_a_busy_mutually_exclusive_group_keeps_its_other_callbacks_out(domain):
     """While a coroutine callback of the default (mutually exclusive) group is suspended, a
     timer of that group does not run; it runs once the coroutine has finished."""
-    node = rclpy.create_node("lean_group", context=context)
-    executor = LeanExecutor(context=context)
-    executor.add_node(node)
+    graph = Client(domain, "lean_group", executor_class=LeanExecutor)
+    node, executor = graph.node, graph.executor
     log = []
     gate = rclpy.task.Future()
 
@@ -167,23 +157,20 @@ def test_a_busy_mutually_exclusive_group_keeps_its_other_callbacks_out(context):
         timer.cancel()
         task_gc = node.create_guard_condition(holds)
         task_gc.trigger()
-        spin_until(executor, lambda: "hold start" in log)
+        graph.spin_until(lambda: "hold start" in log, LIMIT_S, "the coroutine's start")
         timer.reset()
         for _ in range(40):
             executor.spin_once(timeout_sec=0.005)
         assert "timer" not in log           # the group is busy with the suspended coroutine
         gate.set_result(None)
-        spin_until(executor, lambda: "timer" in log)
+        graph.spin_until(lambda: "timer" in log, LIMIT_S, "the timer after the coroutine")
         assert log.index("hold end") < log.index("timer")
     finally:
-        executor.shutdown()
-        node.destroy_node()
+        graph.close()
 
 
-def test_shutdown_ends_spinning(context):
-    node = rclpy.create_node("lean_shutdown", context=context)
-    executor = LeanExecutor(context=context)
-    executor.add_node(node)
-    executor.shutdown()
-    executor.spin_once(timeout_sec=None)        # returns at once: shut down
-    node.destroy_node()
+def test_shutdown_ends_spinning(domain):
+    graph = Client(domain, "lean_shutdown", executor_class=LeanExecutor)
+    graph.executor.shutdown()
+    graph.executor.spin_once(timeout_sec=None)        # returns at once: shut down
+    graph.close()
