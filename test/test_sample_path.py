@@ -195,3 +195,80 @@ def test_a_span_start_sample_skips_only_the_energy(model_name):
         start = balance_sample(model, t, y, held, mode, energy=False)
         assert np.isnan(start.energy) and np.isfinite(full.energy)
         assert _same(dataclasses.replace(start, energy=full.energy), full)
+
+
+def _power_by_hand(scene, loads: np.ndarray, y: np.ndarray) -> float:
+    """The net power [W] of one chain on a fixed base at the origin without slope rates,
+    from its definition: nodal forces on the end nodes' velocities (sums of l_j phi_j' (-sin
+    phi_j, cos phi_j) up to rod k), hinge motors on the hinge rates phi_h' - phi_{h-1}'
+    (phi_{-1}' = 0), minus the dampers nu_h Delta phi_h'^2. ``loads`` (n + 2, 3)."""
+    n = scene.n
+    phi, dphi = y[:n], y[n:2 * n]
+    l = scene.length
+    vx = np.cumsum(-l * np.sin(phi) * dphi)
+    vy = np.cumsum(l * np.cos(phi) * dphi)
+    rate = dphi - np.concatenate([[0.0], dphi[:-1]])
+    return float(np.sum(loads[:n, 0] * vx + loads[:n, 1] * vy) + np.sum(loads[:n, 2] * rate)
+                 - np.sum(scene.hinge_damping * rate**2))
+
+
+@pytest.mark.parametrize("model_name", ("reduced", "rigid"))
+@pytest.mark.parametrize("scripted", (True, False))
+def test_the_balance_rate_pair_is_the_moved_states_values(model_name, scripted):
+    """A balance sample's central difference evaluates its two moved states in one call
+    (State.moved_net_powers) for one chain on a fixed base without stops: the values of two
+    moved States and the net power's definition at y +- h f, to rounding (numba's sines and
+    cosines are not numpy's, bit for bit)."""
+    from rod_sim.core.validity import RATE_STEP, _net_power
+
+    scene = load_scene(REPO / "config" / "paper_example.yaml")
+    if not scripted:
+        scene = scene.with_changes(loads=())
+    model = make_model(model_name, scene)
+    assert model.plain_balance and bool(model.scripted_loads) == scripted
+    rng = np.random.default_rng(7)
+    for k in range(4):
+        y = model.initial_state() + rng.normal(scale=0.3, size=model.state_size)
+        held = _held(scene.n, k)
+        t = 0.0005 * k          # the paper's tip pulse acts from t = 0
+        s = model.state(t, y, held)
+        hf = RATE_STEP * s.f
+        pair = s.moved_net_powers(t + RATE_STEP, t - RATE_STEP, hf)
+        moved = (s.moved(t + RATE_STEP, y + hf).value(_net_power),
+                 s.moved(t - RATE_STEP, y - hf).value(_net_power))
+        assert pair == pytest.approx(moved, rel=1e-13, abs=1e-13)
+        for got, tm, ym in zip(pair, (t + RATE_STEP, t - RATE_STEP), (y + hf, y - hf)):
+            want = _power_by_hand(scene, model.loads_at(tm, held), ym)
+            assert got == pytest.approx(want, rel=1e-12, abs=1e-12)
+        if scripted:
+            assert model.loads_at(t + RATE_STEP, held)[scene.n - 1, 0] != held[scene.n - 1, 0]
+
+
+@pytest.mark.parametrize("scene_name, model_name", [("deployment.yaml", "reduced"),
+                                                    ("two_wing_deployment.yaml", "reduced"),
+                                                    ("paper_example.yaml", "full")])
+def test_other_layouts_move_their_states_one_by_one(scene_name, model_name):
+    """Stops, a free base or slope rates in the state: no one-call pair (None)."""
+    model = make_model(model_name, load_scene(REPO / "config" / scene_name))
+    assert not model.plain_balance
+    y = model.initial_state()
+    s = model.state(0.0, y)
+    assert s.moved_net_powers(1e-7, -1e-7, 1e-7 * s.f) is None
+
+
+def test_hinge_rates_are_right_minus_left_with_the_first_rods_on_the_base():
+    """chain_power.deflection_rates against eq. (2) written out: Delta phi_h' = (phi_h' +
+    alpha_h') - (phi_{h-1}' + beta_{h-1}'), each chain's first rod against the base's rate."""
+    from rod_sim.core.chain_power import deflection_rates
+
+    rng = np.random.default_rng(11)
+    n = 9
+    dphi, dalpha, dbeta = rng.normal(size=(3, n))
+    for first, rate in ((np.zeros(0, dtype=np.int64), 0.0),
+                        (np.array([0, 4], dtype=np.int64), 0.7)):
+        out = np.empty(n)
+        deflection_rates(dphi, dalpha, dbeta, first, rate, out)
+        left = np.array([0.0] + [dphi[h - 1] + dbeta[h - 1] for h in range(1, n)])
+        left[first] = rate
+        assert np.allclose(out, dphi + dalpha - left, rtol=0, atol=1e-15)
+        assert out[4] != pytest.approx(dphi[4] + dalpha[4] - dphi[3] - dbeta[3]) or not len(first)

@@ -5,9 +5,10 @@ books the energy balance and the momentum ledger and writes the diagnostics; all
 the node positions and velocities, the hinge angles, the loads, the momentum, the powers of
 one state. :class:`State` computes each of these on first use and keeps it for the other
 users of that state. The laws of the energies, the momentum, the powers and the snapshot are
-written here, once: :class:`~rod_sim.core.models.ChainModel`'s methods of the same names
-evaluate them on a fresh State, so a separate call and a shared State give the same values,
-bit for bit. Pure numpy, O(n), no loop over rods or chains (but over the chains of a
+written once, here (the hinge rates and the powers compiled, in
+:mod:`~rod_sim.core.chain_power`): :class:`~rod_sim.core.models.ChainModel`'s methods of the
+same names evaluate them on a fresh State, so a separate call and a shared State give the
+same values, bit for bit. O(n), no Python loop over rods or chains (but over the chains of a
 prescribed base's kinetic energy: their sums keep numpy's pairwise order).
 """
 from __future__ import annotations
@@ -16,7 +17,7 @@ from typing import Callable
 
 import numpy as np
 
-from . import hinges, kernels
+from . import chain_power, hinges, kernels
 from .kinematics import chain_node_positions, chain_nodes, node_positions, pairs
 from .snapshot import Snapshot
 
@@ -43,6 +44,10 @@ class cached:
 def cross(a, b):
     """z component of a x b over the last axis (2,)."""
     return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
+_NO_RODS = np.empty(0, dtype=np.int64)
+"""No rod turns against a moving base (:func:`~rod_sim.core.chain_power.deflection_rates`)."""
 
 
 class State:
@@ -297,14 +302,14 @@ class State:
         """d/dt Delta phi_h (n,) [rad/s] (the reduced and rigid models carry no bending
         rates)."""
         m = self.model
-        dphi = self.phi_rate
         dalpha, dbeta = self.bending_rates
-        dleft = np.empty(m.n)
-        dleft[:1] = 0.0
-        np.add(dphi[:-1], dbeta[:-1], out=dleft[1:])
+        out = np.empty(m.n)
         if m._moving_hinge0:
-            dleft[m._first_rods] = self.base_angle[1]
-        return dphi + dalpha - dleft
+            chain_power.deflection_rates(self.phi_rate, dalpha, dbeta, m._first_rods,
+                                         float(self.base_angle[1]), out)
+        else:
+            chain_power.deflection_rates(self.phi_rate, dalpha, dbeta, _NO_RODS, 0.0, out)
+        return out
 
     @cached
     def deflection(self) -> tuple[np.ndarray, np.ndarray]:
@@ -454,24 +459,51 @@ class State:
         return Momentum(P, H, H - float(cross(com, P)), com, mass)
 
     @cached
-    def end_velocities(self) -> tuple[np.ndarray, np.ndarray]:
-        """(vx, vy) (n,) each [m/s]: the velocity of each rod's end node (nodes 1..n of one
-        chain on a fixed base at the origin: prefix sums of the rods' tip velocities)."""
+    def end_velocities(self) -> np.ndarray:
+        """(2, n) [m/s]: the velocity (vx, vy) of each rod's end node."""
+        return self.velocities[self.model.table.ends].T.copy()
+
+    @cached
+    def chain_powers(self) -> tuple[float, float]:
+        """(power of the chains' nodal forces and hinge motors, power dissipated in the hinge
+        dampers) [W] (:func:`~rod_sim.core.chain_power.chain_powers`; one chain on a fixed
+        base at the origin: :func:`~rod_sim.core.chain_power.plain_powers`)."""
         m = self.model
+        out = np.empty(2)
         if m._plain_powers:
-            dphi = self.phi_rate
-            return ((m.neg_l * self.sin_phi * dphi).cumsum(),        # -l: the same bits
-                    (m.params.l * self.cos_phi * dphi).cumsum())
-        v = self.velocities[m.table.ends]
-        return v[:, 0], v[:, 1]
+            chain_power.plain_powers(m.neg_l, m.params.l, m.params.nu, self.sin_phi,
+                                     self.cos_phi, self.phi_rate, self.deflection_rate,
+                                     self.loads, out)
+        else:
+            v = self.end_velocities
+            chain_power.chain_powers(v[0], v[1], self.deflection_rate, m.params.nu,
+                                     self.loads, out)
+        return float(out[0]), float(out[1])
+
+    def moved_net_powers(self, t_up: float, t_down: float, hf: np.ndarray
+                         ) -> tuple[float, float] | None:
+        """The net power [W] (:func:`~rod_sim.core.validity.net_power`) at (t_up, y + hf) and
+        (t_down, y - hf) with this State's held inputs and latches (the central difference of
+        a balance sample) in one compiled call
+        (:func:`~rod_sim.core.chain_power.plain_net_power_pair`, the laws of :meth:`moved`
+        States; its sines and cosines are numba's, so the values agree with theirs to
+        rounding) when the model allows it (:attr:`ChainModel.plain_balance`: one chain on a
+        fixed base, no stop, no slope rates in the state); else None (move the States)."""
+        m = self.model
+        if not getattr(m, "plain_balance", False):
+            return None
+        out = np.empty(2)
+        chain_power.plain_net_power_pair(self.y, hf, m.n, m.dof, m.neg_l, m.params.l,
+                                         m.params.nu, m.loads, self.held_rows, t_up, t_down,
+                                         out)
+        return float(out[0]), float(out[1])
 
     @cached
     def damper_power(self) -> float:
         """Power dissipated in the hinge dampers and the stop contacts [W] (the second of
         :attr:`powers`)."""
         m = self.model
-        ddelta = self.deflection_rate
-        damper = float((m.params.nu * ddelta**2).sum())
+        damper = self.chain_powers[1]
         if m.has_stops and self.penetrating:
             s = m.scene
             theta, dtheta = self.hinge_angles, self.hinge_rates
@@ -489,11 +521,7 @@ class State:
         m = self.model
         n = m.n
         loads = self.loads
-        f = loads[:n, :2]
-        vx, vy = self.end_velocities
-        load_power = float((f[:, 0] * vx + f[:, 1] * vy).sum())
-        ddelta = self.deflection_rate
-        load_power += float(np.dot(loads[:n, 2], ddelta))    # hinge motors
+        load_power = self.chain_powers[0]
         if m.nb:
             st = self.base
             c, s = self.base_trig

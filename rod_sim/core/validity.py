@@ -485,8 +485,11 @@ def balance_sample(model, t: float, y, held=None, mode=None, bending=None,
     before = power + load_jump_power(model, t, y, held, state=s)
     h = RATE_STEP
     hf = h * f
-    up, down = s.moved(t + h, y + hf), s.moved(t - h, y - hf)
-    p_up, p_down = up.value(_net_power), down.value(_net_power)
+    pair = s.moved_net_powers(t + h, t - h, hf)
+    if pair is None:
+        up, down = s.moved(t + h, y + hf), s.moved(t - h, y - hf)
+        pair = up.value(_net_power), down.value(_net_power)
+    p_up, p_down = pair
     if t in model.breakpoints:
         rate, rate_before = (p_up - power) / h, (before - p_down) / h
     else:

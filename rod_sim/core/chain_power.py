@@ -1,0 +1,119 @@
+"""The hinge rates and the power of the applied loads and of the hinge dampers, compiled.
+
+:class:`~rod_sim.core.state.State` evaluates these laws for one state, and a balance sample's
+central difference evaluates them for its two moved states in one call
+(:func:`plain_net_power_pair`): both through the helpers below, so that each law is written
+once. Sums run from rod 0 to rod n - 1.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .jit import njit
+from .kernels import load_forces
+
+
+@njit(inline="always")
+def _deflection_rate(dphi, dalpha, dbeta, i):
+    """d/dt Delta phi_i [rad/s] of hinge i > 0 joining rods i - 1 and i (eq. (2))."""
+    return dphi[i] + dalpha[i] - (dphi[i - 1] + dbeta[i - 1])
+
+
+@njit
+def deflection_rates(dphi, dalpha, dbeta, first, first_rate, out):
+    """d/dt Delta phi_h (n,) [rad/s] into ``out`` from phi', alpha', beta' (n,) [rad/s]: each
+    hinge's right rod's phi' + alpha' minus its left rod's phi' + beta'; the rods ``first``
+    (each chain's first rod, int array; rod 0 always) turn against ``first_rate`` (the
+    base's rate [rad/s]) instead."""
+    n = dphi.shape[0]
+    if n:
+        out[0] = dphi[0] + dalpha[0] - 0.0
+    for i in range(1, n):
+        out[i] = _deflection_rate(dphi, dalpha, dbeta, i)
+    for j in range(first.shape[0]):
+        i = first[j]
+        out[i] = dphi[i] + dalpha[i] - first_rate
+
+
+@njit(inline="always")
+def _power_terms(f, i, vx, vy, d, nu):
+    """Node i + 1's force on its velocity (vx, vy) plus hinge i's motor on its rate d, and
+    hinge i's damper power nu_i d^2 [W]."""
+    return f[i, 0] * vx + f[i, 1] * vy + f[i, 2] * d, nu[i] * d * d
+
+
+@njit
+def chain_powers(vx, vy, ddelta, nu, f, out):
+    """The power of the nodal forces and the hinge motors, sum_k F_k . v_k + sum_h T_h
+    Delta phi_h', and the power dissipated in the hinge dampers, sum_h nu_h Delta phi_h'^2
+    [W], into ``out`` (2,). ``vx``, ``vy`` (n,) [m/s]: the end node of each rod; ``ddelta``
+    (n,) [rad/s]: the hinge rates; ``nu`` (n,) [N m s/rad]; ``f`` (>= n, 3): rows X, Y [N] at
+    node k + 1 and T [N m] at hinge k."""
+    load = 0.0
+    damper = 0.0
+    for i in range(ddelta.shape[0]):
+        a, b = _power_terms(f, i, vx[i], vy[i], ddelta[i], nu)
+        load += a
+        damper += b
+    out[0] = load
+    out[1] = damper
+
+
+@njit(inline="always")
+def _plain_powers(neg_l, l, nu, sin_phi, cos_phi, dphi, ddelta, f):
+    """(load power, damper power) [W] of one chain on a fixed base at the origin: the end
+    node velocities are the prefix sums of l_j phi_j' (-sin phi_j, cos phi_j), with the
+    products of the general layout's node velocities (``neg_l`` = -l)."""
+    load = 0.0
+    damper = 0.0
+    vx = 0.0
+    vy = 0.0
+    for i in range(dphi.shape[0]):
+        vx += neg_l[i] * sin_phi[i] * dphi[i]
+        vy += l[i] * cos_phi[i] * dphi[i]
+        a, b = _power_terms(f, i, vx, vy, ddelta[i], nu)
+        load += a
+        damper += b
+    return load, damper
+
+
+@njit
+def plain_powers(neg_l, l, nu, sin_phi, cos_phi, dphi, ddelta, f, out):
+    """:func:`chain_powers` of one chain on a fixed base at the origin (the paper's layout)
+    from its rods' sin phi, cos phi, phi' [rad/s] and hinge rates (n,) each, into ``out``
+    (2,); ``l`` (n,) [m], ``neg_l`` = -l."""
+    out[0], out[1] = _plain_powers(neg_l, l, nu, sin_phi, cos_phi, dphi, ddelta, f)
+
+
+@njit
+def plain_net_power_pair(y, hf, n, dof, neg_l, l, nu, table, rows, t_up, t_down, out):
+    """The net power (load power minus damper power) [W] of one chain on a fixed base at the
+    origin whose model carries no slope rates (reduced, rigid) at (t_up, y + hf) and
+    (t_down, y - hf), into ``out`` (2,): a balance sample's central difference in one call.
+    ``y``, ``hf`` (state_size,): the state [phi, ..., phi', ...] with phi' at ``dof``; the
+    loads at each time are ``rows`` (n + 2, 3), the held inputs, plus the scripted loads of
+    ``table`` (:func:`~rod_sim.core.kernels.load_forces`, the one scripted-load law)."""
+    yr = np.empty(y.shape[0])
+    s = np.empty(n)
+    c = np.empty(n)
+    zeros = np.zeros(n)
+    none = np.empty(0, dtype=np.int64)
+    ddelta = np.empty(n)
+    f = np.empty((n + 2, 3))
+    for r in range(2):
+        if r == 0:
+            for i in range(y.shape[0]):
+                yr[i] = y[i] + hf[i]
+            t = t_up
+        else:
+            for i in range(y.shape[0]):
+                yr[i] = y[i] - hf[i]
+            t = t_down
+        for i in range(n):
+            s[i] = np.sin(yr[i])
+            c[i] = np.cos(yr[i])
+        dphi = yr[dof:dof + n]
+        deflection_rates(dphi, zeros, zeros, none, 0.0, ddelta)
+        load_forces(t, table, rows, t, f)
+        load, damper = _plain_powers(neg_l, l, nu, s, c, dphi, ddelta, f)
+        out[r] = load - damper
