@@ -61,8 +61,8 @@ def chain_powers(vx, vy, ddelta, nu, f, out):
 
 @njit(inline="always")
 def _plain_powers(neg_l, l, nu, sin_phi, cos_phi, dphi, ddelta, f):
-    """(load power, damper power) [W] of one chain on a fixed base at the origin: the end
-    node velocities are the prefix sums of l_j phi_j' (-sin phi_j, cos phi_j), with the
+    """(load power, damper power) [W] of one chain on a fixed base (anywhere, turned any way):
+    the end node velocities are the prefix sums of l_j phi_j' (-sin phi_j, cos phi_j), with the
     products of the general layout's node velocities (``neg_l`` = -l)."""
     load = 0.0
     damper = 0.0
@@ -79,7 +79,7 @@ def _plain_powers(neg_l, l, nu, sin_phi, cos_phi, dphi, ddelta, f):
 
 @njit
 def plain_powers(neg_l, l, nu, sin_phi, cos_phi, dphi, ddelta, f, out):
-    """:func:`chain_powers` of one chain on a fixed base at the origin (the paper's layout)
+    """:func:`chain_powers` of one chain on a fixed base (the paper's layout)
     from its rods' sin phi, cos phi, phi' [rad/s] and hinge rates (n,) each, into ``out``
     (2,); ``l`` (n,) [m], ``neg_l`` = -l."""
     out[0], out[1] = _plain_powers(neg_l, l, nu, sin_phi, cos_phi, dphi, ddelta, f)
@@ -87,8 +87,8 @@ def plain_powers(neg_l, l, nu, sin_phi, cos_phi, dphi, ddelta, f, out):
 
 @njit
 def plain_net_power_pair(y, hf, n, dof, neg_l, l, nu, table, rows, t_up, t_down, out):
-    """The net power (load power minus damper power) [W] of one chain on a fixed base at the
-    origin whose model carries no slope rates (reduced, rigid) at (t_up, y + hf) and
+    """The net power (load power minus damper power) [W] of one chain on a fixed base whose
+    model carries no slope rates (reduced, rigid) at (t_up, y + hf) and
     (t_down, y - hf), into ``out`` (2,): a balance sample's central difference in one call.
     ``y``, ``hf`` (state_size,): the state [phi, ..., phi', ...] with phi' at ``dof``; the
     loads at each time are ``rows`` (n + 2, 3), the held inputs, plus the scripted loads of

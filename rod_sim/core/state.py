@@ -467,7 +467,7 @@ class State:
     def chain_powers(self) -> tuple[float, float]:
         """(power of the chains' nodal forces and hinge motors, power dissipated in the hinge
         dampers) [W] (:func:`~rod_sim.core.chain_power.chain_powers`; one chain on a fixed
-        base at the origin: :func:`~rod_sim.core.chain_power.plain_powers`)."""
+        base: :func:`~rod_sim.core.chain_power.plain_powers`)."""
         m = self.model
         out = np.empty(2)
         if m._plain_powers:
