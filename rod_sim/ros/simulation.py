@@ -14,6 +14,7 @@ import numpy as np
 from rod_sim.api import (IntegrationError, ModelError, Scene, SceneError, Simulator, load_scene,
                          make_integrator, make_model)
 from rod_sim.core.units import NS_PER_S
+from rod_sim.core.validity import balance_sample
 from rod_sim.ros import budget
 from rod_sim.ros.errors import NodeConfigError, one_line
 from rod_sim.ros.outputs import BY_NAME, STATE_TOPICS
@@ -87,8 +88,9 @@ def _warm_up(simulation: Simulation, settings) -> None:
     if scratch.t_ns == 0:
         return  # the first period failed: the real run reports it
     snap = scratch.snapshot()
-    model.energies(snap.t, scratch.y, scratch.held)
-    model.powers(snap.t, scratch.y, scratch.held)
+    # one energy balance sample: the energies, the powers and the balance's central
+    # difference, as every period books them
+    balance_sample(model, snap.t, scratch.y, scratch.held, scratch.mode)
     for name in STATE_TOPICS:
         if BY_NAME[name].exists_for(simulation.scene):
             BY_NAME[name].encode(snap, simulation.scene, settings.frame_id)

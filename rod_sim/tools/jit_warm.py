@@ -94,12 +94,14 @@ def progress_line(done: int, total: int, what: str, took: float, elapsed: float,
 
 
 def run_group(group) -> list[tuple[str, float, float, bool]]:
-    """Run each (scene, model, integrator) of ``group`` for 1 ms, then the model's energies
-    and powers (the helpers a node's messages use): per item (label, wall s, CPU s,
-    skipped). A combination the library refuses (ValueError) is skipped."""
+    """Run each (scene, model, integrator) of ``group`` for 1 ms, then one energy balance
+    sample (the energies, the powers and the balance's central difference: the helpers every
+    sample of a node or a log uses): per item (label, wall s, CPU s, skipped). A combination
+    the library refuses (ValueError) is skipped."""
     from ..core.integrators import make_integrator
     from ..core.models import make_model
     from ..core.simulator import Simulator
+    from ..core.validity import balance_sample
     from ..io.scene_yaml import load_scene
 
     out = []
@@ -110,8 +112,7 @@ def run_group(group) -> list[tuple[str, float, float, bool]]:
             model = make_model(model_name, load_scene(CONFIG / scene))
             sim = Simulator(model, make_integrator(integrator))
             sim.advance(1e-3)
-            model.energies(sim.t, sim.y, sim.held)
-            model.powers(sim.t, sim.y, sim.held)
+            balance_sample(model, sim.t, sim.y, sim.held, sim.mode)
         except ValueError:
             skipped = True
         out.append((f"{model_name} x {integrator} on {scene}", time.perf_counter() - w0,
