@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from rod_sim.ros.rate_bench import ros_arg, summarize
+from rod_sim.ros.rate_bench import dropped_in_window, ros_arg, summarize
 
 
 def test_summary_of_a_steady_stream_with_one_late_and_one_missing_message():
@@ -16,6 +16,13 @@ def test_summary_of_a_steady_stream_with_one_late_and_one_missing_message():
     assert s["interarrival_ms"]["median"] == pytest.approx(1.0)
     assert s["interarrival_ms"]["max"] == pytest.approx(5.0)
     assert 1.0 < s["interarrival_ms"]["p99"] <= 5.0
+
+
+def test_periods_dropped_by_the_node_in_the_window_come_from_its_running_total():
+    reports = [(0.5, 0), (1.5, 3), (2.5, 3), (3.5, 10), (4.5, 12)]    # (receipt [s], total)
+    assert dropped_in_window(reports, start=2.0) == 12 - 3
+    assert dropped_in_window(reports, start=0.0) == 12         # no report before: from 0
+    assert dropped_in_window(reports[:2], start=2.0) is None   # none inside the window
 
 
 def test_parameter_values_are_written_as_ros_yaml():

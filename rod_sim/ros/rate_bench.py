@@ -13,7 +13,11 @@ arrival with a monotonic clock. After a warm-up (JIT load, discovery) the window
 - ``rate_hz``: messages per wall second;
 - ``rtf``: simulated time advanced (header stamps) per wall second of arrivals;
 - inter-arrival times [ms]: median, p99 and max; ``missing``: control periods whose states never
-  arrived (gaps in the header stamps: periods the node dropped or messages lost);
+  arrived (gaps in the header stamps: messages lost between the node and this subscriber, whose
+  reader and the node's writer keep 10 each; the node simulates every period it does not drop,
+  so its stamps have no gaps of their own);
+- ``node_dropped_periods``: periods of backlog the node dropped in the window (it could not
+  catch up with real time; its simulated time then falls behind), from its ``/diagnostics``;
 - ``node_cpu_fraction``: CPU time of the node process per wall second (Linux /proc), the
   headroom left on its core.
 
@@ -164,6 +168,18 @@ def summarize(wall_ns: np.ndarray, stamp_ns: np.ndarray, rate_hz: float) -> dict
                                 "max": float(dt_wall.max())},
             "missing_periods": int(np.sum(np.maximum(gaps - 1, 0))),
             "expected_period_ms": period_ns / 1e6}
+
+
+def dropped_in_window(reports: list[tuple[float, int]], start: float) -> int | None:
+    """Periods the node dropped (it could not catch up its backlog) during the window that
+    starts at ``start`` [s, monotonic], from its ``/diagnostics`` reports (receipt time [s],
+    ``dropped_periods`` total so far): the last total less the last one before ``start`` (0
+    when none came before it). None without a report inside the window."""
+    before = [total for t, total in reports if t < start]
+    inside = [total for t, total in reports if t >= start]
+    if not inside:
+        return None
+    return inside[-1] - (before[-1] if before else 0)
 
 
 def free_port() -> int:
@@ -340,6 +356,7 @@ def measure(args) -> dict:
     os.environ["ROS_DOMAIN_ID"] = str(args.domain)
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
+    from diagnostic_msgs.msg import DiagnosticArray
     from sensor_msgs.msg import JointState
 
     from rod_sim.io.scene_yaml import load_scene
@@ -369,6 +386,16 @@ def measure(args) -> dict:
                 stamps.append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
 
             node.create_subscription(JointState, "rod_states", on_state, keep_last(10))
+            reports: list[tuple[float, int]] = []     # the node's dropped periods, as reported
+
+            def on_diagnostics(msg):
+                for status in msg.status:
+                    for kv in status.values:
+                        if kv.key == "dropped_periods" and kv.value.isdigit():
+                            reports.append((time.monotonic(), int(kv.value)))
+
+            node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics,
+                                     keep_last(10))
             executor = SingleThreadedExecutor()
             executor.add_node(node)
             deadline = time.monotonic() + 60.0
@@ -400,6 +427,7 @@ def measure(args) -> dict:
                            np.array(stamps[first_kept:], dtype=np.int64), args.rate)
     if cpu0 is not None and cpu1 is not None:
         result["node_cpu_fraction"] = (cpu1 - cpu0) / args.duration
+    result["node_dropped_periods"] = dropped_in_window(reports, start + args.warmup)
     if args.live_view:
         result["viewer_frames"] = viewer_frames
     result.update({"scene": Path(args.scene).name if not args.spacecraft else scene_name,
@@ -477,6 +505,10 @@ def measure_period_cost(args) -> dict:
             "periods": per_round, **{f"{k}_ms": v for k, v in best.items()}}
 
 
+def _count(value: int | None) -> str:
+    return "?" if value is None else str(value)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.period_cost:
@@ -506,7 +538,8 @@ def main(argv: list[str] | None = None) -> int:
               f"{' + recording' if args.record else ''}: {result['rate_hz']:.1f} msg/s, "
               f"RTF {result['rtf']:.3f}, inter-arrival median {ia['median']:.3f} ms, "
               f"p99 {ia['p99']:.3f} ms, max {ia['max']:.2f} ms, "
-              f"{result['missing_periods']} missing periods of {result['messages']}, "
+              f"{result['missing_periods']} missing periods of {result['messages']} at the "
+              f"subscriber, {_count(result['node_dropped_periods'])} dropped by the node, "
               f"node CPU {100 * result.get('node_cpu_fraction', float('nan')):.0f}% of a core"
               + (f", live view: {result['viewer_frames']} frames received"
                  if args.live_view else ""))
