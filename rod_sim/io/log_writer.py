@@ -75,7 +75,9 @@ class LogWriter:
     resolved scene as YAML), ``model`` and ``integrator`` are required, ``version`` defaults to
     the rod_sim version. ``qos``: optional absolute topic -> ``offered_qos_profiles`` YAML
     (default :func:`offered_qos_yaml`). ``chunk_size`` [bytes], ``compression`` 'zstd', 'lz4'
-    or 'none'.
+    or 'none'. ``writer_process``: chunks are compressed and written by a child process
+    (:mod:`rod_sim.io.log_process`; the node records so), not by the calling thread; the file
+    is the same, and a write error there is raised by a later call here.
 
     Messages of one topic must come with non-decreasing times (LogWriteError otherwise);
     different topics may interleave freely (readers sort by log time).
@@ -83,7 +85,8 @@ class LogWriter:
 
     def __init__(self, path: str | os.PathLike, *, metadata: Mapping[str, str],
                  overwrite: bool = False, qos: Mapping[str, str] | None = None,
-                 chunk_size: int = CHUNK_SIZE, compression: str = "zstd"):
+                 chunk_size: int = CHUNK_SIZE, compression: str = "zstd",
+                 writer_process: bool = False):
         self.path = Path(path)
         record = {"version": __version__, **dict(metadata)}
         missing = [k for k in REQUIRED_METADATA if k not in record]
@@ -104,12 +107,19 @@ class LogWriter:
             raise FileExistsError(errno.EEXIST, f"refusing to overwrite the existing log {self.path} "
                                   "(remove it or pass overwrite=True)", str(self.path)) from None
         self._file = _FlushingFile(raw)
+        self._sink = None
         try:
+            if writer_process:
+                from rod_sim.io.log_process import ProcessSink
+
+                self._sink = ProcessSink(raw.fileno(), compression)
             self._writer = ChunkedMcapWriter(self._file, chunk_size=chunk_size,
-                                             compression=compression)
+                                             compression=compression, sink=self._sink)
             self._writer.start(profile=PROFILE, library=f"rod_sim/{__version__}")
             self._writer.add_metadata(METADATA_NAME, record)
         except BaseException:
+            if self._sink is not None:
+                self._sink.close()
             self._file.close()
             raise
         self._schemas: dict[str, int] = {}
@@ -210,6 +220,8 @@ class LogWriter:
             return
         self._closed = True
         if self._broken:
+            if self._sink is not None:
+                self._sink.close()      # it has written every chunk it was given
             try:
                 self._file.close()
             except OSError:         # the failed write's bytes may still be buffered

@@ -6,7 +6,8 @@ and a dozen small stream writes and struct packs: ~20 us of CPU per message, the
 of a node period's recording. This writer appends one packed record header and the payload to
 the open chunk (a ``bytearray``) and keeps the chunk's message index as flat lists; rare
 records (header, metadata, schemas, channels, the summary) are written by mcap's own record
-classes. Its options are those :class:`rod_sim.io.log_writer.LogWriter` uses: chunked, every
+classes. The file's bytes are produced by a :class:`ChunkSink` (compression, CRCs, offsets,
+indexes, summary): here, or in a process of its own (:mod:`rod_sim.io.log_process`). Its options are those :class:`rod_sim.io.log_writer.LogWriter` uses: chunked, every
 index, schemas and channels repeated in the summary, statistics, summary offsets, CRCs of the
 chunks, the data section and the summary. ``test/test_mcap_writer.py`` checks the identity
 against ``mcap.writer.Writer`` on the same call sequences.
@@ -15,7 +16,7 @@ from __future__ import annotations
 
 import struct
 import zlib
-from typing import IO
+from typing import IO, Protocol
 
 from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
@@ -47,25 +48,136 @@ def _compressor(compression: str):
     raise ValueError(f"compression must be one of {', '.join(COMPRESSIONS)} (got {compression!r})")
 
 
+class ChunkSink:
+    """The writing half: compresses closed chunks and writes every byte of the file to
+    ``stream`` (a binary file object, written in whole records and never seeked), keeping the
+    offsets, the CRC of the data section and the chunk and metadata indexes for the summary.
+    ``compression``: 'zstd', 'lz4' or 'none'."""
+
+    def __init__(self, stream: IO[bytes], compression: str = "zstd"):
+        self._stream = stream
+        self._compress = _compressor(compression)
+        self._compression = "" if compression == "none" else compression
+        self._pos = 0                       # bytes written to stream
+        self._data_crc = 0                  # CRC-32 of the data section written so far
+        self._metadata_indexes: list[MetadataIndex] = []
+        self._chunk_indexes: list[ChunkIndex] = []
+
+    def _write(self, data: bytes) -> None:
+        if data:
+            self._data_crc = zlib.crc32(data, self._data_crc)
+            self._stream.write(data)
+            self._pos += len(data)
+
+    def write_start(self, header: bytes) -> None:
+        """The magic and the header record (its bytes)."""
+        self._write(MAGIC)
+        self._write(header)
+
+    def write_metadata(self, name: str, record: bytes) -> None:
+        """A metadata record (its bytes) named ``name``, indexed."""
+        self._metadata_indexes.append(MetadataIndex(offset=self._pos, length=len(record),
+                                                    name=name))
+        self._write(record)
+
+    def write_chunk(self, raw: bytes | bytearray, index: dict[int, list[int]], start: int,
+                    end: int) -> None:
+        """One chunk: its records uncompressed (``raw``), its message index (channel ->
+        [log_time, offset, ...]) and message times [ns]; written with its message indexes in
+        one write."""
+        packed = self._compress(raw)
+        name = self._compression.encode()
+        length = 8 + 8 + 8 + 4 + 4 + len(name) + 8 + len(packed)
+        record = b"".join((
+            _CHUNK_HEAD.pack(Opcode.CHUNK, length, start, end, len(raw), zlib.crc32(raw)),
+            _U32.pack(len(name)), name, _U64.pack(len(packed)), packed))
+        chunk_offset = self._pos
+        index_start = chunk_offset + len(record)
+        offsets = {}
+        parts = [record]
+        at = index_start
+        for channel_id, flat in index.items():
+            offsets[channel_id] = at
+            size = 8 * len(flat)
+            part = _INDEX_HEAD.pack(Opcode.MESSAGE_INDEX, 2 + 4 + size, channel_id, size) \
+                + struct.pack(f"<{len(flat)}Q", *flat)
+            parts.append(part)
+            at += len(part)
+        self._chunk_indexes.append(ChunkIndex(
+            message_start_time=start, message_end_time=end,
+            chunk_start_offset=chunk_offset, chunk_length=len(record),
+            message_index_offsets=offsets, message_index_length=at - index_start,
+            compression=self._compression, compressed_size=len(packed),
+            uncompressed_size=len(raw)))
+        self._write(b"".join(parts))
+
+    def write_end(self, schemas: list[Schema], channels: list[Channel],
+                  statistics: dict) -> None:
+        """The data end, the summary, the footer and the closing magic. ``statistics``: the
+        fields of mcap's Statistics record but the chunk count (this sink's)."""
+        self._write(_record(DataEnd(self._data_crc)))
+        summary_start = self._pos
+        builder = RecordBuilder()
+        offsets = []
+
+        def group(opcode, records) -> None:
+            start = builder.count
+            for record in records:
+                record.write(builder)
+            offsets.append(SummaryOffset(group_opcode=opcode, group_start=summary_start + start,
+                                         group_length=builder.count - start))
+
+        group(Opcode.SCHEMA, schemas)
+        group(Opcode.CHANNEL, channels)
+        group(Opcode.STATISTICS, [Statistics(chunk_count=len(self._chunk_indexes),
+                                             **statistics)])
+        group(Opcode.CHUNK_INDEX, self._chunk_indexes)
+        group(Opcode.ATTACHMENT_INDEX, [])
+        group(Opcode.METADATA_INDEX, self._metadata_indexes)
+        offset_start = summary_start + builder.count
+        for offset in offsets:
+            offset.write(builder)
+        summary = builder.end()
+        crc = zlib.crc32(struct.pack("<BQQQ", Opcode.FOOTER, 8 + 8 + 4, summary_start,
+                                     offset_start), zlib.crc32(summary))
+        tail = summary + _record(Footer(summary_start=summary_start,
+                                        summary_offset_start=offset_start,
+                                        summary_crc=crc)) + MAGIC
+        self._stream.write(tail)
+        self._pos += len(tail)
+
+
+class Sink(Protocol):
+    """What :class:`ChunkedMcapWriter` writes through: a :class:`ChunkSink` or a proxy of one
+    in another process (:class:`rod_sim.io.log_process.ProcessSink`)."""
+
+    def write_start(self, header: bytes) -> None: ...
+    def write_metadata(self, name: str, record: bytes) -> None: ...
+    def write_chunk(self, raw, index: dict[int, list[int]], start: int, end: int) -> None: ...
+    def write_end(self, schemas: list, channels: list, statistics: dict) -> None: ...
+
+
+def _record(record) -> bytes:
+    builder = RecordBuilder()
+    record.write(builder)
+    return builder.end()
+
+
 class ChunkedMcapWriter:
     """Writes one MCAP file to ``stream`` (a binary file object, written in whole records and
-    never seeked). ``chunk_size`` [bytes]: a chunk is closed once its uncompressed records
-    exceed it; ``compression``: 'zstd', 'lz4' or 'none'.
+    never seeked), or through ``sink`` (then ``stream`` and ``compression`` are the sink's).
+    ``chunk_size`` [bytes]: a chunk is closed once its uncompressed records exceed it;
+    ``compression``: 'zstd', 'lz4' or 'none'.
 
     Call order as for ``mcap.writer.Writer``: :meth:`start`, then metadata, schemas, channels
     and messages, then :meth:`finish` (which does not close ``stream``)."""
 
-    def __init__(self, stream: IO[bytes], *, chunk_size: int, compression: str = "zstd"):
-        self._stream = stream
-        self._compress = _compressor(compression)
-        self._compression = "" if compression == "none" else compression
+    def __init__(self, stream: IO[bytes] | None = None, *, chunk_size: int,
+                 compression: str = "zstd", sink: Sink | None = None):
+        self._sink = ChunkSink(stream, compression) if sink is None else sink
         self._chunk_size = chunk_size
-        self._pos = 0                       # bytes written to stream
-        self._data_crc = 0                  # CRC-32 of the data section written so far
         self._schemas: list[Schema] = []
         self._channels: list[Channel] = []
-        self._metadata_indexes: list[MetadataIndex] = []
-        self._chunk_indexes: list[ChunkIndex] = []
         self._metadata_count = 0
         self._counts: dict[int, int] = {}   # channel -> messages, in order of first message
         self._message_count = 0
@@ -77,35 +189,19 @@ class ChunkedMcapWriter:
         self._chunk_start = 0
         self._chunk_end = 0
 
-    def _write(self, data: bytes) -> None:
-        if data:
-            self._data_crc = zlib.crc32(data, self._data_crc)
-            self._stream.write(data)
-            self._pos += len(data)
-
-    @staticmethod
-    def _record(record) -> bytes:
-        builder = RecordBuilder()
-        record.write(builder)
-        return builder.end()
-
     def start(self, profile: str = "", library: str = "") -> None:
-        self._write(MAGIC)
-        self._write(self._record(Header(profile, library)))
+        self._sink.write_start(_record(Header(profile, library)))
 
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
-        offset = self._pos
         self._metadata_count += 1
-        record = self._record(Metadata(name=name, metadata=data))
-        self._metadata_indexes.append(MetadataIndex(offset=offset, length=len(record), name=name))
-        self._write(record)
+        self._sink.write_metadata(name, _record(Metadata(name=name, metadata=data)))
 
     def register_schema(self, name: str, encoding: str, data: bytes) -> int:
         """The new schema's id (1, 2, ...); its record goes into the open chunk (which is
         then closed if it is full and holds a message)."""
         schema = Schema(id=len(self._schemas) + 1, data=data, encoding=encoding, name=name)
         self._schemas.append(schema)
-        self._add_record(self._record(schema))
+        self._add_record(_record(schema))
         return schema.id
 
     def register_channel(self, topic: str, message_encoding: str, schema_id: int,
@@ -116,14 +212,13 @@ class ChunkedMcapWriter:
                           message_encoding=message_encoding, schema_id=schema_id,
                           metadata=metadata)
         self._channels.append(channel)
-        self._add_record(self._record(channel))
+        self._add_record(_record(channel))
         return channel.id
 
     def _add_record(self, record: bytes) -> None:
         self._chunk += record
         if len(self._chunk) > self._chunk_size:
             self._finish_chunk()
-
     def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int,
                     sequence: int = 0) -> None:
         """Append one message record (times [ns]) to the open chunk; closes the chunk once it
@@ -158,75 +253,22 @@ class ChunkedMcapWriter:
             self._finish_chunk()
 
     def _finish_chunk(self) -> None:
-        """Write the open chunk and its message indexes (one write), if it holds a message."""
+        """Hand the open chunk to the sink, if it holds a message, and open a new one."""
         if not self._chunk_messages:
             return
-        raw = self._chunk
-        packed = self._compress(raw)
-        name = self._compression.encode()
-        length = 8 + 8 + 8 + 4 + 4 + len(name) + 8 + len(packed)
-        record = b"".join((
-            _CHUNK_HEAD.pack(Opcode.CHUNK, length, self._chunk_start, self._chunk_end, len(raw),
-                             zlib.crc32(raw)),
-            _U32.pack(len(name)), name, _U64.pack(len(packed)), packed))
-        chunk_offset = self._pos
-        index_start = chunk_offset + len(record)
-        offsets = {}
-        parts = [record]
-        at = index_start
-        for channel_id, flat in self._index.items():
-            offsets[channel_id] = at
-            size = 8 * len(flat)
-            part = _INDEX_HEAD.pack(Opcode.MESSAGE_INDEX, 2 + 4 + size, channel_id, size) \
-                + struct.pack(f"<{len(flat)}Q", *flat)
-            parts.append(part)
-            at += len(part)
-        self._chunk_indexes.append(ChunkIndex(
-            message_start_time=self._chunk_start, message_end_time=self._chunk_end,
-            chunk_start_offset=chunk_offset, chunk_length=len(record),
-            message_index_offsets=offsets, message_index_length=at - index_start,
-            compression=self._compression, compressed_size=len(packed),
-            uncompressed_size=len(raw)))
-        self._write(b"".join(parts))
+        raw, index = self._chunk, self._index
         self._chunk = bytearray()
         self._index = {}
         self._chunk_messages = 0
+        start, end = self._chunk_start, self._chunk_end
         self._chunk_start = self._chunk_end = 0
+        self._sink.write_chunk(raw, index, start, end)
 
     def finish(self) -> None:
         """Write the last chunk, the data end, the summary, the footer and the closing magic."""
         self._finish_chunk()
-        self._write(self._record(DataEnd(self._data_crc)))
-        summary_start = self._pos
-        builder = RecordBuilder()
-        offsets = []
-
-        def group(opcode, records) -> None:
-            start = builder.count
-            for record in records:
-                record.write(builder)
-            offsets.append(SummaryOffset(group_opcode=opcode, group_start=summary_start + start,
-                                         group_length=builder.count - start))
-
-        group(Opcode.SCHEMA, self._schemas)
-        group(Opcode.CHANNEL, self._channels)
-        group(Opcode.STATISTICS, [Statistics(
+        self._sink.write_end(self._schemas, self._channels, dict(
             attachment_count=0, channel_count=len(self._channels),
-            channel_message_counts=self._counts, chunk_count=len(self._chunk_indexes),
-            message_count=self._message_count, metadata_count=self._metadata_count,
-            message_start_time=self._start_time, message_end_time=self._end_time,
-            schema_count=len(self._schemas))])
-        group(Opcode.CHUNK_INDEX, self._chunk_indexes)
-        group(Opcode.ATTACHMENT_INDEX, [])
-        group(Opcode.METADATA_INDEX, self._metadata_indexes)
-        offset_start = summary_start + builder.count
-        for offset in offsets:
-            offset.write(builder)
-        summary = builder.end()
-        crc = zlib.crc32(struct.pack("<BQQQ", Opcode.FOOTER, 8 + 8 + 4, summary_start,
-                                     offset_start), zlib.crc32(summary))
-        tail = summary + self._record(Footer(summary_start=summary_start,
-                                             summary_offset_start=offset_start,
-                                             summary_crc=crc)) + MAGIC
-        self._stream.write(tail)
-        self._pos += len(tail)
+            channel_message_counts=self._counts, message_count=self._message_count,
+            metadata_count=self._metadata_count, message_start_time=self._start_time,
+            message_end_time=self._end_time, schema_count=len(self._schemas)))

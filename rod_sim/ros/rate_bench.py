@@ -18,8 +18,9 @@ arrival with a monotonic clock. After a warm-up (JIT load, discovery) the window
   so its stamps have no gaps of their own);
 - ``node_dropped_periods``: periods of backlog the node dropped in the window (it could not
   catch up with real time; its simulated time then falls behind), from its ``/diagnostics``;
-- ``node_cpu_fraction``: CPU time of the node process per wall second (Linux /proc), the
-  headroom left on its core.
+- ``node_cpu_fraction``: CPU time of the node process and its log writer process
+  (:mod:`rod_sim.io.log_process`) per wall second (Linux /proc): the node's whole cost, in
+  cores (its main thread alone is what must fit in one core).
 
 With ``--lockstep K`` the node runs in lockstep (``sync_mode``) instead and this process is
 its controller in another process: on each ``rod_states`` (taken as serialized bytes) it
@@ -57,6 +58,7 @@ import argparse
 import json
 import math
 import os
+import struct
 import subprocess
 import sys
 import tempfile
@@ -146,12 +148,25 @@ def ros_arg(value) -> str:
 
 
 def process_cpu_s(pid: int) -> float | None:
-    """CPU time [s] (user + system) used so far by process ``pid``; None where /proc is absent."""
+    """CPU time [s] (user + system) used so far by process ``pid`` and its live children (the
+    node's log writer, :mod:`rod_sim.io.log_process`); None where /proc is absent."""
+    def own(stat: str) -> tuple[int, float]:
+        fields = stat.rsplit(")", 1)[1].split()
+        return int(fields[1]), (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
     try:
-        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        _, total = own(Path(f"/proc/{pid}/stat").read_text())
     except OSError:
         return None
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit() and entry.name != str(pid):
+            try:
+                parent, cpu = own((entry / "stat").read_text())
+            except (OSError, IndexError, ValueError):
+                continue        # gone meanwhile
+            if parent == pid:
+                total += cpu
+    return total
 
 
 def summarize(wall_ns: np.ndarray, stamp_ns: np.ndarray, rate_hz: float) -> dict:
@@ -168,6 +183,10 @@ def summarize(wall_ns: np.ndarray, stamp_ns: np.ndarray, rate_hz: float) -> dict
                                 "max": float(dt_wall.max())},
             "missing_periods": int(np.sum(np.maximum(gaps - 1, 0))),
             "expected_period_ms": period_ns / 1e6}
+
+
+STAMP = struct.Struct("<iI")
+"""A std_msgs/Header's stamp (sec, nanosec) after the 4-byte CDR encapsulation header."""
 
 
 def dropped_in_window(reports: list[tuple[float, int]], start: float) -> int | None:
@@ -381,11 +400,15 @@ def measure(args) -> dict:
         try:
             node = rclpy.create_node("rate_bench_subscriber")
 
-            def on_state(msg):
+            def on_state(data: bytes):
+                # serialized: the stamp is all this needs (decoding 1024 names per message
+                # took a third of a core at 1 kHz, beside the node it measures)
                 wall.append(time.perf_counter_ns())
-                stamps.append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+                sec, nanosec = STAMP.unpack_from(data, 4)
+                stamps.append(sec * 1_000_000_000 + nanosec)
 
-            node.create_subscription(JointState, "rod_states", on_state, keep_last(10))
+            node.create_subscription(JointState, "rod_states", on_state, keep_last(10),
+                                     raw=True)
             reports: list[tuple[float, int]] = []     # the node's dropped periods, as reported
 
             def on_diagnostics(msg):

@@ -28,11 +28,12 @@ def offered_qos(names: dict[str, str], latched) -> dict[str, str]:
 
 
 def create_log(path: Path, metadata: dict[str, str], qos: dict[str, str]) -> LogWriter:
-    """A new log at ``path`` (its folder is created). Raises NodeConfigError naming the cause
-    (an existing file is refused)."""
+    """A new log at ``path`` (its folder is created), its chunks compressed and written by a
+    child process (:mod:`rod_sim.io.log_process`: off the node's thread). Raises
+    NodeConfigError naming the cause (an existing file is refused)."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        return LogWriter(path, metadata=metadata, qos=qos)
+        return LogWriter(path, metadata=metadata, qos=qos, writer_process=True)
     except FileExistsError:
         raise NodeConfigError(f"record_path: {path} exists; remove it or choose another "
                               "record_path") from None
