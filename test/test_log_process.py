@@ -48,9 +48,8 @@ def test_same_bytes_as_mcap_writer(tmp_path, compression):
 
     calls = script(11, 300)
     theirs = io.BytesIO()
-    play(Writer(theirs, chunk_size=16 * 1024, enable_data_crcs=True,
-                compression={"zstd": CompressionType.ZSTD, "none": CompressionType.NONE}[compression]),
-         calls)
+    kind = {"zstd": CompressionType.ZSTD, "none": CompressionType.NONE}[compression]
+    play(Writer(theirs, chunk_size=16 * 1024, enable_data_crcs=True, compression=kind), calls)
     path = tmp_path / "ours.mcap"
     with open(path, "xb", buffering=0) as f:
         sink = ProcessSink(f.fileno(), compression)

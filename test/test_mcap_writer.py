@@ -75,8 +75,9 @@ def test_same_bytes_as_mcap_writer(compression, seed, messages, chunk_size):
     # and mcap's reader, validating every CRC, reads the messages back in order
     sent = [c for c in calls if c[0] == "message"]
     ours.seek(0)
+    reader = make_reader(ours, validate_crcs=True)
     read = [(m.channel_id, m.log_time, m.data, m.publish_time, m.sequence)
-            for _, _, m in make_reader(ours, validate_crcs=True).iter_messages(log_time_order=False)]
+            for _, _, m in reader.iter_messages(log_time_order=False)]
     assert read == [c[1:] for c in sent]
 
 
