@@ -220,10 +220,12 @@ class ChunkedMcapWriter:
         self._chunk += record
         if len(self._chunk) > self._chunk_size:
             self._finish_chunk()
+
     def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int,
                     sequence: int = 0) -> None:
         """Append one message record (times [ns]) to the open chunk; closes the chunk once it
-        exceeds ``chunk_size``."""
+        exceeds ``chunk_size``. The file's and the chunk's time spans are kept inline, one
+        after the other (a helper call per message would cost more than the rest)."""
         chunk = self._chunk
         if self._message_count:
             if log_time < self._start_time:
