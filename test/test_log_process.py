@@ -131,3 +131,21 @@ def test_a_full_disk_in_the_writer_process_is_raised_with_its_errno():
     assert err.value.errno == errno.ENOSPC and "No space left" in str(err.value)
     log.close()                         # after the error: returns, writes nothing
     assert log._sink._proc.poll() is not None
+
+
+def test_a_writer_process_killed_mid_run_stops_the_log_with_a_clear_error(tmp_path):
+    """The child dies (an OOM kill, say): the node's next chunk raises OSError naming it, the
+    log stops, and closing it returns at once."""
+    path = tmp_path / "run.mcap"
+    log = LogWriter(path, metadata=METADATA, writer_process=True)
+    for k in range(30):                 # the first chunk is handed over
+        log.write_cdr("/rod_states", "sensor_msgs/msg/JointState", k * 1000, PAYLOAD)
+    child = log._sink._proc
+    os.kill(child.pid, signal.SIGKILL)
+    child.wait(timeout=10)
+    with pytest.raises(OSError, match="log writer process ended"):
+        for k in range(30, 200):
+            log.write_cdr("/rod_states", "sensor_msgs/msg/JointState", k * 1000, PAYLOAD)
+    start = time.monotonic()
+    log.close()
+    assert time.monotonic() - start < 5.0 and log.closed

@@ -42,3 +42,30 @@ def test_period_cost_runs_the_node_parts_without_ros(capsys):
     assert result["n"] == 8 and result["periods"] == 10 and result["record"]
     for key in ("integration_ms", "period_ms", "period_with_outputs_ms"):
         assert result[key] > 0.0, result
+
+
+def test_node_cpu_counts_its_live_children(tmp_path):
+    """A parent that only waits, with a child that burns ~0.4 s of CPU and stays alive: the
+    parent's CPU as rate_bench counts it includes the child's (the node's log writer)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from rod_sim.ros.rate_bench import process_cpu_s
+
+    burn = ("import time\nt = time.process_time()\nwhile time.process_time() - t < 0.4: pass\n"
+            "open(r'%s', 'w').close()\ntime.sleep(30)\n" % (tmp_path / "burnt"))
+    parent = subprocess.Popen([sys.executable, "-c",
+                               "import subprocess, sys; subprocess.run([sys.executable, '-c', "
+                               f"{burn!r}])"], start_new_session=True)
+    try:
+        deadline = time.monotonic() + 30
+        while not (tmp_path / "burnt").exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert (tmp_path / "burnt").exists()
+        assert 0.35 <= process_cpu_s(parent.pid) < 5.0
+    finally:
+        os.killpg(parent.pid, signal.SIGKILL)       # the child too
+        parent.wait()
