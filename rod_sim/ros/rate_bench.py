@@ -20,7 +20,8 @@ arrival with a monotonic clock. After a warm-up (JIT load, discovery) the window
   catch up with real time; its simulated time then falls behind), from its ``/diagnostics``;
 - ``node_cpu_fraction``: CPU time of the node process and its log writer process
   (:mod:`rod_sim.io.log_process`) per wall second (Linux /proc): the node's whole cost, in
-  cores (its main thread alone is what must fit in one core).
+  cores; ``node_main_thread_cpu_fraction``: its main (Python) thread's, which runs the
+  periods and must fit in one core.
 
 With ``--lockstep K`` the node runs in lockstep (``sync_mode``) instead and this process is
 its controller in another process: on each ``rod_states`` (taken as serialized bytes) it
@@ -167,6 +168,16 @@ def process_cpu_s(pid: int) -> float | None:
             if parent == pid:
                 total += cpu
     return total
+
+
+def main_thread_cpu_s(pid: int) -> float | None:
+    """CPU time [s] (user + system) used so far by the main thread of process ``pid`` (the
+    node's Python thread, which runs its periods); None where /proc is absent."""
+    try:
+        fields = Path(f"/proc/{pid}/task/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return None
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def summarize(wall_ns: np.ndarray, stamp_ns: np.ndarray, rate_hz: float) -> dict:
@@ -429,12 +440,13 @@ def measure(args) -> dict:
             if not wall:
                 raise RuntimeError("no rod_states within 60 s")
             start = time.monotonic()
-            first_kept = cpu0 = None
+            first_kept = cpu0 = main0 = None
             while time.monotonic() < start + args.warmup + args.duration:
                 executor.spin_once(timeout_sec=0.05)
                 if first_kept is None and time.monotonic() >= start + args.warmup:
+                    main0 = main_thread_cpu_s(node_proc.pid)
                     first_kept, cpu0 = len(wall), process_cpu_s(node_proc.pid)
-            cpu1 = process_cpu_s(node_proc.pid)
+            main1, cpu1 = main_thread_cpu_s(node_proc.pid), process_cpu_s(node_proc.pid)
             if viewer is not None:
                 viewer_frames = viewer.stop()
             executor.shutdown()
@@ -450,6 +462,8 @@ def measure(args) -> dict:
                            np.array(stamps[first_kept:], dtype=np.int64), args.rate)
     if cpu0 is not None and cpu1 is not None:
         result["node_cpu_fraction"] = (cpu1 - cpu0) / args.duration
+    if main0 is not None and main1 is not None:
+        result["node_main_thread_cpu_fraction"] = (main1 - main0) / args.duration
     result["node_dropped_periods"] = dropped_in_window(reports, start + args.warmup)
     if args.live_view:
         result["viewer_frames"] = viewer_frames
@@ -563,7 +577,9 @@ def main(argv: list[str] | None = None) -> int:
               f"p99 {ia['p99']:.3f} ms, max {ia['max']:.2f} ms, "
               f"{result['missing_periods']} missing periods of {result['messages']} at the "
               f"subscriber, {_count(result['node_dropped_periods'])} dropped by the node, "
-              f"node CPU {100 * result.get('node_cpu_fraction', float('nan')):.0f}% of a core"
+              f"node CPU {100 * result.get('node_cpu_fraction', float('nan')):.0f}% of a core "
+              f"(main thread "
+              f"{100 * result.get('node_main_thread_cpu_fraction', float('nan')):.0f}%)"
               + (f", live view: {result['viewer_frames']} frames received"
                  if args.live_view else ""))
     return 0
