@@ -2,8 +2,8 @@
 
 At n = 1024 and 1 kHz a node records ~200 KB of messages per period: compressing and
 checksumming them (~0.3 ms per period) is what separates its period from real time. A thread
-does not help (measured: the same real-time factor at 20 % more CPU; the thread needs the GIL
-between its C calls), a process does: :class:`ProcessSink` hands each closed chunk (its bytes
+did not help (measured: the same real-time factor at 20 % more CPU; why is not established), a
+process did (docs/bench.md): :class:`ProcessSink` hands each closed chunk (its bytes
 and message index) through a pipe to ``python -m rod_sim.io.log_process``, which runs a
 :class:`~rod_sim.io.mcap_writer.ChunkSink` on the log file (the file descriptor is inherited,
 opened by the caller). The file is the same, byte for byte.
