@@ -4,6 +4,7 @@ and the one-process demo. Each test uses its own ROS domain id (ros_domains) wit
 discovery."""
 from __future__ import annotations
 
+import os
 import signal
 import subprocess
 import sys
@@ -158,6 +159,18 @@ def test_sigterm_closes_the_log_with_its_summary(node_process, tmp_path):
     assert count > 5 * len(t)
 
 
+def _holders(path: Path) -> list[str]:
+    """The processes that have ``path`` open (Linux /proc)."""
+    found = []
+    for fds in Path("/proc").glob("[0-9]*/fd"):
+        try:
+            if any(os.readlink(fd) == str(path) for fd in fds.iterdir()):
+                found.append(fds.parent.name)
+        except OSError:             # gone, or not ours to read
+            continue
+    return found
+
+
 def test_sigkill_leaves_the_log_readable_to_its_last_chunk(node_process, tmp_path):
     log = tmp_path / "sigkill.mcap"
     node = node_process(DOMAIN_SIGKILL, scene_file=PAPER, record_path=log,
@@ -169,6 +182,12 @@ def test_sigkill_leaves_the_log_readable_to_its_last_chunk(node_process, tmp_pat
         time.sleep(0.05)
     node.proc.send_signal(signal.SIGKILL)
     assert node.proc.wait(timeout=10) == -signal.SIGKILL
+    # its log writer (a child process) writes what it was handed and ends: nothing holds the
+    # log open for long
+    deadline = time.monotonic() + 15.0
+    while _holders(log):
+        assert time.monotonic() < deadline, f"processes {_holders(log)} still hold the log"
+        time.sleep(0.05)
     with LogReader(log) as reader:
         assert not reader.complete
         assert reader.metadata()["model"] == "reduced"
