@@ -65,12 +65,16 @@ class ProcessSink:
         except (BrokenPipeError, ValueError):   # the child ended: its error is the cause
             raise self._child_error() from None
 
-    def _child_error(self) -> OSError:
+    def _wait(self) -> None:
+        """Wait for the child to end; killed after :data:`END_TIMEOUT_S`."""
         try:
             self._proc.wait(timeout=END_TIMEOUT_S)
         except subprocess.TimeoutExpired:
             self._proc.kill()
             self._proc.wait()
+
+    def _child_error(self) -> OSError:
+        self._wait()
         text = self._proc.stderr.read().decode(errors="replace").strip().splitlines()
         line = text[-1] if text else f"the log writer process ended ({self._proc.returncode})"
         code, _, message = line.partition(" ")
@@ -104,11 +108,7 @@ class ProcessSink:
             self._pipe.close()
         except OSError:
             pass
-        try:
-            self._proc.wait(timeout=END_TIMEOUT_S)
-        except subprocess.TimeoutExpired:
-            self._proc.kill()
-            self._proc.wait()
+        self._wait()
 
 
 def _read_exact(stream, size: int) -> bytes | None:

@@ -148,21 +148,24 @@ def ros_arg(value) -> str:
     return repr(value)
 
 
+def _stat_cpu(path: Path) -> tuple[int, float]:
+    """(parent pid, CPU time [s] user + system) from a /proc ``stat`` file of a process or a
+    thread."""
+    fields = path.read_text().rsplit(")", 1)[1].split()
+    return int(fields[1]), (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def process_cpu_s(pid: int) -> float | None:
     """CPU time [s] (user + system) used so far by process ``pid`` and its live children (the
     node's log writer, :mod:`rod_sim.io.log_process`); None where /proc is absent."""
-    def own(stat: str) -> tuple[int, float]:
-        fields = stat.rsplit(")", 1)[1].split()
-        return int(fields[1]), (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-
     try:
-        _, total = own(Path(f"/proc/{pid}/stat").read_text())
+        _, total = _stat_cpu(Path(f"/proc/{pid}/stat"))
     except OSError:
         return None
     for entry in Path("/proc").iterdir():
         if entry.name.isdigit() and entry.name != str(pid):
             try:
-                parent, cpu = own((entry / "stat").read_text())
+                parent, cpu = _stat_cpu(entry / "stat")
             except (OSError, IndexError, ValueError):
                 continue        # gone meanwhile
             if parent == pid:
@@ -174,10 +177,9 @@ def main_thread_cpu_s(pid: int) -> float | None:
     """CPU time [s] (user + system) used so far by the main thread of process ``pid`` (the
     node's Python thread, which runs its periods); None where /proc is absent."""
     try:
-        fields = Path(f"/proc/{pid}/task/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return _stat_cpu(Path(f"/proc/{pid}/task/{pid}/stat"))[1]
     except OSError:
         return None
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def summarize(wall_ns: np.ndarray, stamp_ns: np.ndarray, rate_hz: float) -> dict:
