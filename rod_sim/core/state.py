@@ -490,7 +490,7 @@ class State:
         rounding) when the model allows it (:attr:`ChainModel.plain_balance`: one chain on a
         fixed base, no stop, no slope rates in the state); else None (move the States)."""
         m = self.model
-        if not getattr(m, "plain_balance", False):
+        if not m.plain_balance:
             return None
         out = np.empty(2)
         chain_power.plain_net_power_pair(self.y, hf, m.n, m.dof, m.neg_l, m.params.l,
