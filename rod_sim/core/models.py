@@ -14,6 +14,7 @@ arguments and event table for a mode (cached, a pure function of it).
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Callable, NamedTuple, Protocol
 
@@ -22,7 +23,7 @@ import numpy as np
 from .scipy_tables import light_dop853_tables
 
 with light_dop853_tables():     # erk's tables without scipy.integrate's import
-    from . import erk, hinges, kernels, radau
+    from . import erk, hinges, kernels, radau, typed_call
 from .kinematics import chain_table
 from .loadlaw import Loads, make_loads
 from .matrices import ChainParams
@@ -192,6 +193,12 @@ class ModelData:
                                       nchains=len(model.seg) - 1)
         self.scratch = {f: getattr(template, f) for f in SCRATCH_FIELDS}
         self._bound: dict[int, Plan] = {}
+        self._extra_types: dict[int, object] = {}
+
+    def extra_type(self, plan: Plan):
+        """The numba type of ``plan.extra`` (:mod:`~rod_sim.core.typed_call`), ``plan`` one
+        of this data's bound plans (:meth:`plan`; None for any other)."""
+        return self._extra_types.get(id(plan))      # _bound keeps the plan: its id is stable
 
     def plan(self, mode: np.ndarray | None = None, contact: np.ndarray | None = None) -> Plan:
         """:meth:`ChainModel.plan` of the model with this data's scratch in its ``extra``."""
@@ -200,6 +207,7 @@ class ModelData:
         if bound is None:
             bound = Plan(const.extra._replace(**self.scratch), const.events, const.locked)
             self._bound[id(const)] = bound       # the model keeps ``const``: its id is stable
+            self._extra_types[id(bound)] = self.model.bound_extra_type(const, bound)
         return bound
 
 
@@ -307,6 +315,8 @@ class ChainModel:
         self.prev = np.asarray(self.chain.prev)
         self.first = self.prev < 0                  # each chain's first rod (hinge 0)
         self.loads = load_table(scene)
+        self._bound_types: dict[int, object] = {}
+        """id of a plan of :attr:`_plans` -> numba type of its Extra with scratch bound in."""
         kr = p.kappa * np.asarray(scene.hinge_rest_angle, dtype=float)
         kr_next = np.append(kr[1:], 0.0)
         kr_next[np.append(self.first[1:], True)] = 0.0
@@ -569,9 +579,35 @@ class ChainModel:
             raise ValueError(f"y: a state of {self.name} model has {self.state_size} "
                              f"components, got shape {y.shape}")
         side = self.contact_state(y, t) if contact is None else contact
-        extra = (self.new_data() if data is None else data).plan(mode, side).extra
-        self.kernel(t, y, self.chain, extra, self.loads, self._held(held), t, out)
-        return out, extra
+        if data is None:
+            extra = self.new_data().plan(mode, side).extra
+            self.kernel(t, y, self.chain, extra, self.loads, self._held(held), t, out)
+            return out, extra
+        plan = data.plan(mode, side)
+        t = float(t)
+        chain_type, loads_type, held_type, out_type = self._arg_types
+        typed_call.call(self.kernel, (typed_call.FLOAT64, typed_call.array_type(y), chain_type,
+                                      data.extra_type(plan), loads_type, held_type,
+                                      typed_call.FLOAT64, out_type),
+                        t, y, self.chain, plan.extra, self.loads, self._held(held), t, out)
+        return out, plan.extra
+
+    def bound_extra_type(self, const: Plan, bound: Plan):
+        """The numba type of ``bound.extra``: ``const`` (one of this model's plans) with a
+        :class:`ModelData`'s scratch bound in. Found once per plan of the model: every
+        ModelData's scratch arrays are made alike (dtype, rank, C order, writeable)."""
+        found = self._bound_types.get(id(const))       # _plans keeps const: its id is stable
+        if found is None:
+            found = self._bound_types[id(const)] = typed_call.typeof(bound.extra)
+        return found
+
+    @functools.cached_property
+    def _arg_types(self) -> tuple:
+        """numba types of the kernels' Chain and Loads (constants of the model) and of the
+        held rows (n + 2, 3) and dy/dt arrays made for each call (:mod:`typed_call`)."""
+        return (typed_call.typeof(self.chain), typed_call.typeof(self.loads),
+                typed_call.array_type(np.zeros((self.n + 2, 3))),
+                typed_call.array_type(np.empty(self.state_size)))
 
     _kind = kernels.KIND_REDUCED
 
