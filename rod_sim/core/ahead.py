@@ -28,6 +28,13 @@ from .integrators import IntegrationError, drive
 from .units import NS_PER_S
 
 
+def _same(a: np.ndarray, b: np.ndarray) -> bool:
+    """``np.array_equal(a, b)`` for arrays without NaN (held inputs are finite, latches
+    bool), through their bytes first: equal bytes are the common case and cost ~0.4 us
+    against ~2.5 us (n = 8)."""
+    return (a.shape == b.shape and a.tobytes() == b.tobytes()) or np.array_equal(a, b)
+
+
 class Ahead:
     """The buffer of periods integrated ahead for one simulator ``sim``. Costs one drive per
     ``k`` periods; O(k x state size) memory."""
@@ -55,8 +62,7 @@ class Ahead:
         i = self._next
         return (i < self._t_ns.size and sim.y is self._y
                 and self._t_ns[i] - sim.t_ns == period_ns
-                and np.array_equal(sim.held, self._held)
-                and np.array_equal(sim.mode, self._mode))
+                and _same(sim.held, self._held) and _same(sim.mode, self._mode))
 
     def advance(self, period_ns: int, k: int) -> bool:
         """Advance ``sim`` by one period of ``period_ns`` [ns] holding its current inputs:
