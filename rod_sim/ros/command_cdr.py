@@ -28,8 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-HEADER = b"\x00\x01\x00\x00"
-"""The encapsulation header decoded here: CDR_LE, options 0."""
+from rod_sim.io.cdr import HEADER   # the one decoded here: CDR_LE, options 0
 _U32 = struct.Struct("<I")
 _U32X2 = struct.Struct("<II")
 _F64 = np.dtype("<f8")

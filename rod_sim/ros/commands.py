@@ -1,9 +1,10 @@
 """Intake of the rod_sim node's commands (``nodal_forces``: 2 n values, ``hinge_torques``: n
 values, n + 1 with a reaction wheel, ``base_wrench``: a geometry_msgs/WrenchStamped; what they
 hold per chain: :mod:`rod_sim.ros.command_layout`; one :class:`CommandIntake` per topic): the
-serialized command is refused by its length before it is decoded, then validated; refusals are
-counted with their last reason; the latest valid command is held (zero-order hold) until
-``command_timeout``.
+serialized command is refused by its length before it is decoded (an array command in plain
+little-endian CDR straight from its bytes, :mod:`rod_sim.ros.command_cdr`; anything else by
+rclpy), then validated; refusals are counted with their last reason; the latest valid command
+is held (zero-order hold) until ``command_timeout``.
 
 ROS-light: it decodes the messages but creates no ROS entity and logs nothing; the node
 subscribes, records, logs and steps."""
