@@ -122,7 +122,9 @@ class CommandLayout:
 
     def _values(self, msg: Any, width: int) -> np.ndarray:
         """The command's finite values after ``layout.data_offset`` (a copy), checked chain by
-        chain when the layout dims name the chains; else CommandError."""
+        chain when the layout dims name the chains; else CommandError. ``msg.data``: a
+        sequence of floats (rclpy's ``array.array``) or a float64 numpy array (possibly a
+        read-only view of the received bytes: :mod:`rod_sim.ros.command_cdr`)."""
         offset = int(getattr(getattr(msg, "layout", None), "data_offset", 0) or 0)
         data = np.asarray(msg.data, dtype=float)[offset:]
         size = self.values(width)
@@ -137,7 +139,7 @@ class CommandLayout:
         bad = np.flatnonzero(~np.isfinite(data))
         if bad.size:
             i = int(bad[0])
-            raise CommandError(f"non-finite value {msg.data[i + offset]!r} at data[{i + offset}]"
+            raise CommandError(f"non-finite value {float(data[i])!r} at data[{i + offset}]"
                                + self._where(i, width))
         return data.copy()
 

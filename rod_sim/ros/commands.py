@@ -1,9 +1,10 @@
 """Intake of the rod_sim node's commands (``nodal_forces``: 2 n values, ``hinge_torques``: n
 values, n + 1 with a reaction wheel, ``base_wrench``: a geometry_msgs/WrenchStamped; what they
 hold per chain: :mod:`rod_sim.ros.command_layout`; one :class:`CommandIntake` per topic): the
-serialized command is refused by its length before it is decoded, then validated; refusals are
-counted with their last reason; the latest valid command is held (zero-order hold) until
-``command_timeout``.
+serialized command is refused by its length before it is decoded (an array command in plain
+little-endian CDR straight from its bytes, :mod:`rod_sim.ros.command_cdr`; anything else by
+rclpy), then validated; refusals are counted with their last reason; the latest valid command
+is held (zero-order hold) until ``command_timeout``.
 
 ROS-light: it decodes the messages but creates no ROS entity and logs nothing; the node
 subscribes, records, logs and steps."""
@@ -18,6 +19,7 @@ from rclpy.serialization import deserialize_message
 from std_msgs.msg import Float64MultiArray
 
 from rod_sim.core.units import NS_PER_S
+from rod_sim.ros.command_cdr import decode_float64_array
 from rod_sim.ros.command_layout import CommandLayout
 from rod_sim.ros.conversions import CommandError
 
@@ -33,6 +35,8 @@ MESSAGE_TYPES = {FORCES: "std_msgs/msg/Float64MultiArray",
 """Each command topic's ROS type name."""
 _CLASSES = {FORCES: Float64MultiArray, TORQUES: Float64MultiArray, WRENCH: WrenchStamped}
 _WIDTH = {FORCES: 2, TORQUES: 1}
+_FAST = {FORCES: decode_float64_array, TORQUES: decode_float64_array}
+"""Decoders straight from the bytes (None: not understood, decoded by rclpy instead)."""
 WRENCH_VALUES = 6
 """Doubles in a WrenchStamped (force x, y, z and torque x, y, z)."""
 
@@ -72,6 +76,7 @@ class CommandIntake:
             raise ValueError(f"layout of {self.layout.n} rods for an intake of {n}")
         self.inertial_frame = inertial_frame
         self.message_class = _CLASSES[kind]
+        self._fast_decode = _FAST.get(kind)
         self.values = (WRENCH_VALUES if kind == WRENCH
                        else self.layout.values(_WIDTH[kind]))
         """Values a valid command holds."""
@@ -98,12 +103,21 @@ class CommandIntake:
     def decode(self, data: bytes):
         """The message in the serialized ``data``, or None (counted as received and rejected)
         when it is too long for a command of :attr:`values` values (checked before any
-        decoding: an 80 MB message must not stall the node) or cannot be decoded."""
+        decoding: an 80 MB message must not stall the node) or cannot be decoded.
+
+        An array command in plain little-endian CDR is decoded straight from the bytes
+        (:func:`~rod_sim.ros.command_cdr.decode_float64_array`: an object with the message's
+        fields, ``data`` a read-only float64 view); anything that decoder does not read
+        exactly, and a wrench, is decoded by rclpy's ``deserialize_message``."""
         if len(data) > self.max_bytes:
             self.received += 1
             self.reject(f"{len(data)} bytes, more than the {self.max_bytes} a command "
                         f"of {self.values} values may take (not recorded)")
             return None
+        if self._fast_decode is not None:
+            msg = self._fast_decode(data)
+            if msg is not None:
+                return msg
         try:
             return deserialize_message(data, self.message_class)
         except Exception as exc:  # noqa: BLE001 -- any undecodable payload is one rejection
