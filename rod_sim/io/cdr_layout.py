@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -111,6 +112,38 @@ class Layout:
         # the template as bytes, copied into a bytearray per message: a slice slot is then
         # one memoryview assignment (no numpy copy of the template, no tobytes of the whole)
         object.__setattr__(self, "_bytes", self.template.tobytes())
+        object.__setattr__(self, "_fillers", {})
+
+    def filler(self, names: tuple[str, ...]) -> Callable[..., bytes]:
+        """:meth:`fill` with the slots' values given by position, in the order ``names`` (every
+        slot once), made once per order: ``filler(("stamp", "data"))(stamp, data)`` is
+        ``fill(stamp=stamp, data=data)``, without its per-call lookups (~1 us a message
+        against ~3 us at n = 8). Each value is a numpy array (its C-order bytes fill the slot;
+        ValueError when their count differs) or anything :meth:`fill` takes."""
+        found = self._fillers.get(names)
+        if found is not None:
+            return found
+        if sorted(names) != sorted(self.slots):
+            raise ValueError(f"filler: slots {sorted(self.slots)}, got {list(names)}")
+        where = [self.slots[name] for name in names]
+        if not all(type(w) is slice for w in where):    # pieces: the general path
+            def fill(*values: np.ndarray) -> bytes:
+                return self.fill(**dict(zip(names, values)))
+        else:
+            spans = tuple((w, w.stop - w.start, name) for w, name in zip(where, names))
+            template = self._bytes
+
+            def fill(*values: np.ndarray) -> bytes:
+                out = bytearray(template)
+                for (w, size, name), value in zip(spans, values):
+                    data = value.tobytes() if type(value) is np.ndarray else \
+                        memoryview(np.ascontiguousarray(value)).cast("B")
+                    if len(data) != size:       # a bytearray would resize
+                        raise ValueError(f"slot {name!r}: {len(data)} bytes for {size}")
+                    out[w] = data
+                return bytes(out)
+        self._fillers[names] = fill
+        return fill
 
     def fill(self, **values: np.ndarray) -> bytes:
         """The message with each slot's bytes: ``values[name]`` is an array whose raw

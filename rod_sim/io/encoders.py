@@ -74,27 +74,30 @@ def _joint_state_layout(frame_id: str, names: tuple[str, ...], sizes: tuple[int,
     return w.layout()
 
 
-_LAYOUT_BY_NAMES: dict[tuple, tuple[tuple[str, ...], Layout]] = {}
-"""(frame_id, id(names), sizes) -> (names, layout): :func:`_joint_state_layout` looked up
+_LAYOUT_BY_NAMES: dict[tuple, tuple[tuple[str, ...], Callable]] = {}
+"""(frame_id, id(names), sizes) -> (names, its layout's filler): :func:`_joint_state_layout` looked up
 without hashing the names (a tuple's hash is not kept: ~4 us per 1024 names at every sample);
 ``names`` come from the lru caches of :func:`chain_names` and friends, and an entry counts only
 for the very tuple it was made for (``is``), so a reused id cannot pick a wrong layout."""
 
 
+_JOINT_FIELDS = ("position", "velocity", "effort")
+
+
 def _joint_state(snapshot: Snapshot, frame_id: str, names: tuple[str, ...], *arrays) -> bytes:
-    arrays = [_f64(a) for a in arrays] + [_f64(())] * (3 - len(arrays))
-    sizes = tuple(a.size for a in arrays)
+    arrays = [_f64(a) for a in arrays]
+    sizes = tuple(a.size for a in arrays) + (0,) * (3 - len(arrays))
     key = (frame_id, id(names), sizes)
     hit = _LAYOUT_BY_NAMES.get(key)
     if hit is not None and hit[0] is names:
-        layout = hit[1]
+        fill = hit[1]
     else:
-        layout = _joint_state_layout(frame_id, names, sizes)
+        fill = _joint_state_layout(frame_id, names, sizes).filler(
+            ("stamp",) + tuple(field for field, k in zip(_JOINT_FIELDS, sizes) if k))
         if len(_LAYOUT_BY_NAMES) >= _CACHE:
             _LAYOUT_BY_NAMES.clear()
-        _LAYOUT_BY_NAMES[key] = (names, layout)
-    return layout.fill(stamp=_stamp(snapshot), **{field: a for field, a in zip(
-        ("position", "velocity", "effort"), arrays) if a.size})
+        _LAYOUT_BY_NAMES[key] = (names, fill)
+    return fill(_stamp(snapshot), *[a for a in arrays if a.size])
 
 
 @functools.lru_cache(maxsize=_CACHE)
@@ -212,8 +215,10 @@ def node_poses(snapshot: Snapshot, scene: Scene | None = None, frame_id: str = "
     poses[:, 0:2] = nodes[:, 0:2]
     poses[:, 5] = np.sin(half)
     poses[:, 6] = np.cos(half)
-    layout = _pose_array_layout(frame_id, len(nodes))
-    return layout.fill(stamp=_stamp(snapshot), **({"poses": poses} if len(nodes) else {}))
+    if not len(nodes):
+        return _pose_array_layout(frame_id, 0).fill(stamp=_stamp(snapshot))
+    return _pose_array_layout(frame_id, len(nodes)).filler(("stamp", "poses"))(
+        _stamp(snapshot), poses)
 
 
 # ----- nav_msgs/Odometry -----

@@ -162,8 +162,9 @@ class PeriodRunner:
 
     def note_state(self, snap: Snapshot) -> None:
         """Count a published state's end slopes in the extremes."""
-        self.max_alpha = max(self.max_alpha, float(np.max(np.abs(snap.alpha), initial=0.0)))
-        self.max_beta = max(self.max_beta, float(np.max(np.abs(snap.beta), initial=0.0)))
+        if snap.alpha.size:     # the arrays' own max: np.max's wrapper costs as much again
+            self.max_alpha = max(self.max_alpha, float(np.abs(snap.alpha).max()))
+            self.max_beta = max(self.max_beta, float(np.abs(snap.beta).max()))
 
     def run(self, held, at_start: Callable[[int], None] | None = None) -> Snapshot | None:
         """One period holding ``held`` ((n, 3) [X, Y, T], (n + 2, 3) with the base's and the
