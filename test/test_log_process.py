@@ -149,3 +149,176 @@ def test_a_writer_process_killed_mid_run_stops_the_log_with_a_clear_error(tmp_pa
     start = time.monotonic()
     log.close()
     assert time.monotonic() - start < 5.0 and log.closed
+
+
+# ----- the shared ring (chunks' bytes in shared memory, frames through the pipe) -----
+
+def _mcap_bytes(calls, chunk_size: int, compression: str = "zstd", finish: bool = True) -> bytes:
+    """The oracle: mcap's own writer fed ``calls``; without ``finish``, the bytes it has
+    written when the caller is killed (the chunks closed so far, no summary)."""
+    from mcap.writer import CompressionType
+
+    kind = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
+            "none": CompressionType.NONE}[compression]
+    out = io.BytesIO()
+    writer = Writer(out, chunk_size=chunk_size, enable_data_crcs=True, compression=kind)
+    if finish:
+        play(writer, calls)
+    else:
+        writer.finish = lambda: None
+        play(writer, calls)
+    return out.getvalue()
+
+
+def _small(calls, limit: int) -> list[tuple]:
+    """``calls`` with every payload cut to ``limit`` bytes (no chunk larger than the ring)."""
+    return [c if c[0] != "message" else c[:3] + (c[3][:limit],) + c[4:] for c in calls]
+
+
+def _play_in_thread(writer, calls):
+    import threading
+
+    errors = []
+
+    def run():
+        try:
+            play(writer, calls)
+        except BaseException as exc:    # noqa: BLE001 (handed to the test)
+            errors.append(exc)
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    return thread, errors
+
+
+@pytest.mark.parametrize("compression", ["zstd", "lz4", "none"])
+def test_same_bytes_through_a_small_ring_that_wraps_around(tmp_path, compression):
+    """Chunks of ~16-21 KiB through a 40 KiB ring: most start at its beginning again."""
+    from rod_sim.io.log_process import ProcessSink
+
+    calls = _small(script(21, 600), 5000)
+    path = tmp_path / "ours.mcap"
+    with open(path, "xb", buffering=0) as f:
+        sink = ProcessSink(f.fileno(), compression, ring_bytes=40 * 1024)
+        play(ChunkedMcapWriter(chunk_size=16 * 1024, sink=sink), calls)
+    assert path.read_bytes() == _mcap_bytes(calls, 16 * 1024, compression)
+    assert sink.pipe_chunks == 0 and sink.ring_chunks > 20 and sink.wraps > 10
+
+
+def test_a_chunk_larger_than_the_ring_goes_through_the_pipe(tmp_path):
+    """Messages of 70000 bytes make chunks larger than a 64 KiB ring: those go through the
+    pipe, the others through the ring, in order."""
+    from rod_sim.io.log_process import ProcessSink
+
+    calls = script(11, 300)
+    path = tmp_path / "ours.mcap"
+    with open(path, "xb", buffering=0) as f:
+        sink = ProcessSink(f.fileno(), "zstd", ring_bytes=64 * 1024)
+        play(ChunkedMcapWriter(chunk_size=16 * 1024, sink=sink), calls)
+    assert path.read_bytes() == _mcap_bytes(calls, 16 * 1024)
+    assert sink.pipe_chunks > 3 and sink.ring_chunks > 3
+
+
+def test_a_full_ring_makes_the_parent_wait_for_the_child(tmp_path):
+    """The child stopped (SIGSTOP): the parent fills the 64 KiB ring and waits, overwriting
+    nothing the child has not written; the child continued, the log is whole."""
+    from rod_sim.io.log_process import ProcessSink
+
+    calls = _small(script(31, 400), 5000)
+    path = tmp_path / "ours.mcap"
+    with open(path, "xb", buffering=0) as f:
+        sink = ProcessSink(f.fileno(), "zstd", ring_bytes=64 * 1024)
+        os.kill(sink._proc.pid, signal.SIGSTOP)
+        try:
+            thread, errors = _play_in_thread(ChunkedMcapWriter(chunk_size=16 * 1024,
+                                                               sink=sink), calls)
+            thread.join(1.0)
+            assert thread.is_alive() and not errors, "the parent did not wait for ring space"
+            assert 2 <= sink.ring_chunks <= 4     # what 64 KiB holds of chunks > 16 KiB
+        finally:
+            os.kill(sink._proc.pid, signal.SIGCONT)
+        thread.join(60.0)
+    assert not thread.is_alive() and not errors, errors
+    assert sink.ring_waits > 5
+    assert path.read_bytes() == _mcap_bytes(calls, 16 * 1024)
+
+
+def test_more_chunks_than_the_ack_pipe_holds_acknowledgements(tmp_path):
+    """One message per chunk (chunk_size 1), 30000 of them, the child stopped at first: the
+    parent stops at what the ack pipe can hold (the child never blocks writing an
+    acknowledgement while the parent waits to write a frame) and the log is whole."""
+    from rod_sim.io.log_process import ProcessSink
+
+    calls = _small(script(41, 30000), 12)
+    path = tmp_path / "ours.mcap"
+    with open(path, "xb", buffering=0) as f:
+        sink = ProcessSink(f.fileno(), "none")
+        os.kill(sink._proc.pid, signal.SIGSTOP)
+        thread, errors = _play_in_thread(ChunkedMcapWriter(chunk_size=1, sink=sink), calls)
+        time.sleep(1.0)
+        os.kill(sink._proc.pid, signal.SIGCONT)
+        thread.join(90.0)
+        if thread.is_alive():               # a deadlock: end it, then fail
+            sink._proc.kill()
+            thread.join(10.0)
+            pytest.fail("parent and writer process wait for each other")
+    assert not errors, errors
+    assert sink.ring_chunks == 30000 and sink.ring_waits > 0
+    assert path.read_bytes() == _mcap_bytes(calls, 1, "none")
+
+
+KILLED_WITH_A_FULL_RING = textwrap.dedent("""
+    import os, signal, sys
+    sys.path.insert(0, sys.argv[2])
+    from test_mcap_writer import play, script
+    from rod_sim.io.log_process import ProcessSink
+    from rod_sim.io.mcap_writer import ChunkedMcapWriter
+    fd = os.open(sys.argv[1], os.O_WRONLY | os.O_CREAT | os.O_EXCL)
+    sink = ProcessSink(fd, "zstd")
+    os.kill(sink._proc.pid, signal.SIGSTOP)         # it has written nothing yet
+    writer = ChunkedMcapWriter(chunk_size=16 * 1024, sink=sink)
+    writer.finish = lambda: None                    # killed before the summary
+    calls = [c if c[0] != "message" else c[:3] + (c[3][:5000],) + c[4:]
+             for c in script(51, 500)]
+    play(writer, calls)
+    print(sink._proc.pid, sink.ring_chunks, flush=True)
+    os.kill(os.getpid(), signal.SIGKILL)
+""")
+
+
+def test_a_killed_parent_with_chunks_in_the_ring_leaves_them_all(tmp_path):
+    """The parent killed while every chunk it handed over is still in the ring (the child
+    stopped until then): the child writes them all and ends; the file is what mcap's writer
+    had written at that point, byte for byte."""
+    path = tmp_path / "killed.mcap"
+    proc = subprocess.run([sys.executable, "-c", KILLED_WITH_A_FULL_RING, str(path),
+                           str(Path(__file__).parent)],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == -signal.SIGKILL, proc.stderr
+    writer_pid, in_ring = map(int, proc.stdout.split())
+    os.kill(writer_pid, signal.SIGCONT)
+    assert _gone(writer_pid, 30.0), "the log writer process outlived its parent"
+    assert in_ring > 20
+    calls = _small(script(51, 500), 5000)
+    assert path.read_bytes() == _mcap_bytes(calls, 16 * 1024, finish=False)
+
+
+def test_a_writer_process_killed_while_the_parent_waits_for_ring_space(tmp_path):
+    """The parent waits for ring space (the child stopped) and the child is killed: the wait
+    ends with OSError naming it, not a hang."""
+    from rod_sim.io.log_process import ProcessSink
+
+    calls = _small(script(61, 400), 5000)
+    with open(tmp_path / "run.mcap", "xb", buffering=0) as f:
+        sink = ProcessSink(f.fileno(), "zstd", ring_bytes=64 * 1024)
+        os.kill(sink._proc.pid, signal.SIGSTOP)
+        thread, errors = _play_in_thread(ChunkedMcapWriter(chunk_size=16 * 1024, sink=sink),
+                                         calls)
+        thread.join(1.0)
+        assert thread.is_alive() and sink.ring_chunks >= 2
+        os.kill(sink._proc.pid, signal.SIGKILL)
+        thread.join(10.0)
+        assert not thread.is_alive(), "the parent still waits for a dead writer process"
+        sink.close()
+    assert len(errors) == 1 and isinstance(errors[0], OSError), errors
+    assert "log writer process ended" in str(errors[0])
