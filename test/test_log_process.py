@@ -322,3 +322,42 @@ def test_a_writer_process_killed_while_the_parent_waits_for_ring_space(tmp_path)
         sink.close()
     assert len(errors) == 1 and isinstance(errors[0], OSError), errors
     assert "log writer process ended" in str(errors[0])
+
+
+def _chunk_sizes(data: bytes) -> list[int]:
+    """The uncompressed sizes [bytes] of the chunks of an MCAP file, read by mcap's reader."""
+    summary = make_reader(io.BytesIO(data)).get_summary()
+    return [c.uncompressed_size for c in summary.chunk_indexes]
+
+
+def test_chunks_at_the_ring_boundaries(tmp_path):
+    """One message per chunk, sizes planned against an 8 KiB ring: a chunk ending exactly at
+    the ring's end stays there, one a byte longer starts the ring again, a chunk of the
+    whole ring fits, one a byte larger goes through the pipe; the bytes are mcap's."""
+    from rod_sim.io.log_process import ProcessSink
+
+    ring, record = 8192, 31             # a message record: 31 bytes and the payload
+
+    def calls_for(payloads):
+        head = [("metadata", "rod_sim", {"a": "b"}),
+                ("schema", "pkg/msg/T", "ros2msg", b"uint8[] data"),
+                ("channel", "/t", "cdr", 1, {})]
+        return head + [("message", 1, 1000 * k, bytes([k % 251]) * size, 1000 * k, k)
+                       for k, size in enumerate(payloads)]
+
+    first = _chunk_sizes(_mcap_bytes(calls_for([100]), 1, "none"))[0]  # schema, channel, 1 message
+    sizes = [first, ring - first,       # ends exactly at the ring's end: no wrap
+             1000, ring - 1000 + 1,     # one byte past the end: wraps to the start
+             999,                       # ends exactly at the end again
+             ring,                      # the whole ring
+             ring + 1,                  # larger than the ring: through the pipe
+             500, 40]
+    calls = calls_for([100] + [s - record for s in sizes[1:]])
+    theirs = _mcap_bytes(calls, 1, "none")
+    assert _chunk_sizes(theirs) == sizes
+    path = tmp_path / "ours.mcap"
+    with open(path, "xb", buffering=0) as f:
+        sink = ProcessSink(f.fileno(), "none", ring_bytes=ring)
+        play(ChunkedMcapWriter(chunk_size=1, sink=sink), calls)
+    assert (sink.wraps, sink.pipe_chunks, sink.ring_chunks) == (1, 1, 8)   # the 4th wraps
+    assert path.read_bytes() == theirs
