@@ -10,9 +10,11 @@ opened by the caller). The file is the same, byte for byte.
 
 The hand-over. A chunk's bytes (256 KiB) go into a ring of shared memory (:data:`RING_BYTES`,
 an anonymous ``memfd`` the parent creates and maps; the child inherits the descriptor and maps
-it too): one copy, ~30 us of the parent's CPU, where a write into a pipe cost ~70-100 us (it
-copies into the kernel and the child copies out again; docs/bench.md). Each chunk lies in one
-contiguous piece of the ring. Through the *frame pipe* (the child's stdin) go only the frames:
+it too): one copy (~25-30 us) and a small frame (~20-30 us). Measured with the node's caches as
+cold as between two of its periods (``python -m rod_sim.io.handover_bench``, docs/bench.md):
+57-78 us of the parent's CPU per chunk, against 92-109 us through the pipe, which copies it
+into the kernel (and the child copies it out again). Each chunk lies in one contiguous piece
+of the ring. Through the *frame pipe* (the child's stdin) go only the frames:
 ``<u64 length><pickle of (method, args, size, at)>``, where ``size`` [bytes] is the length of
 the payload (the chunk's records) and ``at`` the ring position [bytes, counted from the start
 of the log, never wrapped] at which it starts (its offset in the ring is ``at % ring size``),
@@ -56,8 +58,9 @@ child."""
 RING_BYTES = 8 << 20
 """[bytes] shared memory for the chunks handed over: 32 chunks of 256 KiB (~45 ms of the
 node's log at n = 1024, 1 kHz), so that the child falling behind for a while (a slow disk
-write, the machine busy) does not stop the node. Pages are allocated as they are first
-written."""
+write, the machine busy) does not stop the node. Its pages are allocated when the log opens
+(MAP_POPULATE; the first 32 chunks cost the parent ~3x otherwise) and kept until it closes.
+A 2 MiB ring cost the same per chunk (measured, within the noise)."""
 END_TIMEOUT_S = 30.0
 """[s] the parent waits for the child to write the last chunks and the summary."""
 _F_SETPIPE_SZ = 1031
@@ -71,6 +74,8 @@ class ProcessSink:
     through the frame pipe, as on a system without ``os.memfd_create``)."""
 
     def __init__(self, fd: int, compression: str, ring_bytes: int = RING_BYTES):
+        if ring_bytes < 0:
+            raise ValueError(f"ring_bytes must be >= 0 (got {ring_bytes})")
         if not hasattr(os, "memfd_create"):
             ring_bytes = 0
         self._ring = None
@@ -108,6 +113,9 @@ class ProcessSink:
                     os.close(f)
         self._acks = ack_read
         self._ack_bytes = b""
+        self._ack_poll = select.poll()          # poll, not select: any descriptor number
+        if ack_read >= 0:
+            self._ack_poll.register(ack_read, select.POLLIN)
         # acknowledgements unread in the ack pipe at most, so that the child never blocks
         # writing one (while the parent might block writing a frame it does not read)
         self._max_pending = (fcntl.fcntl(ack_read, _F_GETPIPE_SZ) // _LEN.size - 1
@@ -147,7 +155,7 @@ class ProcessSink:
         """Take in the child's acknowledgements; with ``wait``, wait for one first (the
         child's end, EOF, raises its error: this wait is bounded by the child's life)."""
         if wait:
-            select.select([self._acks], [], [])
+            self._ack_poll.poll()       # readable: an acknowledgement, or EOF
         try:
             data = os.read(self._acks, 1 << 16)
         except BlockingIOError:
@@ -217,7 +225,7 @@ class ProcessSink:
         if self._failed is not None:
             raise self._failed
         size = len(raw)
-        if not 0 < size <= self._ring_size:
+        if self._ring is None or not 0 < size <= self._ring_size:     # no ring, or closed
             self.pipe_chunks += 1
             self._send("write_chunk", (index, start, end), raw)
             return
