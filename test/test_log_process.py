@@ -361,3 +361,15 @@ def test_chunks_at_the_ring_boundaries(tmp_path):
         play(ChunkedMcapWriter(chunk_size=1, sink=sink), calls)
     assert (sink.wraps, sink.pipe_chunks, sink.ring_chunks) == (1, 1, 8)   # the 4th wraps
     assert path.read_bytes() == theirs
+
+
+def test_handover_bench_runs_and_both_ways_write_the_same_file(capsys):
+    """A smoke test: its own check (the two files equal) passes; bad counts exit 2."""
+    from rod_sim.io import handover_bench
+
+    assert handover_bench.main(["--rounds", "1", "--chunks", "3", "--gap-ms", "0"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("ring: CPU per 256 KiB chunk") and "\npipe: CPU per 256 KiB" in out
+    with pytest.raises(SystemExit) as exit_:
+        handover_bench.main(["--rounds", "0"])
+    assert exit_.value.code == 2
