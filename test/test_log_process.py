@@ -162,11 +162,9 @@ def _mcap_bytes(calls, chunk_size: int, compression: str = "zstd", finish: bool 
             "none": CompressionType.NONE}[compression]
     out = io.BytesIO()
     writer = Writer(out, chunk_size=chunk_size, enable_data_crcs=True, compression=kind)
-    if finish:
-        play(writer, calls)
-    else:
-        writer.finish = lambda: None
-        play(writer, calls)
+    if not finish:
+        writer.finish = lambda: None        # play() ends with finish()
+    play(writer, calls)
     return out.getvalue()
 
 
