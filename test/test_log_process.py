@@ -224,6 +224,7 @@ def test_a_chunk_larger_than_the_ring_goes_through_the_pipe(tmp_path):
     assert sink.pipe_chunks > 3 and sink.ring_chunks > 3
 
 
+@pytest.mark.timing     # signals (SIGSTOP, SIGKILL) and waits
 def test_a_full_ring_makes_the_parent_wait_for_the_child(tmp_path):
     """The child stopped (SIGSTOP): the parent fills the 64 KiB ring and waits, overwriting
     nothing the child has not written; the child continued, the log is whole."""
@@ -249,6 +250,7 @@ def test_a_full_ring_makes_the_parent_wait_for_the_child(tmp_path):
     assert path.read_bytes() == _mcap_bytes(calls, 16 * 1024)
 
 
+@pytest.mark.timing     # signals (SIGSTOP, SIGKILL) and waits
 def test_more_chunks_than_the_ack_pipe_holds_acknowledgements(tmp_path):
     """One message per chunk (chunk_size 1), 30000 of them, the child stopped at first: the
     parent stops at what the ack pipe can hold (the child never blocks writing an
@@ -297,6 +299,7 @@ KILLED_WITH_A_FULL_RING = textwrap.dedent("""
 """)
 
 
+@pytest.mark.timing     # signals (SIGSTOP, SIGKILL) and waits
 def test_a_killed_parent_with_chunks_in_the_ring_leaves_them_all(tmp_path):
     """The parent killed while every chunk it handed over is still in the ring (the child
     stopped until then): the child writes them all and ends; the file is what mcap's writer
@@ -316,6 +319,7 @@ def test_a_killed_parent_with_chunks_in_the_ring_leaves_them_all(tmp_path):
     assert path.read_bytes() == _mcap_bytes(calls, 16 * 1024, finish=False)
 
 
+@pytest.mark.timing     # signals (SIGSTOP, SIGKILL) and waits
 def test_a_writer_process_killed_while_the_parent_waits_for_ring_space(tmp_path):
     """The parent waits for ring space (the child stopped) and the child is killed: the wait
     ends with OSError naming it, not a hang."""
