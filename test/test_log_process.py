@@ -149,3 +149,247 @@ def test_a_writer_process_killed_mid_run_stops_the_log_with_a_clear_error(tmp_pa
     start = time.monotonic()
     log.close()
     assert time.monotonic() - start < 5.0 and log.closed
+
+
+# ----- the shared ring (chunks' bytes in shared memory, frames through the pipe) -----
+
+def _mcap_bytes(calls, chunk_size: int, compression: str = "zstd", finish: bool = True) -> bytes:
+    """The oracle: mcap's own writer fed ``calls``; without ``finish``, the bytes it has
+    written when the caller is killed (the chunks closed so far, no summary)."""
+    from mcap.writer import CompressionType
+
+    kind = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
+            "none": CompressionType.NONE}[compression]
+    out = io.BytesIO()
+    writer = Writer(out, chunk_size=chunk_size, enable_data_crcs=True, compression=kind)
+    if not finish:
+        writer.finish = lambda: None        # play() ends with finish()
+    play(writer, calls)
+    return out.getvalue()
+
+
+def _small(calls, limit: int) -> list[tuple]:
+    """``calls`` with every payload cut to ``limit`` bytes (no chunk larger than the ring)."""
+    return [c if c[0] != "message" else c[:3] + (c[3][:limit],) + c[4:] for c in calls]
+
+
+def _play_in_thread(writer, calls):
+    import threading
+
+    errors = []
+
+    def run():
+        try:
+            play(writer, calls)
+        except BaseException as exc:    # noqa: BLE001 (handed to the test)
+            errors.append(exc)
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    return thread, errors
+
+
+def _until(condition, timeout: float = 30.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.01)
+
+
+@pytest.mark.parametrize("compression", ["zstd", "lz4", "none"])
+def test_same_bytes_through_a_small_ring_that_wraps_around(tmp_path, compression):
+    """Chunks of ~16-21 KiB through a 40 KiB ring: most start at its beginning again."""
+    from rod_sim.io.log_process import ProcessSink
+
+    calls = _small(script(21, 600), 5000)
+    path = tmp_path / "ours.mcap"
+    with open(path, "xb", buffering=0) as f:
+        sink = ProcessSink(f.fileno(), compression, ring_bytes=40 * 1024)
+        play(ChunkedMcapWriter(chunk_size=16 * 1024, sink=sink), calls)
+    assert path.read_bytes() == _mcap_bytes(calls, 16 * 1024, compression)
+    assert sink.pipe_chunks == 0 and sink.ring_chunks > 20 and sink.wraps > 10
+
+
+def test_a_chunk_larger_than_the_ring_goes_through_the_pipe(tmp_path):
+    """Messages of 70000 bytes make chunks larger than a 64 KiB ring: those go through the
+    pipe, the others through the ring, in order."""
+    from rod_sim.io.log_process import ProcessSink
+
+    calls = script(11, 300)
+    path = tmp_path / "ours.mcap"
+    with open(path, "xb", buffering=0) as f:
+        sink = ProcessSink(f.fileno(), "zstd", ring_bytes=64 * 1024)
+        play(ChunkedMcapWriter(chunk_size=16 * 1024, sink=sink), calls)
+    assert path.read_bytes() == _mcap_bytes(calls, 16 * 1024)
+    assert sink.pipe_chunks > 3 and sink.ring_chunks > 3
+
+
+@pytest.mark.timing     # signals (SIGSTOP, SIGKILL) and waits
+def test_a_full_ring_makes_the_parent_wait_for_the_child(tmp_path):
+    """The child stopped (SIGSTOP): the parent fills the 64 KiB ring and waits, overwriting
+    nothing the child has not written; the child continued, the log is whole."""
+    from rod_sim.io.log_process import ProcessSink
+
+    calls = _small(script(31, 400), 5000)
+    path = tmp_path / "ours.mcap"
+    with open(path, "xb", buffering=0) as f:
+        sink = ProcessSink(f.fileno(), "zstd", ring_bytes=64 * 1024)
+        os.kill(sink._proc.pid, signal.SIGSTOP)
+        try:
+            thread, errors = _play_in_thread(ChunkedMcapWriter(chunk_size=16 * 1024,
+                                                               sink=sink), calls)
+            _until(lambda: sink.ring_chunks >= 2 or errors)
+            thread.join(0.5)
+            assert thread.is_alive() and not errors, "the parent did not wait for ring space"
+            assert 2 <= sink.ring_chunks <= 3     # what 64 KiB holds of chunks > 16 KiB
+        finally:
+            os.kill(sink._proc.pid, signal.SIGCONT)
+        thread.join(60.0)
+    assert not thread.is_alive() and not errors, errors
+    assert sink.ring_waits >= 1
+    assert path.read_bytes() == _mcap_bytes(calls, 16 * 1024)
+
+
+@pytest.mark.timing     # signals (SIGSTOP, SIGKILL) and waits
+def test_more_chunks_than_the_ack_pipe_holds_acknowledgements(tmp_path):
+    """One message per chunk (chunk_size 1), 30000 of them, the child stopped at first: the
+    parent stops at what the ack pipe can hold (the child never blocks writing an
+    acknowledgement while the parent waits to write a frame) and the log is whole."""
+    from rod_sim.io.log_process import ProcessSink
+
+    calls = _small(script(41, 30000), 12)
+    path = tmp_path / "ours.mcap"
+    with open(path, "xb", buffering=0) as f:
+        sink = ProcessSink(f.fileno(), "none")
+        os.kill(sink._proc.pid, signal.SIGSTOP)
+        thread, errors = _play_in_thread(ChunkedMcapWriter(chunk_size=1, sink=sink), calls)
+        try:        # the parent stops at the bound (its frames fill 1 MiB of pipe later)
+            _until(lambda: sink.ring_chunks >= sink._max_pending or errors)
+            thread.join(0.3)
+            assert sink.ring_chunks == sink._max_pending and thread.is_alive()
+        finally:
+            os.kill(sink._proc.pid, signal.SIGCONT)
+        thread.join(90.0)
+        if thread.is_alive():               # a deadlock: end it, then fail
+            sink._proc.kill()
+            thread.join(10.0)
+            pytest.fail("parent and writer process wait for each other")
+    assert not errors, errors
+    assert sink.ring_chunks == 30000 and sink.ring_waits > 0
+    assert path.read_bytes() == _mcap_bytes(calls, 1, "none")
+
+
+KILLED_WITH_A_FULL_RING = textwrap.dedent("""
+    import os, signal, sys
+    sys.path.insert(0, sys.argv[2])
+    from test_mcap_writer import play, script
+    from rod_sim.io.log_process import ProcessSink
+    from rod_sim.io.mcap_writer import ChunkedMcapWriter
+    fd = os.open(sys.argv[1], os.O_WRONLY | os.O_CREAT | os.O_EXCL)
+    sink = ProcessSink(fd, "zstd")
+    os.kill(sink._proc.pid, signal.SIGSTOP)         # it has written nothing yet
+    print(sink._proc.pid, flush=True)
+    writer = ChunkedMcapWriter(chunk_size=16 * 1024, sink=sink)
+    writer.finish = lambda: None                    # killed before the summary
+    calls = [c if c[0] != "message" else c[:3] + (c[3][:5000],) + c[4:]
+             for c in script(51, 500)]
+    play(writer, calls)
+    print(sink.ring_chunks, flush=True)
+    os.kill(os.getpid(), signal.SIGKILL)
+""")
+
+
+@pytest.mark.timing     # signals (SIGSTOP, SIGKILL) and waits
+def test_a_killed_parent_with_chunks_in_the_ring_leaves_them_all(tmp_path):
+    """The parent killed while every chunk it handed over is still in the ring (the child
+    stopped until then): the child writes them all and ends; the file is what mcap's writer
+    had written at that point, byte for byte."""
+    path = tmp_path / "killed.mcap"
+    proc = subprocess.run([sys.executable, "-c", KILLED_WITH_A_FULL_RING, str(path),
+                           str(Path(__file__).parent)],
+                          capture_output=True, text=True, timeout=120)
+    lines = proc.stdout.split()
+    if lines:                       # continued in any case: no stopped process left
+        os.kill(int(lines[0]), signal.SIGCONT)
+    assert proc.returncode == -signal.SIGKILL, proc.stderr
+    writer_pid, in_ring = map(int, lines)
+    assert _gone(writer_pid, 30.0), "the log writer process outlived its parent"
+    assert in_ring > 20
+    calls = _small(script(51, 500), 5000)
+    assert path.read_bytes() == _mcap_bytes(calls, 16 * 1024, finish=False)
+
+
+@pytest.mark.timing     # signals (SIGSTOP, SIGKILL) and waits
+def test_a_writer_process_killed_while_the_parent_waits_for_ring_space(tmp_path):
+    """The parent waits for ring space (the child stopped) and the child is killed: the wait
+    ends with OSError naming it, not a hang."""
+    from rod_sim.io.log_process import ProcessSink
+
+    calls = _small(script(61, 400), 5000)
+    with open(tmp_path / "run.mcap", "xb", buffering=0) as f:
+        sink = ProcessSink(f.fileno(), "zstd", ring_bytes=64 * 1024)
+        os.kill(sink._proc.pid, signal.SIGSTOP)
+        try:
+            thread, errors = _play_in_thread(ChunkedMcapWriter(chunk_size=16 * 1024,
+                                                               sink=sink), calls)
+            _until(lambda: sink.ring_chunks >= 2 or errors)
+            thread.join(0.3)
+            assert thread.is_alive() and not errors and sink.ring_chunks <= 3
+        finally:                            # killed in any case: no stopped process left
+            os.kill(sink._proc.pid, signal.SIGKILL)
+        thread.join(10.0)
+        assert not thread.is_alive(), "the parent still waits for a dead writer process"
+        sink.close()
+    assert len(errors) == 1 and isinstance(errors[0], OSError), errors
+    assert "log writer process ended" in str(errors[0])
+
+
+def _chunk_sizes(data: bytes) -> list[int]:
+    """The uncompressed sizes [bytes] of the chunks of an MCAP file, read by mcap's reader."""
+    summary = make_reader(io.BytesIO(data)).get_summary()
+    return [c.uncompressed_size for c in summary.chunk_indexes]
+
+
+def test_chunks_at_the_ring_boundaries(tmp_path):
+    """One message per chunk, sizes planned against an 8 KiB ring: a chunk ending exactly at
+    the ring's end stays there, one a byte longer starts the ring again, a chunk of the
+    whole ring fits, one a byte larger goes through the pipe; the bytes are mcap's."""
+    from rod_sim.io.log_process import ProcessSink
+
+    ring, record = 8192, 31             # a message record: 31 bytes and the payload
+
+    def calls_for(payloads):
+        head = [("metadata", "rod_sim", {"a": "b"}),
+                ("schema", "pkg/msg/T", "ros2msg", b"uint8[] data"),
+                ("channel", "/t", "cdr", 1, {})]
+        return head + [("message", 1, 1000 * k, bytes([k % 251]) * size, 1000 * k, k)
+                       for k, size in enumerate(payloads)]
+
+    first = _chunk_sizes(_mcap_bytes(calls_for([100]), 1, "none"))[0]  # schema, channel, 1 message
+    sizes = [first, ring - first,       # ends exactly at the ring's end: no wrap
+             1000, ring - 1000 + 1,     # one byte past the end: wraps to the start
+             999,                       # ends exactly at the end again
+             ring,                      # the whole ring
+             ring + 1,                  # larger than the ring: through the pipe
+             500, 40]
+    calls = calls_for([100] + [s - record for s in sizes[1:]])
+    theirs = _mcap_bytes(calls, 1, "none")
+    assert _chunk_sizes(theirs) == sizes
+    path = tmp_path / "ours.mcap"
+    with open(path, "xb", buffering=0) as f:
+        sink = ProcessSink(f.fileno(), "none", ring_bytes=ring)
+        play(ChunkedMcapWriter(chunk_size=1, sink=sink), calls)
+    assert (sink.wraps, sink.pipe_chunks, sink.ring_chunks) == (1, 1, 8)   # the 4th wraps
+    assert path.read_bytes() == theirs
+
+
+def test_handover_bench_runs_and_both_ways_write_the_same_file(capsys):
+    """A smoke test: its own check (the two files equal) passes; bad counts exit 2."""
+    from rod_sim.io import handover_bench
+
+    assert handover_bench.main(["--rounds", "1", "--chunks", "3", "--gap-ms", "0"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("ring: CPU per 256 KiB chunk") and "\npipe: CPU per 256 KiB" in out
+    with pytest.raises(SystemExit) as exit_:
+        handover_bench.main(["--rounds", "0"])
+    assert exit_.value.code == 2
