@@ -71,6 +71,24 @@ def test_log_writer_through_a_process_writes_what_it_writes_in_process(tmp_path)
         assert sum(1 for _ in make_reader(f, validate_crcs=True).iter_messages()) == 400
 
 
+def test_the_writer_process_imports_the_parents_package_whatever_the_directory(tmp_path,
+                                                                               monkeypatch):
+    """A working directory holding another ``rod_sim`` (another checkout, an older version
+    whose frames differ) must not be what the child runs: here that one exits at once."""
+    decoy = tmp_path / "decoy" / "rod_sim" / "io"
+    decoy.mkdir(parents=True)
+    (decoy.parent / "__init__.py").write_text("")
+    (decoy / "__init__.py").write_text("")
+    (decoy / "log_process.py").write_text("raise SystemExit('the decoy ran')\n")
+    monkeypatch.chdir(decoy.parents[1])
+    path = tmp_path / "log.mcap"
+    with LogWriter(path, metadata=METADATA, writer_process=True) as log:
+        for k in range(100):
+            log.write_cdr("/rod_states", "sensor_msgs/msg/JointState", k * 1000, PAYLOAD)
+    with open(path, "rb") as f:
+        assert sum(1 for _ in make_reader(f, validate_crcs=True).iter_messages()) == 100
+
+
 CHILD = textwrap.dedent("""
     import os, signal, sys, time
     from rod_sim.io.log_writer import LogWriter

@@ -48,6 +48,7 @@ import signal
 import struct
 import subprocess
 import sys
+from pathlib import Path
 
 from rod_sim.io.mcap_writer import ChunkSink
 
@@ -66,6 +67,21 @@ END_TIMEOUT_S = 30.0
 """[s] the parent waits for the child to write the last chunks and the summary."""
 _F_SETPIPE_SZ = 1031
 _F_GETPIPE_SZ = 1032
+
+
+PACKAGE_ROOT = str(Path(__file__).resolve().parents[2])
+"""The directory holding this ``rod_sim`` package: first on the child's path."""
+
+
+def child_environment(environ=os.environ) -> dict[str, str]:
+    """The child's environment: ``environ`` with :data:`PACKAGE_ROOT` first on PYTHONPATH, so
+    that the child imports the parent's own ``rod_sim`` (the frames are this module's
+    protocol) whatever the working directory (the child runs ``python -P``, which does not
+    put it on the path) or the installed copy."""
+    env = dict(environ)
+    rest = env.get("PYTHONPATH")
+    env["PYTHONPATH"] = PACKAGE_ROOT + (os.pathsep + rest if rest else "")
+    return env
 
 
 class ProcessSink:
@@ -97,11 +113,11 @@ class ProcessSink:
                 ack_read, ack_write = os.pipe()
                 os.set_blocking(ack_read, False)
             self._proc = subprocess.Popen(
-                [sys.executable, "-m", "rod_sim.io.log_process", str(fd), compression,
+                [sys.executable, "-P", "-m", "rod_sim.io.log_process", str(fd), compression,
                  str(ring_fd), str(ack_write)],
                 stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                 pass_fds=tuple(f for f in (fd, ring_fd, ack_write) if f >= 0),
-                start_new_session=True)
+                start_new_session=True, env=child_environment())
         except BaseException:
             if ack_read >= 0:
                 os.close(ack_read)
