@@ -207,6 +207,18 @@ def _play_in_thread(writer, calls):
     return thread, errors
 
 
+def _waiting_on_a_stopped_child(sink, calls):
+    """Stop ``sink``'s child (SIGSTOP) and play ``calls`` (chunks of 16 KiB) in a thread
+    until the parent waits for ring space: (the thread, its errors). The caller resumes or
+    kills the child in any case."""
+    os.kill(sink._proc.pid, signal.SIGSTOP)
+    thread, errors = _play_in_thread(ChunkedMcapWriter(chunk_size=16 * 1024, sink=sink), calls)
+    _until(lambda: sink.ring_chunks >= 2 or errors)
+    thread.join(0.5)
+    assert thread.is_alive() and not errors, "the parent did not wait for ring space"
+    return thread, errors
+
+
 def _until(condition, timeout: float = 30.0) -> None:
     deadline = time.monotonic() + timeout
     while not condition():
@@ -252,13 +264,8 @@ def test_a_full_ring_makes_the_parent_wait_for_the_child(tmp_path):
     path = tmp_path / "ours.mcap"
     with open(path, "xb", buffering=0) as f:
         sink = ProcessSink(f.fileno(), "zstd", ring_bytes=64 * 1024)
-        os.kill(sink._proc.pid, signal.SIGSTOP)
         try:
-            thread, errors = _play_in_thread(ChunkedMcapWriter(chunk_size=16 * 1024,
-                                                               sink=sink), calls)
-            _until(lambda: sink.ring_chunks >= 2 or errors)
-            thread.join(0.5)
-            assert thread.is_alive() and not errors, "the parent did not wait for ring space"
+            thread, errors = _waiting_on_a_stopped_child(sink, calls)
             assert 2 <= sink.ring_chunks <= 3     # what 64 KiB holds of chunks > 16 KiB
         finally:
             os.kill(sink._proc.pid, signal.SIGCONT)
@@ -346,13 +353,9 @@ def test_a_writer_process_killed_while_the_parent_waits_for_ring_space(tmp_path)
     calls = _small(script(61, 400), 5000)
     with open(tmp_path / "run.mcap", "xb", buffering=0) as f:
         sink = ProcessSink(f.fileno(), "zstd", ring_bytes=64 * 1024)
-        os.kill(sink._proc.pid, signal.SIGSTOP)
         try:
-            thread, errors = _play_in_thread(ChunkedMcapWriter(chunk_size=16 * 1024,
-                                                               sink=sink), calls)
-            _until(lambda: sink.ring_chunks >= 2 or errors)
-            thread.join(0.3)
-            assert thread.is_alive() and not errors and sink.ring_chunks <= 3
+            thread, errors = _waiting_on_a_stopped_child(sink, calls)
+            assert sink.ring_chunks <= 3
         finally:                            # killed in any case: no stopped process left
             os.kill(sink._proc.pid, signal.SIGKILL)
         thread.join(10.0)
