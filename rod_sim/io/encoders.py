@@ -75,10 +75,11 @@ def _joint_state_layout(frame_id: str, names: tuple[str, ...], sizes: tuple[int,
 
 
 _LAYOUT_BY_NAMES: dict[tuple, tuple[tuple[str, ...], Callable]] = {}
-"""(frame_id, id(names), sizes) -> (names, its layout's filler): :func:`_joint_state_layout` looked up
-without hashing the names (a tuple's hash is not kept: ~4 us per 1024 names at every sample);
-``names`` come from the lru caches of :func:`chain_names` and friends, and an entry counts only
-for the very tuple it was made for (``is``), so a reused id cannot pick a wrong layout."""
+"""(frame_id, id(names), sizes) -> (names, its layout's filler): :func:`_joint_state_layout`
+looked up without hashing the names (a tuple's hash is not kept: ~4 us per 1024 names at every
+sample); ``names`` come from the lru caches of :func:`chain_names` and friends, and an entry
+counts only for the very tuple it was made for (``is``), so a reused id cannot pick a wrong
+layout."""
 
 
 _JOINT_FIELDS = ("position", "velocity", "effort")
