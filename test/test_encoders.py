@@ -179,3 +179,41 @@ def test_layout_fill_refuses_a_slot_of_the_wrong_size():
     for wrong in (np.arange(2.0), np.arange(4.0)):
         with pytest.raises(ValueError):
             layout.fill(stamp=stamp, data=wrong)
+
+
+def test_layout_filler_gives_the_dict_path_bytes_in_any_argument_order():
+    """``Layout.filler`` (values by position, the message joined from the template's constant
+    runs and the slots' bytes): the bytes of the project's dict encoder for the same
+    JointState whatever order the slots are named in, from any array (strided, a list, read
+    only); a slot of the wrong size is an error, as with ``fill``."""
+    from rod_sim.io import cdr
+    from rod_sim.io.cdr_layout import LayoutWriter
+
+    names = ("j_0", "j_1", "j_2")
+    w = LayoutWriter()
+    w.header("world")
+    w.string_seq(names)
+    for field in ("position", "velocity", "effort"):
+        w.f64_seq(field, 3)
+    layout = w.layout()
+    pos, vel = np.array([0.5, -0.0, 1e-300]), np.arange(6.0)[::2]       # vel: strided
+    eff = [math.inf, -2.5, 3.0]
+    stamp = np.array([7, 123456789], dtype="<u4")
+    ro = pos.copy()
+    ro.flags.writeable = False
+    want = cdr.encoder("sensor_msgs/msg/JointState")({
+        "header": {"stamp": {"sec": 7, "nanosec": 123456789}, "frame_id": "world"},
+        "name": list(names), "position": pos.tolist(), "velocity": vel.tolist(),
+        "effort": eff})
+    values = {"stamp": stamp, "position": ro, "velocity": vel, "effort": eff}
+    for order in (("stamp", "position", "velocity", "effort"),
+                  ("effort", "stamp", "velocity", "position")):
+        fill = layout.filler(order)
+        assert fill(*(values[k] for k in order)) == want
+        assert layout.filler(order) is fill                     # made once per order
+    fill = layout.filler(("stamp", "position", "velocity", "effort"))
+    for wrong in (np.arange(2.0), np.arange(4.0)):
+        with pytest.raises(ValueError):
+            fill(stamp, wrong, vel, eff)
+    with pytest.raises(ValueError):
+        layout.filler(("stamp", "position"))                    # every slot, once

