@@ -22,15 +22,13 @@ import time
 
 import numpy as np
 
+from rod_sim.io.log_format import CHUNK_SIZE
 from rod_sim.io.log_process import RING_BYTES, ProcessSink
-
-CHUNK_BYTES = 256 * 1024
-"""[bytes] a chunk as the node's log closes them (rod_sim.io.log_format.CHUNK_SIZE)."""
 
 
 def _chunks(count: int = 8) -> list[bytearray]:
     rng = np.random.default_rng(0)
-    return [bytearray(np.cumsum(rng.normal(size=CHUNK_BYTES // 8) * 1e-3).tobytes())
+    return [bytearray(np.cumsum(rng.normal(size=CHUNK_SIZE // 8) * 1e-3).tobytes())
             for _ in range(count)]
 
 
