@@ -70,8 +70,8 @@ def test_log_lines_of_every_severity_never_raise(harness, tmp_path):
     h.spin_for(0.3)
     assert h.node.sim_time > t, "the node stopped after a rejection"
     for level in ("error", "info", "warning", "info", "error"):   # one key: one call site
-        h.node._throttle_until.clear()
-        h.node._log_throttled("one key", level, f"a {level} line")
+        h.node._throttle.until.clear()
+        h.node._throttle.log("one key", level, f"a {level} line")
 
 
 def test_huge_command_fails_fast_with_a_named_cause_and_services_answer(harness, tmp_path):
@@ -149,7 +149,7 @@ def test_recording_after_reset_skips_existing_files_and_reports_failures(harness
     def refuse(path):
         raise NodeConfigError(f"record_path: cannot create {path}")
 
-    h.node._open_log = refuse
+    h.node._recording._open_log = refuse
     response = h.call(Trigger, "/rod_sim/reset", Trigger.Request())
     assert "recording stopped" in response.message and h.node.log_path is None
     level, message, _ = h.node.diagnostic_report().status()

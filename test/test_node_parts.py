@@ -1,9 +1,13 @@
 """The parts the node is built from, without a ROS graph: command intake (length check,
 decoding, validation, counts, hold and timeout), the node's log (refusal of an existing file,
-rolling to the next free name, a write error), parameter texts and the /clock QoS."""
+rolling to the next free name, a write error, its metadata, received commands as they came),
+parameter texts and the /clock QoS."""
 from __future__ import annotations
 
+import struct
 import time
+from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -13,13 +17,18 @@ from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from std_msgs.msg import Float64MultiArray
 
+from rod_sim.api import load_scene
 from rod_sim.io.log_reader import LogReader
 from rod_sim.io.log_writer import LogWriter
+from rod_sim.io.scene_yaml import scene_to_yaml
 from rod_sim.ros.commands import COMMAND_SLACK_BYTES, CommandIntake
 from rod_sim.ros.errors import NodeConfigError
 from rod_sim.ros.parameters import PARAMETERS, parameter_error, validate_change
-from rod_sim.ros.qos import clock_qos
-from rod_sim.ros.recording import NodeRecording, create_log, offered_qos
+from rod_sim.ros.outputs import OUTPUTS
+from rod_sim.ros.qos import LOCKSTEP_STATE_DEPTH, clock_qos
+from rod_sim.ros.recording import NodeRecording, create_log, node_log_opener, offered_qos
+
+SMALL = Path(__file__).resolve().parents[1] / "config" / "small_chain.yaml"
 
 TOPIC, TYPE = "/nodal_forces", "std_msgs/msg/Float64MultiArray"
 META = {"scene": "name: t", "model": "reduced", "integrator": "dop853-jit"}
@@ -144,6 +153,53 @@ def test_offered_qos_keeps_hinge_events_deeper():
     assert "\n  depth: 100\n" in qos["/ns/hinge_events"]
     assert "\n  depth: 1\n" in qos["/ns/applied_forces"]
     assert all("\n  durability: transient_local\n" in text for text in qos.values())
+
+
+def test_a_received_command_is_recorded_as_it_came_when_little_endian(tmp_path):
+    """Little-endian CDR: the bytes as they came (not the decoded message, which differs here
+    on purpose); big-endian CDR: the decoded message, re-encoded little-endian."""
+    rec = NodeRecording(lambda path: create_log(path, META, {}), Lines())
+    rec.start(tmp_path / "run.mcap")
+    little = serialize_message(command([1.0, 2.0]))
+    rec.record_received(TOPIC, TYPE, 5, command([9.0]), little)
+    big = (b"\x00\x00\x00\x00" + struct.pack(">III", 0, 0, 2) + b"\x00" * 4
+           + struct.pack(">dd", 3.0, 4.0))                   # the same message, big-endian
+    rec.record_received(TOPIC, TYPE, 6, command([3.0, 4.0]), big)
+    rec.close()
+    with LogReader(tmp_path / "run.mcap") as reader:
+        raw = list(reader.raw_messages())
+        decoded = [list(msg.data) for _, _, msg in reader.messages()]
+    assert [(topic, t) for topic, t, _ in raw] == [(TOPIC, 5), (TOPIC, 6)]
+    assert raw[0][2] == little
+    assert raw[1][2][:2] == b"\x00\x01" and decoded == [[1.0, 2.0], [3.0, 4.0]]
+
+
+def test_a_node_log_has_the_run_metadata_and_the_mode_when_it_opens(tmp_path):
+    scene = load_scene(SMALL)
+    settings = SimpleNamespace(rtol=1e-8, rate_hz=250.0, sync_mode=True)
+    modes = iter(["lockstep", "real time x2"])
+    names = {o.name: f"/ns/{o.name}" for o in OUTPUTS}
+    open_log = node_log_opener(scene, "reduced", "dop853-jit rtol=1e-08", settings,
+                               lambda: next(modes), "/ns/rod_sim", names)
+    for name in ("first.mcap", "second.mcap"):
+        log = open_log(tmp_path / "sub" / name)
+        log.write("/ns/applied_forces", TYPE, 0, {"data": [1.0]})
+        log.write("/ns/joint_states", "sensor_msgs/msg/JointState", 0, {"name": ["a"]})
+        log.write(TOPIC, TYPE, 0, {"data": [1.0]})
+        log.close()
+    for name, mode in (("first.mcap", "lockstep"), ("second.mcap", "real time x2")):
+        with LogReader(tmp_path / "sub" / name) as reader:
+            meta, channels = reader.metadata(), reader.channels()
+        assert {k: meta[k] for k in ("scene", "model", "integrator", "rtol", "rate_hz", "mode",
+                                     "node", "source")} == {
+            "scene": scene_to_yaml(scene), "model": "reduced",
+            "integrator": "dop853-jit rtol=1e-08", "rtol": "1e-08", "rate_hz": "250.0",
+            "mode": mode, "node": "/ns/rod_sim", "source": "rod_sim node"}
+        qos = {topic: info.metadata["offered_qos_profiles"] for topic, info in channels.items()}
+        assert "\n  depth: 1\n" in qos["/ns/applied_forces"]
+        assert f"\n  depth: {LOCKSTEP_STATE_DEPTH}\n" in qos["/ns/joint_states"]
+        assert "transient_local" in qos["/ns/joint_states"]
+        assert "durability: volatile" in qos[TOPIC]
 
 
 # ----- parameters and QoS -----

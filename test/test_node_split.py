@@ -1,29 +1,42 @@
 """The parts the node is wired from (issue 26 item 3), each without a ROS graph: the inputs
 (held inputs, timeout, lockstep queue), the run control (pause, step, busy, interrupted),
-the output table (one encoding to every sink, dividers, applied inputs on change) and one
-control period (ledger, failure)."""
+the output table (one encoding to every sink, dividers, applied inputs on change), one
+control period (ledger, failure), a period with its outputs (the stepper), the diagnostics
+(the monitor), the service adapters, the resolved topic names and /clock."""
 from __future__ import annotations
 
 import asyncio
 import sys
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from rclpy.serialization import serialize_message
-from std_msgs.msg import Float64MultiArray
+from rclpy.qos import ReliabilityPolicy
+from rclpy.serialization import deserialize_message, serialize_message
+from rosgraph_msgs.msg import Clock as RosClock
+from std_msgs.msg import Float64MultiArray, String
 
+from rod_sim.api import load_scene
 from rod_sim.core.integrators import make_integrator
 from rod_sim.core.models import make_model
+from rod_sim.core.scene import Scene
 from rod_sim.core.simulator import Simulator
 from rod_sim.io import encoders, topics
 from rod_sim.ros import budget
-from rod_sim.ros.commands import FORCES, TORQUES
-from rod_sim.ros.control import RunControl
+from rod_sim.ros.command_layout import CommandLayout
+from rod_sim.ros.commands import FORCES, TORQUES, WRENCH
+from rod_sim.ros.control import RunControl, answering, executor_turn
 from rod_sim.ros.inputs import Inputs
-from rod_sim.ros.outputs import OUTPUTS, STATE_TOPICS, Outputs, divider
+from rod_sim.ros.monitor import NodeMonitor
+from rod_sim.ros.outputs import (OUTPUTS, STATE_TOPICS, Outputs, SimClock, create_clock, divider,
+                                 rate_dividers, resolved_names)
+from rod_sim.ros.pacing import Pacing
 from rod_sim.ros.period import PeriodRunner
+from rod_sim.ros.stepper import Stepper
+
+REPO = Path(__file__).resolve().parents[1]
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_encoders import make_scene, make_snapshot  # noqa: E402
@@ -171,3 +184,190 @@ def test_period_runner_books_the_ledger_and_reports_a_failure():
                                                  (1000.0, 30.0, 33), (10.0, 50.0, 1)])
 def test_divider(rate, topic_rate, k):
     assert divider(rate, topic_rate) == k
+
+
+# ----- the node's remaining parts (issue 26 item 3: the node is wiring) -----
+
+class Clock:
+    """A /clock publisher with one subscriber, writing into ``events``."""
+
+    def __init__(self, events):
+        self.events = events
+
+    def get_subscription_count(self):
+        return 1
+
+    def publish(self, data):
+        self.events.append(("/clock", data))
+
+
+class Named(Sink):
+    """A publisher of ``name`` writing (name, data) into a shared list."""
+
+    def __init__(self, name, items):
+        self.name, self.items = name, items
+
+    def publish(self, data):
+        self.items.append((self.name, data))
+
+
+def float_array(data: bytes) -> list[float]:
+    return list(deserialize_message(data, Float64MultiArray).data)
+
+
+def stepper_of(scene, published, log, period_ns=10_000_000):
+    model = make_model("reduced", scene)
+    sim = Simulator(model, make_integrator("dop853-jit"))
+    period = PeriodRunner(sim, budget.fallback(sim.integrator, 0.5), period_ns)
+    pubs = {o.name: Named(o.name, published) for o in OUTPUTS}
+    outputs = Outputs(scene, {o.name: f"/ns/{o.name}" for o in OUTPUTS}, pubs, log, period_ns,
+                      "world")
+    return Stepper(period, outputs, SimClock(Clock(published), 0.1)), sim
+
+
+def test_stepper_sends_the_applied_inputs_then_clock_then_the_state():
+    scene = Scene.from_dict({
+        "name": "loaded", "rods": {"count": 3, "length": 2.0, "mass_per_length": 3.0,
+                                   "bending_stiffness": 1e5},
+        "nodes": {"mass": 3.0}, "hinges": {"stiffness": 100.0, "damping": 0.01},
+        "loads": [{"node": 3, "axis": "y", "shape": "constant", "amplitude": 20.0,
+                   "start": 0.0}]})
+    published, log = [], Sink()
+    stepper, sim = stepper_of(scene, published, log)
+    held = np.array([[1.0, 1.0, 0.5], [1.0, 1.0, 0.25], [1.0, 1.0, 0.0]])
+    assert stepper.run(held)
+    names = [name for name, _ in published]
+    assert names[:3] == ["applied_forces", "applied_torques", "/clock"]     # no base topic
+    assert set(names[3:]) == {n for n in STATE_TOPICS if n != "base_odometry"}
+    data = dict(published)
+    # the applied forces: the commands plus the scripted load (20 N in y on node 3)
+    assert float_array(data["applied_forces"]) == [1, 1, 1, 1, 1, 21]
+    assert float_array(data["applied_torques"]) == [0.5, 0.25, 0.0]
+    clock = deserialize_message(data["/clock"], RosClock).clock
+    assert (clock.sec, clock.nanosec) == (0, 10_000_000) and sim.t_ns == 10_000_000
+    assert [t for _, _, t, _ in log.items] == [0, 0] + [10_000_000] * (len(names) - 3)
+    del published[:], log.items[:]
+    assert not stepper.run(np.full((3, 3), 1e300))             # fails: nothing of its end
+    assert [name for name, _ in published] == ["applied_forces", "applied_torques"]
+    assert stepper.period.error and sim.t_ns == 10_000_000
+    del published[:], log.items[:]
+    stepper.start()                                         # (a reset): all again, at t now
+    stepper.applied(sim.t_ns)                               # unchanged, but published again
+    names = [name for name, _ in published]
+    assert names[:2] == ["robot_description", "scene"] and names[2] == "/clock"
+    assert names[-2:] == ["applied_forces", "applied_torques"]
+    assert {t for _, _, t, _ in log.items} == {10_000_000}
+    del published[:], log.items[:]           # the period's hinge events last, at their time
+    event = SimpleNamespace(to_dict=lambda: {"t": 0.015, "event": "latch", "hinge": 1})
+    stepper.period.take_events = lambda: [event]
+    assert stepper.run(held)
+    assert published[-1][0] == "hinge_events" and '"event": "latch"' in str(published[-1][1])
+    assert log.items[-1][0] == "/ns/hinge_events" and log.items[-1][2] == 15_000_000
+
+
+def test_stepper_sends_the_free_base_row_and_the_wheel():
+    scene = load_scene(REPO / "config" / "two_wing_deployment.yaml")
+    published = []
+    stepper, sim = stepper_of(scene, published, Sink())
+    n = scene.n
+    held = np.zeros((n + 2, 3))
+    held[n] = [1.0, 2.0, 3.0]                     # base wrench in Oxy [N, N, N m]
+    held[n + 1, 2] = 4.0                          # wheel motor torque [N m]
+    sim.set_held(held)
+    stepper.applied(0)
+    assert float_array(dict(published)["applied_base"]) == [1.0, 2.0, 3.0, 4.0]
+
+
+def test_period_events_are_taken_once():
+    scene = make_scene(2)
+    model = make_model("reduced", scene)
+    sim = Simulator(model, make_integrator("dop853-jit"))
+    period = PeriodRunner(sim, budget.fallback(sim.integrator, 0.5), 10_000_000)
+    assert period.take_events() == []
+    sim.events.extend(["a", "b"])
+    assert period.take_events() == ["a", "b"] and period.take_events() == []
+    sim.events.append("c")
+    assert period.take_events() == ["c"]
+
+
+def test_service_adapters_and_the_failure_line():
+    answer = answering(lambda request: f"got {request.data}")
+    response = answer(SimpleNamespace(data=True), SimpleNamespace(success=False, message=""))
+    assert (response.success, response.message) == (True, "got True")
+    wakes = []
+    coro = executor_turn(SimpleNamespace(trigger=lambda: wakes.append(1)))()
+    coro.send(None)                                   # triggered, then handed back once
+    assert wakes == [1]
+    with pytest.raises(StopIteration):
+        coro.send(None)
+    control = RunControl(sync_mode=True, start_paused=False, rtf=1.0)
+    assert control.fail("boom at t = 1 s") == ("integration failed: boom at t = 1 s; "
+                                               "simulation paused (call ~/reset, or ~/pause "
+                                               "false to retry)")
+    assert control.paused and control.error == "boom at t = 1 s"
+
+
+def test_topic_names_dividers_and_clock():
+    names = resolved_names(lambda t: t if t.startswith("/") else f"/ns/{t}",
+                           (FORCES, TORQUES))
+    assert names["diagnostics"] == "/diagnostics" and names["joint_states"] == "/ns/joint_states"
+    assert names[FORCES] == "/ns/nodal_forces" and names[TORQUES] == "/ns/hinge_torques"
+    assert len(names) == len(OUTPUTS) + 2
+    assert rate_dividers(SimpleNamespace(rate_hz=100.0, markers_rate_hz=25.0)) == {"markers": 4}
+    assert rate_dividers(SimpleNamespace(rate_hz=100.0, markers_rate_hz=0.0)) == {"markers": 1}
+    made = []
+    node = SimpleNamespace(create_publisher=lambda *a, **k: made.append((a, k)) or "pub")
+    off = create_clock(node, SimpleNamespace(publish_clock=False, clock_reliability="reliable"))
+    assert off.publisher is None and not made
+    on = create_clock(node, SimpleNamespace(publish_clock=True, clock_reliability="best_effort"))
+    (cls, topic, qos), kwargs = made[0]
+    assert on.publisher == "pub" and topic == "/clock" and cls is RosClock
+    assert qos.reliability == ReliabilityPolicy.BEST_EFFORT and "event_callbacks" in kwargs
+
+
+def test_outputs_follow_a_new_frame_id_and_inputs_name_their_topics():
+    scene = make_scene(2)
+    pubs, log = {o.name: Sink() for o in OUTPUTS}, Sink()
+    out = Outputs(scene, {o.name: f"/ns/{o.name}" for o in OUTPUTS}, pubs, log, 10_000_000,
+                  "world")
+    out.set_frame_id("map", 30_000_000)
+    urdf = deserialize_message(pubs["robot_description"].items[0], String).data
+    assert out.frame_id == "map" and '<link name="map"' in urdf and "world" not in urdf
+    assert not log.items and not pubs["scene"].items          # published only, not recorded
+    assert Inputs(2, 0.5).named_topics() == (FORCES, TORQUES)
+    free = Inputs(10, 0.5, CommandLayout((("left", 5), ("right", 5)), "free", True))
+    assert free.named_topics() == (FORCES, TORQUES, WRENCH)
+
+
+def test_node_monitor_reports_the_parts_and_starts_a_new_window(tmp_path):
+    scene = make_scene(3)
+    model = make_model("reduced", scene)
+    sim = Simulator(model, make_integrator("dop853-jit"))
+    work = budget.fallback(sim.integrator, 0.5)
+    period = PeriodRunner(sim, work, 10_000_000)
+    control, inputs = RunControl(False, False, 1.0), Inputs(3, 0.5)
+    recording = SimpleNamespace(path=None, error=None)       # a NodeRecording not recording
+    monitor = NodeMonitor(control, period, inputs, Pacing(10_000_000, 1.0), recording, 100.0,
+                          "/ns/rod_sim")
+    for _ in range(2):
+        period.note_state(period.run(np.zeros((3, 2))))
+    values = monitor.report().values()
+    assert {k: values[k] for k in ("scene", "rate_hz", "recording", "node", "sim_time_s",
+                                   "steps_in_window", "mode", "state", "work_budget")} == {
+        "scene": "chain_3", "rate_hz": "100", "recording": "off", "node": "/ns/rod_sim",
+        "sim_time_s": "0.020000000", "steps_in_window": "2", "mode": "real time x1",
+        "state": "running", "work_budget": work.describe()}
+    assert values["nodal_forces_received"] == "0"            # the inputs' counts too
+    recording.path = tmp_path / "run.mcap"
+    message = monitor.message()
+    status = message["status"][0]
+    assert status["name"] == "rod_sim: simulation" and status["hardware_id"] == "chain_3"
+    got = {kv["key"]: kv["value"] for kv in status["values"]}
+    assert got["recording"] == str(tmp_path / "run.mcap") and status["level"] == 0
+    assert message["header"]["stamp"] == {"sec": 0, "nanosec": 20_000_000}
+    period.note_state(make_snapshot(scene, seed=1))
+    assert period.max_alpha > 0
+    monitor.new_window()
+    assert period.max_alpha == 0.0 and period.meter.steps == 0
+    recording.error = "disk full"
+    assert monitor.report().status()[:2] == (2, "recording stopped: disk full")

@@ -7,12 +7,22 @@ and the count of resets. :meth:`RunControl.step` is ``~/step``'s body: ``count``
 paused, in slices of at most ``slice_s`` of wall time; between slices it awaits ``yield_turn()``
 so the executor serves the other callbacks (``~/pause``, ``~/reset``, diagnostics, commands),
 which may interrupt it. Every call gets an answer: done, refused (busy, not paused) or
-interrupted.
+interrupted. :func:`answering` and :func:`executor_turn` adapt these to rclpy's service
+callbacks.
 """
 from __future__ import annotations
 
 import time
 from typing import Awaitable, Callable
+
+STEP_SLICE_S = 0.1
+"""[s] of wall time a ``~/step`` call steps before the executor serves others (the slice of
+:meth:`RunControl.step`, at most ``max_period_cost``)."""
+WAITING_LOG_PERIOD_S = 3.0
+"""[s] wall period of the :meth:`RunControl.waiting_line` log line while waiting at t = 0."""
+WAITING_REPUBLISH_PERIOD_S = 0.5
+"""[s] wall period of the waiting state published again in lockstep before the first
+command."""
 
 
 class NextTurn:
@@ -21,6 +31,25 @@ class NextTurn:
 
     def __await__(self):
         yield
+
+
+def executor_turn(wake) -> Callable[[], Awaitable]:
+    """``yield_turn`` of :meth:`RunControl.step` in an rclpy service coroutine: trigger the
+    guard condition ``wake`` (so that the executor wakes up to resume the coroutine), then
+    hand control back to the executor once (:class:`NextTurn`)."""
+    async def yield_turn():
+        wake.trigger()
+        await NextTurn()
+    return yield_turn
+
+
+def answering(action: Callable[[object], str]):
+    """An rclpy callback of a std_srvs ``Trigger`` or ``SetBool`` service that always
+    succeeds: its response's message is ``action(request)``."""
+    def callback(request, response):
+        response.success, response.message = True, action(request)
+        return response
+    return callback
 
 
 class RunControl:
@@ -64,9 +93,12 @@ class RunControl:
         self.start_hold = self.paused = False
         return True
 
-    def fail(self, reason: str) -> None:
+    def fail(self, reason: str) -> str:
+        """An integration failure (``reason``) pauses the run; returns the ERROR line."""
         self.paused = True
         self.error = reason
+        return (f"integration failed: {reason}; simulation paused (call ~/reset, or ~/pause "
+                "false to retry)")
 
     def reset(self) -> None:
         self.resets += 1

@@ -25,6 +25,8 @@ from rod_sim.ros.command_layout import CommandLayout, to_inertial
 from rod_sim.ros.commands import FORCES, TORQUES, WRENCH, Command, CommandIntake
 
 _WHAT = {FORCES: "command force", TORQUES: "hinge torques", WRENCH: "base wrench"}
+SYNC_BATCH = 16
+"""Lockstep periods stepped per callback (:meth:`Inputs.drain`) before yielding to others."""
 
 
 class Inputs:
@@ -63,6 +65,12 @@ class Inputs:
             intake.clear()
         self.queue.clear()
         self._queued = {}
+
+    def named_topics(self) -> tuple[str, ...]:
+        """The command topics the node's start-up line names: base_wrench only with a free
+        base (it is subscribed in any case, so that a wrench sent to another base is
+        counted)."""
+        return (FORCES, TORQUES) + ((WRENCH,) if self.layout.free_base else ())
 
     def any_command(self) -> bool:
         """Whether a valid command (any topic) is held since the start or the last reset."""
@@ -126,7 +134,7 @@ class Inputs:
         return self._compose(latest[FORCES], latest[TORQUES], latest[WRENCH],
                              wrench is not None and wrench.body)
 
-    def drain(self, step, running, deadline_ns: int, batch: int) -> bool:
+    def drain(self, step, running, deadline_ns: int, batch: int = SYNC_BATCH) -> bool:
         """Lockstep: ``step(held)`` the periods of up to ``batch`` queued commands while
         ``running()`` and before monotonic ``deadline_ns``; returns whether commands are left
         to step later (so that other callbacks are served in between)."""

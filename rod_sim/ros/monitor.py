@@ -4,6 +4,8 @@
   losses), the integral taken per control period (split at the hinge events).
 - :class:`DiagnosticReport`: the values of one ``diagnostics`` message and its level/message,
   from plain numbers the node collects.
+- :class:`NodeMonitor`: the report and the ``diagnostics`` message of the node's parts over a
+  window of wall time, and the start of the next window.
 """
 from __future__ import annotations
 
@@ -11,6 +13,7 @@ import math
 from dataclasses import dataclass, field
 
 from rod_sim.core.validity import SMALL_BENDING_RAD, EnergyBalance
+from rod_sim.io import topics
 from rod_sim.io.topics import DIAGNOSTIC_ERROR, DIAGNOSTIC_OK, DIAGNOSTIC_WARN
 
 BENDING_WARN_RAD = SMALL_BENDING_RAD
@@ -20,6 +23,8 @@ RTF_WARN_FRACTION = 0.9
 """A measured real-time factor below this fraction of the target is reported (WARN)."""
 MIN_RTF_WINDOW_S = 0.5
 """[s] of wall time a window needs before its measured real-time factor is judged."""
+DIAGNOSTICS_PERIOD_S = 1.0
+"""[s] wall period of the node's ``diagnostics`` (a window of :class:`NodeMonitor`)."""
 
 
 class EnergyLedger(EnergyBalance):
@@ -132,32 +137,62 @@ class DiagnosticReport:
         return values
 
 
-def node_report(control, period, inputs, dropped: int, sim_time: float, period_ns: int,
-                integrator: str, recording_error: str | None, extra: dict[str, str]
-                ) -> DiagnosticReport:
-    """The report of a node's parts: its :class:`~rod_sim.ros.control.RunControl`,
-    :class:`~rod_sim.ros.period.PeriodRunner` and :class:`~rod_sim.ros.inputs.Inputs`, the
-    ``dropped`` periods, the simulated time [s], the control period [ns], and ``extra``
-    values."""
-    import time
+class NodeMonitor:
+    """The node's ``diagnostics`` from its parts, without ROS: ``control``
+    (:class:`~rod_sim.ros.control.RunControl`), ``period``
+    (:class:`~rod_sim.ros.period.PeriodRunner`: its simulator, work budget, meter, ledgers and
+    extremes), ``inputs`` (:class:`~rod_sim.ros.inputs.Inputs`), ``pacing``
+    (:class:`~rod_sim.ros.pacing.Pacing`: its ``dropped`` periods), ``recording``
+    (:class:`~rod_sim.ros.recording.NodeRecording`: the log and why it stopped), ``rate_hz``
+    [Hz] (the control rate) and ``node`` (the node's full name)."""
 
-    wall = time.monotonic_ns()
-    meter, ledger = period.meter, period.ledger
-    mean_ms, max_ms = meter.step_cost_ms()
-    rtf_target = None if control.sync_mode else control.rtf
-    intakes = inputs.intakes.values()
-    return DiagnosticReport(
-        mode=control.mode(), state=control.state(inputs.any_command()), sim_time=sim_time,
-        rtf_target=rtf_target, rtf_measured=meter.real_time_factor(wall),
-        wall_window=meter.window_s(wall), step_cost_mean=mean_ms, step_cost_max=max_ms,
-        step_budget=(period_ns / 1e6 / control.rtf) if rtf_target else None,
-        steps=meter.steps, dropped_periods=dropped, energy=ledger.energy,
-        energy_residual=ledger.residual,
-        commands_received=sum(i.received for i in intakes),
-        commands_rejected=sum(i.rejected for i in intakes),
-        last_rejection=inputs.rejection, command_active=any(i.active for i in intakes),
-        max_abs_alpha=period.max_alpha, max_abs_beta=period.max_beta,
-        model=period.model.name, integrator=integrator, error=control.error,
-        recording_error=recording_error,
-        validity=[f.message for f in period.validity.findings() if f.kind != "bending"],
-        extra={**extra, **inputs.counts(), **period.spacecraft_values()})
+    def __init__(self, control, period, inputs, pacing, recording, rate_hz: float, node: str):
+        self.control, self.period, self.inputs = control, period, inputs
+        self.pacing, self.recording = pacing, recording
+        self.rate_hz, self.node = rate_hz, node
+
+    def report(self) -> DiagnosticReport:
+        """The health of the simulation over the window since the last :meth:`new_window`."""
+        import time
+
+        control, period, inputs, sim = self.control, self.period, self.inputs, self.period.sim
+        wall = time.monotonic_ns()
+        meter, ledger, log = period.meter, period.ledger, self.recording.path
+        mean_ms, max_ms = meter.step_cost_ms()
+        rtf_target = None if control.sync_mode else control.rtf
+        intakes = inputs.intakes.values()
+        extra = {"scene": period.model.scene.name, "rate_hz": f"{self.rate_hz:g}",
+                 "recording": str(log) if log else "off",
+                 "work_budget": period.budget.describe(), "node": self.node}
+        return DiagnosticReport(
+            mode=control.mode(), state=control.state(inputs.any_command()), sim_time=sim.t,
+            rtf_target=rtf_target, rtf_measured=meter.real_time_factor(wall),
+            wall_window=meter.window_s(wall), step_cost_mean=mean_ms, step_cost_max=max_ms,
+            step_budget=(period.period_ns / 1e6 / control.rtf) if rtf_target else None,
+            steps=meter.steps, dropped_periods=self.pacing.dropped, energy=ledger.energy,
+            energy_residual=ledger.residual,
+            commands_received=sum(i.received for i in intakes),
+            commands_rejected=sum(i.rejected for i in intakes),
+            last_rejection=inputs.rejection, command_active=any(i.active for i in intakes),
+            max_abs_alpha=period.max_alpha, max_abs_beta=period.max_beta,
+            model=period.model.name, integrator=sim.integrator.describe(),
+            error=control.error, recording_error=self.recording.error,
+            validity=[f.message for f in period.validity.findings() if f.kind != "bending"],
+            extra={**extra, **inputs.counts(), **period.spacecraft_values()})
+
+    def message(self) -> dict:
+        """One ``diagnostics`` message (:func:`rod_sim.io.topics.diagnostics`) of
+        :meth:`report`, stamped at the simulated time, its status named
+        :data:`~rod_sim.io.topics.DIAGNOSTICS_STATUS_NAME`."""
+        level, message, values = self.report().status()
+        sim = self.period.sim
+        return topics.diagnostics(sim.t, values, self.period.model.scene.name, level=level,
+                                  message=message, frame_id="",
+                                  name=topics.DIAGNOSTICS_STATUS_NAME)
+
+    def new_window(self) -> None:
+        """Start a new window: the step-cost meter and the extreme slopes from now on."""
+        import time
+
+        self.period.meter.restart(time.monotonic_ns())
+        self.period.take_extremes()

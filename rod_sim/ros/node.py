@@ -6,11 +6,13 @@ scene_file:=config/paper_example.yaml [-p sync_mode:=true]``.
 This module is wiring: ROS entities whose callbacks call parts with one job each, none needing
 a ROS graph: parameters (settings), simulation (scene, model, simulator, work budget), inputs
 (command intakes, held inputs, lockstep queue), period (one control period: integration within
-the budget, energy ledger, validity), pacing (real-time pace), outputs (the table of output
-topics: each message encoded once, the same bytes published and recorded), control (pause,
-step, reset), recording (the log) and process (the process). Time advances in whole control
-periods of simulated time with the inputs held, paced in real time, as fast as possible, or
-one period per command in lockstep; every stamp and log time is simulated time.
+the budget, energy ledger, validity), stepper (a period with its outputs), pacing (real-time
+pace), outputs (the table of output topics, their resolved names and /clock: each message
+encoded once, the same bytes published and recorded), control (pause, step, reset), monitor
+(diagnostics), recording (the log: its metadata, the commands as received) and process (the
+process, a node of the same name). Time advances in whole control periods of simulated time
+with the inputs held, paced in real time, as fast as possible, or one period per command in
+lockstep; every stamp and log time is simulated time.
 """
 from __future__ import annotations
 
@@ -26,43 +28,29 @@ from rclpy.node import Node
 from std_srvs.srv import SetBool, Trigger
 
 from rod_sim.core.units import NS_PER_S
-from rod_sim.io import topics
-from rod_sim.io.log_writer import LogWriter
-from rod_sim.io.scene_yaml import scene_to_yaml
+from rod_sim.io.topics import DIAGNOSTICS_STATUS_NAME
 from rod_sim.ros import simulation
-from rod_sim.ros.applied_base import base_values
 from rod_sim.ros.command_layout import CommandLayout
-from rod_sim.ros.commands import FORCES, MESSAGE_TYPES, TORQUES, WRENCH, CommandIntake
-from rod_sim.ros.control import NextTurn, RunControl
-from rod_sim.ros.conversions import message_class, message_to_dict
+from rod_sim.ros.commands import FORCES, MESSAGE_TYPES, TORQUES, CommandIntake
+from rod_sim.ros.control import (STEP_SLICE_S, WAITING_LOG_PERIOD_S, WAITING_REPUBLISH_PERIOD_S,
+                                 RunControl, answering, executor_turn)
 from rod_sim.ros.errors import NodeConfigError, ThrottledLog
 from rod_sim.ros.inputs import Inputs
 from rod_sim.ros.live import NodeLiveView
-from rod_sim.ros.monitor import DiagnosticReport, node_report
-from rod_sim.ros.outputs import (OUTPUTS, Outputs, SimClock, create_publishers, divider,
-                                 has_hinge_events, log_depths, quiet_events)
+from rod_sim.ros.monitor import DIAGNOSTICS_PERIOD_S, DiagnosticReport, NodeMonitor
+from rod_sim.ros.outputs import (IDLE_CLOCK_PERIOD_S, Outputs, create_clock, create_publishers,
+                                 has_hinge_events, rate_dividers, resolved_names)
 from rod_sim.ros.pacing import Pacing
 from rod_sim.ros.parameters import (NODE_NAME, PARAMETERS, build_parser, declare_settings,
                                     unknown_overrides, unknown_warning, validate_change)
-from rod_sim.ros.process import params_files, parse_cli, run_node, same_name_warning
-from rod_sim.ros.qos import COMMAND_QOS, SERVICE_QOS, SERVICE_QUEUE_DEPTH, clock_qos
-from rod_sim.ros.recording import NodeRecording, create_log, node_log_metadata, offered_qos
+from rod_sim.ros.process import (NAME_CHECK_DELAY_S, params_files, parse_cli, run_node,
+                                 same_name_warning)
+from rod_sim.ros.qos import COMMAND_QOS, SERVICE_QOS, SERVICE_QUEUE_DEPTH
+from rod_sim.ros.recording import NodeRecording, node_log_opener
+from rod_sim.ros.stepper import Stepper
 
 __all__ = ["RodSimNode", "NodeConfigError", "main", "PARAMETERS", "SERVICE_QUEUE_DEPTH",
-           "params_files", "has_hinge_events"]
-COMMAND_TYPE = "std_msgs/msg/Float64MultiArray"
-CDR_LE = b"\x00\x01"
-"""The encapsulation of little-endian (plain) CDR, the first two bytes of a serialized message."""
-DIAGNOSTICS_TOPIC = "/diagnostics"
-"""Absolute, where diagnostic_aggregator listens (as diagnostic_updater publishes)."""
-DIAGNOSTICS_STATUS_NAME = topics.DIAGNOSTICS_STATUS_NAME
-DIAGNOSTICS_PERIOD_S = 1.0   # [s] wall period of diagnostics
-IDLE_CLOCK_PERIOD_S = 0.1    # [s] wall period of /clock while no period advances
-WAITING_LOG_PERIOD_S = 3.0   # [s] wall period of the "waiting for ..." line at t = 0
-WAITING_REPUBLISH_PERIOD_S = 0.5  # [s] lockstep before the first command: state again
-NAME_CHECK_DELAY_S = 2.0     # [s] after start: another node of the same name on the graph?
-SYNC_BATCH = 16              # lockstep periods per callback before yielding to others
-STEP_SLICE_S = 0.1           # [s] ~/step stepping before the executor serves others
+           "params_files", "has_hinge_events", "DIAGNOSTICS_STATUS_NAME"]
 
 
 class RodSimNode(Node):
@@ -72,17 +60,15 @@ class RodSimNode(Node):
 
     def __init__(self, params_files: tuple[str, ...] = (), **node_kwargs):
         super().__init__(NODE_NAME, **node_kwargs)
-        self._recording = NodeRecording(lambda path: self._open_log(path), self.get_logger())
         self._throttle = ThrottledLog(self.get_logger())
-        self._throttle_until, self._log_throttled = self._throttle.until, self._throttle.log
-        self._params_files = tuple(params_files)
+        params_files, full_name = tuple(params_files), self.get_fully_qualified_name()
         self.name_conflict = False
         """True once another node with this node's full name was seen on the graph."""
         try:
-            s = self.settings = declare_settings(self, self._params_files)
+            s = self.settings = declare_settings(self, params_files)
             self.add_on_set_parameters_callback(validate_change)
             self.add_post_set_parameters_callback(self._apply_parameters)
-            built = simulation.build(s, self.get_fully_qualified_name(), self._params_files)
+            built = simulation.build(s, full_name, params_files)
             if built.note:
                 self.get_logger().warning(built.note)
             self.scene_path, self.scene, self.model = built.scene_path, built.scene, built.model
@@ -95,28 +81,24 @@ class RodSimNode(Node):
             self.control = RunControl(s.sync_mode, s.start_paused, s.real_time_factor)
             self._tick_timer = None
             self._pacing = Pacing(self.period_ns, s.real_time_factor)
-            self._topic_names = {o.name: self.resolve_topic_name(o.name) for o in OUTPUTS}
-            self._topic_names.update({t: self.resolve_topic_name(t)
-                                      for t in (FORCES, TORQUES, WRENCH)})
-            self._topic_names["diagnostics"] = self.resolve_topic_name(DIAGNOSTICS_TOPIC)
+            self._topic_names = resolved_names(self.resolve_topic_name, self.inputs.intakes)
+            self._recording = NodeRecording(node_log_opener(
+                self.scene, self.model.name, self.sim.integrator.describe(), s,
+                self.control.mode, full_name, self._topic_names), self.get_logger())
             self._recording.start(Path(s.record_path) if s.record_path else None)
+            self._monitor = NodeMonitor(self.control, self.period, self.inputs, self._pacing,
+                                        self._recording, s.rate_hz, full_name)
             self._create_interfaces()
         except BaseException:
             self.destroy_node()
             raise
-        self._outputs.descriptions(self.sim.t_ns)
-        self._publish_state(self.sim.snapshot())
+        self._stepper.start()
         self.unknown_parameters = unknown_overrides(self)
         if self.unknown_parameters:
             self.get_logger().warning(unknown_warning(self.unknown_parameters))
         self.get_logger().info(simulation.start_line(
-            self.get_fully_qualified_name(), built, self.control.mode(),
-            tuple(self._topic_names[t] for t in self._command_topics()), self.log_path, s))
-
-    def _command_topics(self) -> tuple[str, ...]:
-        """The command topics the start-up line names (base_wrench only for a free base; it
-        is subscribed in any case, so that a wrench sent to another base is counted)."""
-        return (FORCES, TORQUES) + ((WRENCH,) if self.inputs.layout.free_base else ())
+            full_name, built, self.control.mode(),
+            tuple(self._topic_names[t] for t in self.inputs.named_topics()), self.log_path, s))
 
     def _base_angle(self) -> float:
         """The base's angle psi [rad] now (turns a base-frame wrench into Oxy)."""
@@ -126,22 +108,21 @@ class RodSimNode(Node):
         s = self.settings
         self._pubs = create_publishers(self, self._topic_names, self.scene, s.sync_mode)
         self._outputs = Outputs(self.scene, self._topic_names, self._pubs, self._recording,
-                                self.period_ns, s.frame_id,
-                                {o.name: divider(s.rate_hz, getattr(s, o.rate_parameter))
-                                 for o in OUTPUTS if o.rate_parameter})
-        self._sim_clock = SimClock(self.create_publisher(
-            message_class(topics.TOPIC_TYPES["clock"]), "/clock", clock_qos(s.clock_reliability),
-            event_callbacks=quiet_events()) if s.publish_clock else None, IDLE_CLOCK_PERIOD_S)
+                                self.period_ns, s.frame_id, rate_dividers(s))
+        self._sim_clock = create_clock(self, s)
+        self._stepper = Stepper(self.period, self._outputs, self._sim_clock)
         for topic, intake in self.inputs.intakes.items():   # raw: length checked first
             self.create_subscription(intake.message_class, self._topic_names[topic],
                                      functools.partial(self._on_command_bytes, intake=intake),
                                      COMMAND_QOS, raw=True)
-        self.create_service(Trigger, "~/reset", self._on_reset, qos_profile=SERVICE_QOS)
+        self.create_service(Trigger, "~/reset", answering(lambda _: self.reset()),
+                            qos_profile=SERVICE_QOS)
         # its own reentrant group: between the slices of a long ~/step the other callbacks
         # run (single-threaded executor: they interleave only where _on_step awaits)
         self.create_service(Trigger, "~/step", self._on_step, qos_profile=SERVICE_QOS,
                             callback_group=ReentrantCallbackGroup())
-        self.create_service(SetBool, "~/pause", self._on_pause, qos_profile=SERVICE_QOS)
+        self.create_service(SetBool, "~/pause", answering(lambda r: self.pause(r.data)),
+                            qos_profile=SERVICE_QOS)
         self._step_wake = self.create_guard_condition(lambda: None)
         self._sync_trigger = self.create_guard_condition(self._on_sync_trigger)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -190,10 +171,8 @@ class RodSimNode(Node):
             elif p.name == "command_timeout":
                 self.inputs.set_timeout(float(p.value))
             elif p.name == "frame_id":
-                self._outputs.frame_id = str(p.value)
+                self._outputs.set_frame_id(str(p.value), self.sim.t_ns)
                 self.inputs.set_inertial_frame(str(p.value))
-                self._outputs.descriptions(self.sim.t_ns, record=False,
-                                           which=("robot_description",))
             elif p.name == "step_count":
                 self.settings = dataclasses.replace(self.settings, step_count=int(p.value))
 
@@ -206,10 +185,11 @@ class RodSimNode(Node):
     def _on_command_bytes(self, data: bytes, intake: CommandIntake | None = None) -> None:
         """A serialized command: checked, recorded, validated, held (lockstep: queued)."""
         intake = self.inputs.forces if intake is None else intake
-        command, warning = self.inputs.receive(
-            data, intake, self.sim.t_ns, functools.partial(self._record_command, intake.kind))
+        command, warning = self.inputs.receive(data, intake, self.sim.t_ns, functools.partial(
+            self._recording.record_received, self._topic_names[intake.kind],
+            MESSAGE_TYPES[intake.kind], self.sim.t_ns))
         if command is None:
-            self._log_throttled(f"rejected {intake.kind}", "warning", warning)
+            self._throttle.log(f"rejected {intake.kind}", "warning", warning)
             return
         if self.control.first_command():
             self._pacing.unanchor()
@@ -220,19 +200,10 @@ class RodSimNode(Node):
             # costs the executor another wait (rclpy rebuilds its wait set: ~0.2-0.4 ms)
             self._on_sync_trigger()
 
-    def _record_command(self, kind: str, msg, data: bytes) -> None:
-        """Record a received command: its bytes as they came (as rosbag2 records) when they
-        are little-endian CDR, else re-encoded from the message (the log is little-endian)."""
-        topic, type_name = self._topic_names[kind], MESSAGE_TYPES[kind]
-        if bytes(data[:2]) == CDR_LE:
-            self._recording.record_cdr(topic, type_name, self.sim.t_ns, bytes(data))
-        else:
-            self._recording.record(topic, type_name, self.sim.t_ns, message_to_dict(msg))
-
     def _held(self, wall_age: bool):
         held, notes = self.inputs.held(self.sim.t_ns, wall_age)
         for kind, note in notes:
-            self._log_throttled(f"timeout {kind}", "info", note)
+            self._throttle.log(f"timeout {kind}", "info", note)
         return held
 
     def _on_tick(self) -> None:
@@ -242,41 +213,24 @@ class RodSimNode(Node):
             return
         self._pacing.tick(self.sim.t_ns, lambda wall_age: self._step_period(self._held(wall_age)),
                           self.control.running, self._budget.seconds,
-                          lambda text: self._log_throttled("dropped", "warning", text))
+                          lambda text: self._throttle.log("dropped", "warning", text))
 
     def _on_sync_trigger(self) -> None:
         """Lockstep: one period per queued command, a bounded batch per callback."""
         if self.inputs.drain(self._step_period, self.control.running, time.monotonic_ns()
-                             + self._budget.seconds * NS_PER_S, SYNC_BATCH):
+                             + self._budget.seconds * NS_PER_S):
             self._sync_trigger.trigger()
 
     def _step_period(self, held) -> bool:
         """One period holding ``held`` ((n, 3) [X, Y, T], (n + 2, 3) with a free base's rows,
-        or (n, 2) forces) and publish its outputs; False (paused, reported) when the
-        integration fails."""
-        snap = self.period.run(held, self._publish_applied)
-        if snap is None:
-            self.control.fail(self.period.error)
-            self.get_logger().error(f"integration failed: {self.control.error}; simulation "
-                                    "paused (call ~/reset, or ~/pause false to retry)")
-            self._pacing.unanchor()
-            self.publish_diagnostics()
-            return False
-        self._publish_state(snap)
-        self._outputs.events(self.sim.events[self.period.events_seen:])
-        self.period.events_seen = len(self.sim.events)
-        return True
-
-    def _publish_applied(self, t_ns: int) -> None:
-        n, held = self.scene.n, self.sim.held
-        loads = self.model.loads_at(t_ns / NS_PER_S, held)
-        self._outputs.applied(t_ns, loads[:n, :2].copy(), held[:n, 2].copy(),
-                              base_values(loads) if self.inputs.layout.free_base else None)
-
-    def _publish_state(self, snap) -> None:
-        self.period.note_state(snap)
-        self._sim_clock.publish(self.sim.t_ns)   # /clock first: no output is stamped later
-        self._outputs.state(snap, self.sim.t_ns)
+        or (n, 2) forces) and publish its outputs (:class:`Stepper`); False (paused,
+        reported) when the integration fails."""
+        if self._stepper.run(held):
+            return True
+        self.get_logger().error(self.control.fail(self.period.error))
+        self._pacing.unanchor()
+        self.publish_diagnostics()
+        return False
 
     def _republish_waiting(self) -> None:
         """Lockstep before the first command: the waiting state again (not recorded)."""
@@ -285,59 +239,38 @@ class RodSimNode(Node):
 
     def diagnostic_report(self) -> DiagnosticReport:
         """The health of the simulation over the window since the last diagnostics."""
-        return node_report(
-            self.control, self.period, self.inputs, self._pacing.dropped, self.sim.t,
-            self.period_ns, self.sim.integrator.describe(), self._recording.error,
-            {"scene": self.scene.name, "rate_hz": f"{self.settings.rate_hz:g}",
-             "recording": str(self.log_path) if self.log_path else "off",
-             "work_budget": self._budget.describe(), "node": self.get_fully_qualified_name()})
+        return self._monitor.report()
 
     def publish_diagnostics(self) -> None:
         """Publish (and record) one ``diagnostics`` message and start a new window."""
-        level, message, values = self.diagnostic_report().status()
-        self._outputs.message("diagnostics", self.sim.t_ns, topics.diagnostics(
-            self.sim.t, values, self.scene.name, level=level, message=message, frame_id="",
-            name=DIAGNOSTICS_STATUS_NAME))
-        self.period.meter.restart(time.monotonic_ns())
-        self.period.take_extremes()
+        self._outputs.message("diagnostics", self.sim.t_ns, self._monitor.message())
+        self._monitor.new_window()
 
     # ----- services (logic in rod_sim.ros.control) -----
 
-    def _on_reset(self, request, response):
-        """Back to the initial state at t = 0 (commands and errors cleared); a ~/step in
-        progress ends ("interrupted"); the log continues in the next file."""
-        response.success, response.message = True, self.reset()
-        return response
-
     def reset(self) -> str:
+        """``~/reset``: back to the initial state at t = 0 (commands and errors cleared); a
+        ~/step in progress ends ("interrupted"); the log continues in the next file."""
         self.control.reset()
         self.period.reset()
         self.inputs.clear()
-        self._outputs.forget_applied()
         self._pacing.unanchor()
         note = self._recording.roll()
-        self._outputs.descriptions(self.sim.t_ns)
-        self._publish_state(self.sim.snapshot())
+        self._stepper.start()
         message = "reset to the initial state at t = 0 s" + note
         self.get_logger().info(message)
         return message
 
     async def _on_step(self, request, response):
-        """``step_count`` periods while paused, in slices (see RunControl.step)."""
-        async def next_turn():
-            self._step_wake.trigger()
-            await NextTurn()
+        """``~/step``: ``step_count`` periods while paused, in slices (see RunControl.step)."""
         response.success, response.message = await self.control.step(
             self.settings.step_count, lambda: self._step_period(self._held(wall_age=False)),
-            lambda: self.sim.t, next_turn, min(STEP_SLICE_S, self.settings.max_period_cost))
-        return response
-
-    def _on_pause(self, request, response):
-        response.success, response.message = True, self.pause(request.data)
+            lambda: self.sim.t, executor_turn(self._step_wake),
+            min(STEP_SLICE_S, self.settings.max_period_cost))
         return response
 
     def pause(self, pause: bool) -> str:
-        """True: pause; False: resume (re-anchors the real-time clock)."""
+        """``~/pause``: True: pause; False: resume (re-anchors the real-time clock)."""
         message = self.control.pause(pause, self.sim.t)
         if not pause and self.inputs.queue:
             self._sync_trigger.trigger()  # commands received before the pause
@@ -345,18 +278,11 @@ class RodSimNode(Node):
         self.get_logger().info(message)
         return message
 
-    def _open_log(self, path: Path) -> LogWriter:
-        """A new log at ``path`` with this run's metadata (raises NodeConfigError)."""
-        return create_log(path, node_log_metadata(
-            scene_to_yaml(self.scene), self.model.name, self.sim.integrator.describe(),
-            self.settings, self.control.mode(), self.get_fully_qualified_name()),
-            offered_qos(self._topic_names, log_depths(self.settings.sync_mode, self.scene)))
-
     def destroy_node(self) -> None:
         """Close the log (with its summary) and the live view, then destroy the node."""
-        self._recording.close()
-        if getattr(self, "_live", None) is not None:
-            self._live.close()
+        for part in (getattr(self, "_recording", None), getattr(self, "_live", None)):
+            if part is not None:
+                part.close()
         super().destroy_node()
 
 

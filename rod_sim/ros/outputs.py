@@ -7,7 +7,9 @@ frame_id) -> bytes`` (:mod:`rod_sim.io.encoders`: CDR straight from numpy). :cla
 encodes each due message **once** and hands the same bytes to every sink: the DDS publisher
 (rclpy publishes serialized messages as they are: ``Publisher.publish(bytes)`` calls
 ``publish_raw``, no Python message object is built) and the MCAP log; snapshot taps (the live
-view) get the snapshot itself. Adding a topic is one entry here and its encoder.
+view) get the snapshot itself. Adding a topic is one entry here and its encoder. The node's
+resolved topic names (:func:`resolved_names`), the dividers of its rate parameters
+(:func:`rate_dividers`) and ``/clock`` (:class:`SimClock`) are made here too.
 
 Nothing here needs a ROS graph: publishers are anything with ``publish(bytes)``
 (test/test_node_outputs.py uses lists).
@@ -26,6 +28,11 @@ from rod_sim.io import cdr, encoders, topics
 from rod_sim.io.hinge_events import HINGE_EVENTS_TOPIC, HINGE_EVENTS_TYPE, event_message, \
     event_time_ns
 from rod_sim.ros.applied_base import APPLIED_BASE_LABEL, APPLIED_BASE_TOPIC, APPLIED_BASE_TYPE
+
+DIAGNOSTICS_TOPIC = "/diagnostics"
+"""Absolute, where diagnostic_aggregator listens (as diagnostic_updater publishes)."""
+IDLE_CLOCK_PERIOD_S = 0.1
+"""[s] wall period of ``/clock`` while no period advances (:meth:`SimClock.idle`)."""
 
 
 @dataclass(frozen=True)
@@ -100,6 +107,24 @@ def divider(rate_hz: float, topic_rate_hz: float) -> int:
     return max(1, round(rate_hz / topic_rate_hz)) if topic_rate_hz > 0 else 1
 
 
+def rate_dividers(settings) -> dict[str, int]:
+    """Relative name -> :func:`divider` of each output with a rate parameter, from the
+    node's ``settings`` (:class:`~rod_sim.ros.parameters.NodeSettings`: ``rate_hz`` and the
+    topic's rate [Hz], e.g. ``markers_rate_hz``)."""
+    return {o.name: divider(settings.rate_hz, getattr(settings, o.rate_parameter))
+            for o in OUTPUTS if o.rate_parameter}
+
+
+def resolved_names(resolve: Callable[[str], str], commands: Iterable[str] = ()
+                   ) -> dict[str, str]:
+    """Relative -> resolved name of every output topic and of the ``commands`` topics,
+    ``resolve`` being the node's ``resolve_topic_name`` (namespace, remappings);
+    ``diagnostics`` is resolved from the absolute :data:`DIAGNOSTICS_TOPIC`."""
+    names = {t: resolve(t) for t in (*(o.name for o in OUTPUTS), *commands)}
+    names["diagnostics"] = resolve(DIAGNOSTICS_TOPIC)
+    return names
+
+
 def log_depths(sync_mode: bool, scene: Scene) -> dict[str, int]:
     """Relative topic -> history depth of the scene's transient-local topics, as offered in a
     log (``hinge_events`` in any case: events are recorded whatever the scene)."""
@@ -121,6 +146,19 @@ def quiet_events():
     from rclpy.event_handler import PublisherEventCallbacks
 
     return PublisherEventCallbacks(use_default_callbacks=False)
+
+
+def create_clock(node, settings) -> "SimClock":
+    """The ``/clock`` of ``node`` (:class:`SimClock`): published if ``settings.publish_clock``,
+    with the QoS of ``settings.clock_reliability`` and no QoS event handlers
+    (:func:`quiet_events`)."""
+    from rod_sim.ros.conversions import message_class
+    from rod_sim.ros.qos import clock_qos
+
+    return SimClock(node.create_publisher(
+        message_class(topics.TOPIC_TYPES["clock"]), "/clock",
+        clock_qos(settings.clock_reliability), event_callbacks=quiet_events())
+        if settings.publish_clock else None, IDLE_CLOCK_PERIOD_S)
 
 
 def create_publishers(node, names: Mapping[str, str], scene: Scene, sync_mode: bool) -> dict:
@@ -237,6 +275,12 @@ class Outputs:
             if changed:
                 last = self._applied_last[name] = (raw, encode(values))
             self.send(name, t_ns, last[1], publish=changed)
+
+    def set_frame_id(self, frame_id: str, t_ns: int) -> None:
+        """The ``frame_id`` parameter changed: the outputs from now on name it, and
+        ``robot_description`` (its root link) is published again at ``t_ns``, not recorded."""
+        self.frame_id = frame_id
+        self.descriptions(t_ns, record=False, which=("robot_description",))
 
     def forget_applied(self) -> None:
         """After a reset: the next applied inputs are published whatever they are."""

@@ -154,6 +154,13 @@ class PeriodRunner:
         snap = self.last_state if self.last_state is not None else self.sim.snapshot()
         return diagnostic_strings(diagnostic_values(snap, self.spacecraft))
 
+    def take_events(self) -> list:
+        """The simulator's hinge events since the last call (or the start, or a reset), each
+        given once."""
+        events = self.sim.events[self.events_seen:]
+        self.events_seen = len(self.sim.events)
+        return events
+
     def take_extremes(self) -> tuple[float, float]:
         """max |alpha|, max |beta| [rad] since the last call (then start again)."""
         out = (self.max_alpha, self.max_beta)

@@ -185,6 +185,9 @@ def run_node(prog: str, make_node, args: list[str], config_errors) -> int:
     return 0
 
 
+NAME_CHECK_DELAY_S = 2.0
+"""[s] after the start (discovery) when :func:`same_name_warning` looks at the graph."""
+
 
 def same_name_warning(node) -> str | None:
     """The warning when other nodes on the graph have ``node``'s fully qualified name

@@ -480,11 +480,12 @@ def measure_period_cost(args) -> dict:
     """CPU [ms] per control period of the node's parts, without ROS (``--period-cost``)."""
     import logging
 
-    from rod_sim.io.scene_yaml import scene_to_yaml
     from rod_sim.ros import simulation
-    from rod_sim.ros.outputs import OUTPUTS, Outputs, divider, log_depths
+    from rod_sim.ros.outputs import (IDLE_CLOCK_PERIOD_S, OUTPUTS, Outputs, SimClock,
+                                     rate_dividers)
     from rod_sim.ros.parameters import PARAMETERS, NodeSettings
-    from rod_sim.ros.recording import NodeRecording, create_log, node_log_metadata, offered_qos
+    from rod_sim.ros.recording import NodeRecording, node_log_opener
+    from rod_sim.ros.stepper import Stepper
 
     with tempfile.TemporaryDirectory() as tmpdir:
         tmp = Path(tmpdir)
@@ -499,26 +500,20 @@ def measure_period_cost(args) -> dict:
         period = simulation.start(built, settings)
         sim, model, n = built.sim, built.model, built.scene.n
         names = {o.name: "/" + o.name for o in OUTPUTS}
-        recording = NodeRecording(lambda path: create_log(path, node_log_metadata(
-            scene_to_yaml(built.scene), model.name, sim.integrator.describe(), settings,
-            "lockstep", "/rod_sim"), offered_qos(names, log_depths(True, built.scene))),
-            logging.getLogger("rate_bench"))
+        recording = NodeRecording(node_log_opener(
+            built.scene, model.name, sim.integrator.describe(), settings, lambda: "lockstep",
+            "/rod_sim", names), logging.getLogger("rate_bench"))
         recording.start(Path(settings.record_path) if settings.record_path else None)
         outputs = Outputs(built.scene, names, {}, recording, built.period_ns, "world",
-                          {o.name: divider(settings.rate_hz, getattr(settings, o.rate_parameter))
-                           for o in OUTPUTS if o.rate_parameter})
+                          rate_dividers(settings))
+        # the node's period with its outputs (no publishers: recorded only; no /clock)
+        stepper = Stepper(period, outputs, SimClock(None, IDLE_CLOCK_PERIOD_S))
         k_all = max(3, args.period_cost)
         commands = [np.zeros((n, 2)) if args.held_constant else lockstep_force(k, n)
                     for k in range(k_all + 10)]
 
-        def applied(t_ns: int) -> None:       # as the node's _publish_applied (no base)
-            loads = model.loads_at(t_ns / 1e9, sim.held)
-            outputs.applied(t_ns, loads[:n, :2].copy(), sim.held[:n, 2].copy())
-
         def with_outputs(k: int) -> None:
-            snap = period.run(commands[k], applied)
-            period.note_state(snap)
-            outputs.state(snap, sim.t_ns)
+            stepper.run(commands[k])
 
         def bare(k: int) -> None:
             period.run(commands[k])

@@ -1,19 +1,26 @@
-"""The rod_sim node's log (docs/interface.md section 4, ``record_path``): creating it, writing to it until
-the first write error, rolling it after ``~/reset`` into the next free ``<stem>_<k><suffix>``
-(existing files are skipped, never overwritten) and closing it. A log that cannot be opened or
-written stops the recording with an ERROR line and :attr:`NodeRecording.error` (which the node
-reports on diagnostics), never silently."""
+"""The rod_sim node's log (docs/interface.md section 4, ``record_path``): creating it with the
+run's metadata (:func:`node_log_opener`), writing to it (a received command as the bytes that
+came: :meth:`NodeRecording.record_received`) until the first write error, rolling it after
+``~/reset`` into the next free ``<stem>_<k><suffix>`` (existing files are skipped, never
+overwritten) and closing it. A log that cannot be opened or written stops the recording with an
+ERROR line and :attr:`NodeRecording.error` (which the node reports on diagnostics), never
+silently."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Mapping
 
 from rod_sim.io.hinge_events import HINGE_EVENTS_TOPIC
 from rod_sim.io.log_writer import LogWriteError, LogWriter, offered_qos_yaml
+from rod_sim.io.scene_yaml import scene_to_yaml
+from rod_sim.ros.conversions import message_to_dict
 from rod_sim.ros.errors import NodeConfigError, one_line
+from rod_sim.ros.outputs import log_depths
 
 MAX_LOG_ROLLS = 10_000
 """Names ``<stem>_<k>`` tried after a reset before giving up (existing files are skipped)."""
+CDR_LE = b"\x00\x01"
+"""The encapsulation of little-endian (plain) CDR, the first two bytes of a serialized message."""
 
 
 def offered_qos(names: dict[str, str], latched) -> dict[str, str]:
@@ -108,6 +115,15 @@ class NodeRecording:
             self._stopped(one_line(exc))
             self.close()
 
+    def record_received(self, topic: str, type_name: str, t_ns: int, msg, data: bytes) -> None:
+        """A received message (a command) at ``t_ns`` [ns]: its serialized bytes ``data`` as
+        they came (as rosbag2 records) when they are little-endian CDR, else ``msg`` (the
+        decoded message) re-encoded (the log is little-endian)."""
+        if bytes(data[:2]) == CDR_LE:
+            self.record_cdr(topic, type_name, t_ns, bytes(data))
+        else:
+            self.record(topic, type_name, t_ns, message_to_dict(msg))
+
     def close(self) -> None:
         """Close the log with its summary (idempotent)."""
         log, self.writer = self.writer, None
@@ -129,3 +145,17 @@ def node_log_metadata(scene_yaml: str, model: str, integrator: str, settings, mo
             "version": __version__, "rtol": repr(settings.rtol),
             "rate_hz": repr(settings.rate_hz), "source": "rod_sim node", "mode": mode,
             "node": node}
+
+
+def node_log_opener(scene, model: str, integrator: str, settings, mode: Callable[[], str],
+                    node: str, names: Mapping[str, str]) -> Callable[[Path], LogWriter]:
+    """``open_log(path)`` of a node's :class:`NodeRecording`: a new log (:func:`create_log`)
+    with the run's metadata (:func:`node_log_metadata`; ``mode()`` is asked when the log
+    opens: the real-time factor may have changed since the start) and the offered QoS of the
+    scene's transient-local topics (:func:`~rod_sim.ros.outputs.log_depths`) under their
+    resolved ``names`` (relative -> resolved). Raises NodeConfigError."""
+    def open_log(path: Path) -> LogWriter:
+        return create_log(path, node_log_metadata(scene_to_yaml(scene), model, integrator,
+                                                  settings, mode(), node),
+                          offered_qos(names, log_depths(settings.sync_mode, scene)))
+    return open_log
