@@ -1,0 +1,76 @@
+"""What a compiled right-hand side costs after the thread waited (this machine's, not the code's).
+
+    python -m rod_sim.bench.wake_cost [--rods 1024] [--wait-ms 8] [--blocks 60] [--calls 20]
+
+A real-time node does its period's work after a wait of most of the period; ``--period-cost``
+and the micro-benchmarks time the same work back to back. This measures the difference on the
+one piece of pure compiled work of a period: the reduced model's right-hand side of
+``--rods`` rods (:func:`rod_sim.bench.long_chains.uniform_chain`, random angles and rates),
+wall time per call, in blocks of ``--calls`` calls each preceded by nothing (``back to back``),
+by ``--wait-ms`` of busy waiting (``after spinning``) or by ``time.sleep`` of it (``after
+sleeping``), the three kinds of block taking turns so that a slow phase of the machine falls
+on all three alike. No ROS, no log, no Python between the timer and the kernel but the call.
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import numpy as np
+
+WAYS = ("back to back", "after spinning", "after sleeping")
+
+
+def measure(rods: int, wait_ms: float, blocks: int, calls: int) -> dict[str, list[float]]:
+    """Wall time [us] of each right-hand side call, per way of waiting before it (:data:`WAYS`)."""
+    from rod_sim.bench.long_chains import uniform_chain
+    from rod_sim.core.models import make_model
+
+    model = make_model("reduced", uniform_chain(rods))
+    data = model.new_data()
+    rng = np.random.default_rng(1)
+    y = np.concatenate([0.3 * rng.standard_normal(rods), rng.standard_normal(rods)])
+    for _ in range(20):                                     # compiled code loaded, caches warm
+        model.rhs(0.0, y, None, None, None, data)
+    wait_s = wait_ms / 1e3
+    out: dict[str, list[float]] = {way: [] for way in WAYS}
+    for block in range(blocks):
+        way = WAYS[block % len(WAYS)]
+        for _ in range(calls):
+            if way == "after spinning":
+                end = time.perf_counter() + wait_s
+                while time.perf_counter() < end:
+                    pass
+            elif way == "after sleeping":
+                time.sleep(wait_s)
+            start = time.perf_counter_ns()
+            model.rhs(0.0, y, None, None, None, data)
+            out[way].append((time.perf_counter_ns() - start) / 1e3)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m rod_sim.bench.wake_cost",
+                                description=__doc__.split("\n\n")[0])
+    p.add_argument("--rods", type=int, default=1024)
+    p.add_argument("--wait-ms", type=float, default=8.0, help="[ms] wait before each call")
+    p.add_argument("--blocks", type=int, default=60, help="blocks of calls, ways taking turns")
+    p.add_argument("--calls", type=int, default=20, help="calls per block")
+    args = p.parse_args(argv)
+    if args.rods < 1 or args.blocks < 1 or args.calls < 1 or args.wait_ms < 0:
+        p.error("--rods, --blocks and --calls must be >= 1, --wait-ms >= 0")
+    result = measure(args.rods, args.wait_ms, args.blocks, args.calls)
+    base = statistics.median(result[WAYS[0]])
+    for way, times in result.items():
+        if not times:
+            continue
+        median = statistics.median(times)
+        print(f"{way}: right-hand side of {args.rods} rods: median {median:.1f} us, 10th "
+              f"percentile {float(np.percentile(times, 10)):.1f} us ({len(times)} calls, "
+              f"{median / base:.2f} x back to back; wait {args.wait_ms:g} ms)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
