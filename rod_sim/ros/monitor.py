@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 
 from rod_sim.core.validity import SMALL_BENDING_RAD, EnergyBalance
@@ -153,8 +154,6 @@ class NodeMonitor:
 
     def report(self) -> DiagnosticReport:
         """The health of the simulation over the window since the last :meth:`new_window`."""
-        import time
-
         control, period, inputs, sim = self.control, self.period, self.inputs, self.period.sim
         wall = time.monotonic_ns()
         meter, ledger, log = period.meter, period.ledger, self.recording.path
@@ -192,7 +191,5 @@ class NodeMonitor:
 
     def new_window(self) -> None:
         """Start a new window: the step-cost meter and the extreme slopes from now on."""
-        import time
-
         self.period.meter.restart(time.monotonic_ns())
         self.period.take_extremes()
