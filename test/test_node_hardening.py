@@ -83,11 +83,11 @@ def test_huge_command_fails_fast_with_a_named_cause_and_services_answer(harness,
     h.spin_until(lambda: h.received["/diagnostics"], what="diagnostics")
     start = time.monotonic()
     h.commands.publish(force_command([1e12] * 16))
-    h.spin_until(lambda: h.node.error is not None, timeout=10.0, what="the failure")
+    h.spin_until(lambda: h.node.control.error is not None, timeout=10.0, what="the failure")
     assert time.monotonic() - start < 5.0
-    assert "work budget exceeded" in h.node.error and "max_period_cost" in h.node.error
-    assert "1e+12 N" in h.node.error, h.node.error    # names the force that did it
-    assert h.node.paused and np.all(np.isfinite(h.node.sim.y))
+    assert "work budget exceeded" in h.node.control.error and "max_period_cost" in h.node.control.error
+    assert "1e+12 N" in h.node.control.error, h.node.control.error    # names the force that did it
+    assert h.node.control.paused and np.all(np.isfinite(h.node.sim.y))
     h.spin_until(lambda: any(m.status[0].level == b"\x02" and "work budget" in m.status[0].message
                              for m in h.received["/diagnostics"]),
                  timeout=3.0, what="ERROR on /diagnostics")
@@ -106,7 +106,7 @@ def test_work_budget_is_measured_and_ordinary_periods_stay_within_it(harness):
     assert b.limit == max(50, int(0.2 / (2 * b.unit_cost_s)))
     assert h.node.sim.integrator.max_steps == b.limit
     h.spin_until(lambda: h.node.sim_time > 2.0, what="2 s through the tip pulse")
-    assert h.node.error is None
+    assert h.node.control.error is None
 
 
 def test_oversize_and_undecodable_commands_are_refused_by_length(harness, tmp_path):
@@ -159,12 +159,15 @@ def test_recording_after_reset_skips_existing_files_and_reports_failures(harness
 def test_a_second_node_of_the_same_name_is_reported(harness, tmp_path):
     h = harness(scene_file=str(SMALL))
     h.spin_for(2.5)
-    assert not h.node.name_conflict
+    assert h.node.diagnostic_report().values()["name_conflict"] == "false"
     twin = RodSimNode(context=h.context, parameter_overrides=[
         Parameter("scene_file", value=str(SMALL))])
     h.nodes.append(twin)
     h.executor.add_node(twin)
-    h.spin_until(lambda: twin.name_conflict, timeout=10.0, what="the duplicate-name warning")
+    h.spin_until(lambda: twin.diagnostic_report().values()["name_conflict"] == "true",
+                 timeout=10.0, what="the duplicate-name warning")
+    level, message, _ = twin.diagnostic_report().status()
+    assert level == 1 and "2 nodes named /rod_sim" in message and "-r __node:=" in message
 
 
 # ----- issue 13: ROS conventions -----
@@ -242,7 +245,7 @@ def test_start_paused_clock_while_paused_step_count_and_first_command(harness, t
     h = harness(scene_file=str(without_loads(SMALL, tmp_path)), start_paused=True)
     h.subscribe("/clock", Clock, 10)                 # default QoS: reliable
     h.spin_until(lambda: len(h.received["/clock"]) >= 5, timeout=10.0, what="/clock while paused")
-    assert h.node.sim.t_ns == 0 and h.node.paused
+    assert h.node.sim.t_ns == 0 and h.node.control.paused
     assert all(m.clock.sec == 0 and m.clock.nanosec == 0 for m in h.received["/clock"])
     assert "start_paused" in h.node.diagnostic_report().state
     info = h.client.get_publishers_info_by_topic("/clock")
@@ -251,14 +254,14 @@ def test_start_paused_clock_while_paused_step_count_and_first_command(harness, t
     assert h.node.set_parameters([Parameter("step_count", value=5)])[0].successful
     assert not h.node.set_parameters([Parameter("step_count", value=0)])[0].successful
     stepped = h.call(Trigger, "/rod_sim/step", Trigger.Request())
-    assert stepped.success and h.node.sim.t_ns == 5 * PERIOD_NS and h.node.paused
+    assert stepped.success and h.node.sim.t_ns == 5 * PERIOD_NS and h.node.control.paused
     h.spin_for(0.3)                                  # the frozen time after the step
     assert h.received["/clock"][-1].clock.nanosec == 5 * PERIOD_NS
 
     h.wait_matched()
     h.commands.publish(force_command([0.0] * 6))     # the first command starts the clock
     h.spin_until(lambda: h.node.sim_time > 0.2, what="running after the first command")
-    assert not h.node.paused
+    assert not h.node.control.paused
 
 
 def test_start_paused_resumes_with_pause_false_and_clock_reliability_parameter(harness):
@@ -275,7 +278,7 @@ def test_start_paused_resumes_with_pause_false_and_clock_reliability_parameter(h
 
 def test_lockstep_publishes_its_t0_state_to_late_transient_local_subscribers(harness):
     h = harness(scene_file=str(SMALL), sync_mode=True, bogus_parameter=1.0)
-    assert h.node.unknown_parameters == ["bogus_parameter"]
+    assert h.node.diagnostic_report().values()["unknown_parameters"] == "bogus_parameter"
     h.spin_for(0.3)                                    # no subscriber when t = 0 was published
     late = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
     h.subscribe("rod_states", JointState, late)

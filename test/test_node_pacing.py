@@ -180,6 +180,16 @@ def test_diagnostic_levels_and_values():
     assert values["error"].startswith("step size")
 
 
+def test_start_up_findings_are_diagnostics_values_and_a_name_conflict_warns():
+    values = report().values()
+    assert values["name_conflict"] == "false" and values["unknown_parameters"] == "none"
+    level, message, values = report(name_conflict="2 nodes named /rod_sim are on the graph",
+                                    unknown_parameters=("bogus", "rate")).status()
+    assert level == DIAGNOSTIC_WARN and message == "2 nodes named /rod_sim are on the graph"
+    assert values["name_conflict"] == "true" and values["unknown_parameters"] == "bogus, rate"
+    assert report(unknown_parameters=("bogus",)).status()[0] == DIAGNOSTIC_OK
+
+
 # ----- issue 20 item 5: catch up what stepping can afford -----
 
 def test_cheap_stepping_catches_up_a_scheduling_delay_without_dropping():

@@ -318,7 +318,7 @@ def test_services_pause_step_reset(harness):
     assert not refused.success and "paused" in refused.message
 
     paused = h.call(SetBool, "/rod_sim/pause", SetBool.Request(data=True))
-    assert paused.success and h.node.paused
+    assert paused.success and h.node.control.paused
     t_ns = h.node.sim.t_ns
     h.spin_for(0.3)
     assert h.node.sim.t_ns == t_ns, "time went on while paused"
@@ -332,7 +332,7 @@ def test_services_pause_step_reset(harness):
     assert h.node.sim.t_ns == 0, "a reset must not resume a paused simulation"
 
     resumed = h.call(SetBool, "/rod_sim/pause", SetBool.Request(data=False))
-    assert resumed.success and not h.node.paused
+    assert resumed.success and not h.node.control.paused
     start = time.monotonic()
     h.spin_until(lambda: h.node.sim_time >= 0.2, what="running again")
     assert time.monotonic() - start < 1.0, "resuming must not catch up the paused time"
@@ -405,18 +405,18 @@ def test_integration_failure_pauses_reports_and_recovers(harness, tmp_path):
     h.subscribe("diagnostics", DiagnosticArray)
     h.wait_matched("diagnostics")
     h.commands.publish(force_command([1e300] * 6))
-    h.spin_until(lambda: h.node.error is not None, what="the integration failure")
-    assert h.node.paused and np.all(np.isfinite(h.node.sim.y))
+    h.spin_until(lambda: h.node.control.error is not None, what="the integration failure")
+    assert h.node.control.paused and np.all(np.isfinite(h.node.sim.y))
     h.spin_until(lambda: any(m.status[0].level == b"\x02" for m in h.received["diagnostics"]),
                  what="an ERROR diagnostic")
     error = next(m.status[0] for m in h.received["diagnostics"] if m.status[0].level == b"\x02")
     assert "integration error" in error.message
     h.commands.publish(force_command([0.0] * 6))
     reset = h.call(Trigger, "/rod_sim/reset", Trigger.Request())
-    assert reset.success and h.node.error is None
+    assert reset.success and h.node.control.error is None
     h.call(SetBool, "/rod_sim/pause", SetBool.Request(data=False))
     h.spin_until(lambda: h.node.sim_time > 0.1, what="running after the reset")
-    assert h.node.error is None
+    assert h.node.control.error is None
 
 
 def test_overload_reports_slow_real_time_factor_and_stays_responsive(harness, tmp_path):

@@ -58,9 +58,9 @@ def test_diverging_integrator_pauses_with_named_cause_and_closes_the_log(harness
     h.subscribe("diagnostics", DiagnosticArray)
     h.wait_matched("diagnostics")
     h.commands.publish(base.force_command([1e9] * 16))
-    h.spin_until(lambda: h.node.error is not None, what="the integration failure")
-    assert " of rod " in h.node.error and "t = " in h.node.error
-    assert h.node.paused and np.all(np.isfinite(h.node.sim.y))
+    h.spin_until(lambda: h.node.control.error is not None, what="the integration failure")
+    assert " of rod " in h.node.control.error and "t = " in h.node.control.error
+    assert h.node.control.paused and np.all(np.isfinite(h.node.sim.y))
     h.spin_until(lambda: statuses(h, b"\x02"), what="an ERROR diagnostic")
     assert " of rod " in statuses(h, b"\x02")[0].message
     h.close()

@@ -71,6 +71,10 @@ class DiagnosticReport:
     error: str | None = None
     recording_error: str | None = None
     """Why the recording stopped (the log could not be written or opened), None if fine."""
+    name_conflict: str | None = None
+    """The warning when other nodes on the graph have this node's full name, None if none."""
+    unknown_parameters: tuple[str, ...] = ()
+    """Overrides given at start-up that name no parameter of the node (ignored)."""
     extra: dict[str, str] = field(default_factory=dict)
     validity: list[str] = field(default_factory=list)
     """Messages of the validity monitor (:mod:`rod_sim.core.validity`) since the last reset."""
@@ -86,6 +90,8 @@ class DiagnosticReport:
         if bend > BENDING_WARN_RAD:
             out.append(f"large bending slope {bend:.3g} rad (small-bending assumption "
                        f"questionable above {BENDING_WARN_RAD} rad)")
+        if self.name_conflict:
+            out.append(self.name_conflict)
         out.extend(self.validity)
         return out
 
@@ -133,6 +139,8 @@ class DiagnosticReport:
             "error": self.error or "none",
             "recording_error": self.recording_error or "none",
             "validity": "; ".join(self.validity) or "ok",
+            "name_conflict": "true" if self.name_conflict else "false",
+            "unknown_parameters": ", ".join(self.unknown_parameters) or "none",
         }
         values.update(self.extra)
         return values
@@ -145,12 +153,17 @@ class NodeMonitor:
     extremes), ``inputs`` (:class:`~rod_sim.ros.inputs.Inputs`), ``pacing``
     (:class:`~rod_sim.ros.pacing.Pacing`: its ``dropped`` periods), ``recording``
     (:class:`~rod_sim.ros.recording.NodeRecording`: the log and why it stopped), ``rate_hz``
-    [Hz] (the control rate) and ``node`` (the node's full name)."""
+    [Hz] (the control rate) and ``node`` (the node's full name). The node sets the start-up
+    findings: ``unknown_parameters`` (overrides naming no parameter) and ``name_conflict`` (the
+    warning when another node has this name, from :func:`~rod_sim.ros.process.same_name_warning`).
+    """
 
     def __init__(self, control, period, inputs, pacing, recording, rate_hz: float, node: str):
         self.control, self.period, self.inputs = control, period, inputs
         self.pacing, self.recording = pacing, recording
         self.rate_hz, self.node = rate_hz, node
+        self.unknown_parameters: tuple[str, ...] = ()
+        self.name_conflict: str | None = None
 
     def report(self) -> DiagnosticReport:
         """The health of the simulation over the window since the last :meth:`new_window`."""
@@ -176,6 +189,7 @@ class NodeMonitor:
             max_abs_alpha=period.max_alpha, max_abs_beta=period.max_beta,
             model=period.model.name, integrator=sim.integrator.describe(),
             error=control.error, recording_error=self.recording.error,
+            name_conflict=self.name_conflict, unknown_parameters=self.unknown_parameters,
             validity=[f.message for f in period.validity.findings() if f.kind != "bending"],
             extra={**extra, **inputs.counts(), **period.spacecraft_values()})
 

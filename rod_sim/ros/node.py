@@ -56,14 +56,18 @@ __all__ = ["RodSimNode", "NodeConfigError", "main", "PARAMETERS", "SERVICE_QUEUE
 class RodSimNode(Node):
     """The simulator node. ``node_kwargs`` go to :class:`rclpy.node.Node` (``context``,
     ``parameter_overrides``, ``namespace``, ...). Raises NodeConfigError for bad parameters, a
-    missing or invalid scene, or a log that cannot be created."""
+    missing or invalid scene, or a log that cannot be created.
+
+    Embedded in a process of one's own (as ``rod_sim.ros.demo`` does), the node's parts are
+    its public attributes: ``sim`` (the simulator), ``control`` (run state: ``paused``,
+    ``error``), ``inputs`` (the command intakes and their counts); :attr:`sim_time`,
+    :attr:`commands_rejected` and :attr:`log_path` summarise them, and
+    :meth:`diagnostic_report` is what the next ``diagnostics`` message says."""
 
     def __init__(self, params_files: tuple[str, ...] = (), **node_kwargs):
         super().__init__(NODE_NAME, **node_kwargs)
         self._throttle = ThrottledLog(self.get_logger())
         params_files, full_name = tuple(params_files), self.get_fully_qualified_name()
-        self.name_conflict = False
-        """True once another node with this node's full name was seen on the graph."""
         try:
             s = self.settings = declare_settings(self, params_files)
             self.add_on_set_parameters_callback(validate_change)
@@ -93,9 +97,9 @@ class RodSimNode(Node):
             self.destroy_node()
             raise
         self._stepper.start()
-        self.unknown_parameters = unknown_overrides(self)
-        if self.unknown_parameters:
-            self.get_logger().warning(unknown_warning(self.unknown_parameters))
+        unknown = self._monitor.unknown_parameters = tuple(unknown_overrides(self))
+        if unknown:
+            self.get_logger().warning(unknown_warning(list(unknown)))
         self.get_logger().info(simulation.start_line(
             full_name, built, self.control.mode(),
             tuple(self._topic_names[t] for t in self.inputs.named_topics()), self.log_path, s))
@@ -144,7 +148,7 @@ class RodSimNode(Node):
         self._name_timer.cancel()
         warning = same_name_warning(self)
         if warning:
-            self.name_conflict = True
+            self._monitor.name_conflict = warning
             self.get_logger().warning(warning)
 
     def _log_waiting(self) -> None:
@@ -177,9 +181,8 @@ class RodSimNode(Node):
                 self.settings = dataclasses.replace(self.settings, step_count=int(p.value))
 
     sim_time = property(lambda self: self.sim.t, doc="Simulated time [s].")
-    paused = property(lambda self: self.control.paused)
-    error = property(lambda self: self.control.error, doc="The cause of the last failure.")
-    commands_rejected = property(lambda self: self.inputs.forces.rejected)
+    commands_rejected = property(lambda self: sum(i.rejected for i in self.inputs.intakes.values()),
+                                 doc="Commands rejected so far, on every command topic.")
     log_path = property(lambda self: self._recording.path, doc="The log being written.")
 
     def _on_command_bytes(self, data: bytes, intake: CommandIntake | None = None) -> None:
