@@ -1,7 +1,6 @@
 """Bad or extreme input to ``rod-sim simulate`` and the scene loader: one line naming the option
 or key, exit status 2 (1 when a started run stops), no traceback, no file left behind, and
 the resource limits of rod_sim/app/limits.py."""
-import errno
 import io
 import os
 import subprocess
@@ -14,7 +13,6 @@ import pytest
 
 from rod_sim.core.quote import QUOTE_LIMIT, quote
 from rod_sim.core.scene import Scene, SceneError
-from rod_sim.io import log_writer as mcap_log
 from rod_sim.io.series import read_rod_states
 from rod_sim.io.scene_yaml import MAX_SCENE_BYTES, load_scene
 from rod_sim.app import limits
@@ -164,37 +162,35 @@ def test_out_in_a_directory_without_permission(tmp_path, capsys):
     assert "--out" in line and "Permission denied" in line
 
 
-def full_disk(monkeypatch, budget: int) -> list[int]:
-    """Writes of the log fail with ENOSPC once ``budget`` bytes are written; returns the
-    one-element list counting the bytes that did reach the file."""
-    written = [0]
-    real = mcap_log._FlushingFile.write
+def simulate_on_a_small_disk(tmp_path, budget: int) -> subprocess.CompletedProcess:
+    """``rod-sim simulate`` of 4 s of the paper example at 1 kHz in a process whose files may
+    not grow past ``budget`` bytes (RLIMIT_FSIZE, inherited by its log writer process: a
+    write there takes what fits, then fails with EFBIG, as a full disk fails with ENOSPC)."""
+    import resource
 
-    def write(self, data):
-        if written[0] + len(data) > budget:
-            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-        written[0] += len(data)
-        return real(self, data)
+    def small_disk():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (budget, budget))
 
-    monkeypatch.setattr(mcap_log._FlushingFile, "write", write)
-    return written
+    return subprocess.run([sys.executable, "-m", "rod_sim.tools.cli", "simulate", str(PAPER),
+                           "--t-end", "4", "--rate", "1000", "--out", str(tmp_path / "run.mcap")],
+                          preexec_fn=small_disk, capture_output=True, text=True, timeout=300)
 
 
-def test_full_disk_before_the_first_chunk_removes_the_log(tmp_path, capsys, monkeypatch):
-    full_disk(monkeypatch, 8 * 1024)
-    assert simulate(tmp_path, PAPER, "--t-end", "4", "--rate", "1000") == 1
-    err = capsys.readouterr().err
-    assert "No space left on device" in err and "removed" in err and "Traceback" not in err
+def test_full_disk_before_the_first_chunk_removes_the_log(tmp_path):
+    done = simulate_on_a_small_disk(tmp_path, 8 * 1024)
+    assert done.returncode == 1, done.stderr
+    assert "File too large" in done.stderr and "removed" in done.stderr, done.stderr
+    assert "Traceback" not in done.stderr
     assert not (tmp_path / "run.mcap").exists()
 
 
-def test_full_disk_later_keeps_the_complete_chunks_and_says_so(tmp_path, capsys, monkeypatch):
-    full_disk(monkeypatch, 3 * 1024 * 1024)
-    assert simulate(tmp_path, PAPER, "--t-end", "4", "--rate", "1000") == 1
-    err = capsys.readouterr().err
-    assert "No space left on device" in err and "keeps the" in err
+def test_full_disk_later_keeps_the_complete_chunks_and_says_so(tmp_path):
+    done = simulate_on_a_small_disk(tmp_path, 1024 * 1024)
+    assert done.returncode == 1, done.stderr
+    assert "File too large" in done.stderr and "keeps the" in done.stderr, done.stderr
     t, _, _ = read_rod_states(tmp_path / "run.mcap")
-    assert t.size > 100 and t[0] == 0.0 and f"keeps the {t.size} samples" in err
+    assert t.size > 100 and t[0] == 0.0 and f"keeps the {t.size} samples" in done.stderr
+    assert (tmp_path / "run.mcap").stat().st_size <= 1024 * 1024
 
 
 @pytest.mark.slow

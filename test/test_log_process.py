@@ -57,6 +57,72 @@ def test_same_bytes_as_mcap_writer(tmp_path, compression):
     assert path.read_bytes() == theirs.getvalue()
 
 
+class _Trickle(io.RawIOBase):
+    """A raw file that takes at most ``most`` bytes per write (as a filling disk may), then
+    ``None`` (as a non-blocking one) once ``stall`` writes were made, if given."""
+
+    def __init__(self, most: int, stall: int | None = None):
+        self.data, self.most, self.stall, self.calls = bytearray(), most, stall, 0
+
+    def writable(self):
+        return True
+
+    def write(self, b):
+        self.calls += 1
+        if self.stall is not None and self.calls > self.stall:
+            return None
+        take = bytes(b[:self.most])
+        self.data += take
+        return len(take)
+
+
+def test_a_raw_file_that_takes_part_of_each_write_gets_every_byte():
+    from mcap.writer import CompressionType
+
+    from rod_sim.io.mcap_writer import ChunkSink
+
+    calls = script(7, 200)
+    theirs = io.BytesIO()
+    play(Writer(theirs, chunk_size=16 * 1024, enable_data_crcs=True,
+                compression=CompressionType.ZSTD), calls)
+    trickle = _Trickle(most=1000)
+    play(ChunkedMcapWriter(chunk_size=16 * 1024, sink=ChunkSink(trickle, "zstd")), calls)
+    assert bytes(trickle.data) == theirs.getvalue() and trickle.calls > len(theirs.getvalue()) // 1000
+
+
+def test_a_raw_file_that_takes_nothing_is_an_error_not_a_lost_chunk():
+    from rod_sim.io.mcap_writer import ChunkSink
+
+    with pytest.raises(OSError, match="the log took None of"):
+        play(ChunkedMcapWriter(chunk_size=16 * 1024, sink=ChunkSink(_Trickle(64, stall=3))),
+             script(7, 200))
+
+
+@pytest.mark.parametrize("refused", ["memfd_create", "ftruncate"])
+def test_no_shared_ring_to_be_had_sends_the_chunks_through_the_pipe(tmp_path, monkeypatch,
+                                                                     refused):
+    """``ulimit -f`` applies to a memfd too: its ftruncate fails with EFBIG."""
+    from mcap.writer import CompressionType
+
+    from rod_sim.io.log_process import ProcessSink
+
+    def refuse(*args):
+        raise OSError(errno.EFBIG, os.strerror(errno.EFBIG))
+
+    calls = script(5, 300)
+    theirs = io.BytesIO()
+    play(Writer(theirs, chunk_size=16 * 1024, enable_data_crcs=True,
+                compression=CompressionType.ZSTD), calls)
+    path = tmp_path / "ours.mcap"
+    with open(path, "xb", buffering=0) as f:
+        monkeypatch.setattr(os, refused, refuse)
+        sink = ProcessSink(f.fileno(), "zstd")
+        monkeypatch.undo()
+        play(ChunkedMcapWriter(chunk_size=16 * 1024, sink=sink), calls)
+    assert path.read_bytes() == theirs.getvalue()
+    assert sink.ring_chunks == 0 and sink.pipe_chunks > 3
+
+
 def test_log_writer_through_a_process_writes_what_it_writes_in_process(tmp_path):
     def write(path, process):
         with LogWriter(path, metadata=METADATA, writer_process=process) as log:

@@ -117,29 +117,33 @@ def test_an_interrupt_raised_inside_a_compiled_call_is_still_an_interrupt(monkey
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_a_signal_in_the_middle_of_a_log_write_waits_for_its_end(tmp_path, monkeypatch, capsys,
                                                                  sig):
-    """The signal arrives inside a file write of the log (the 40th): it is raised once the
-    sample is written, so the log closes with its summary and holds whole samples only. (The
-    first full `make test` hit this by chance: SIGTERM inside a chunk write left a log that
-    ended in a broken record, no DataEnd.)"""
+    """The signal arrives inside a write of the log: between a chunk's frame and its bytes
+    in the pipe to the writer process (no shared ring here, as under ``ulimit -f``; the 40th
+    pipe write). It is raised once the sample is written, so the log closes with its summary
+    and holds whole samples only; raised there, the child would take the next frame for the
+    chunk's bytes. (The first full `make test` hit this by chance: SIGTERM inside a chunk
+    write left a log that ended in a broken record, no DataEnd.)"""
     import os
 
-    from rod_sim.io import log_writer as mcap_log
+    from rod_sim.io import log_process
+    from rod_sim.io.log_process import ProcessSink
     from rod_sim.tools import cli
 
     for s in (signal.SIGTERM, signal.SIGINT):
         monkeypatch.setattr(cli, "_restore_" + s.name, signal.getsignal(s), raising=False)
     signal.signal(signal.SIGINT, signal.default_int_handler)    # as Python starts a command
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
-    real = mcap_log._FlushingFile.write
+    real = ProcessSink._write_all
     calls = []
 
-    def write(self, data):
+    def write_all(self, data):
         calls.append(len(data))
-        if len(calls) == 40:
+        if len(calls) == 40:        # frames: start, metadata, then each chunk's frame + bytes
             os.kill(os.getpid(), sig)         # the handler runs here, before the bytes go out
         return real(self, data)
 
-    monkeypatch.setattr(mcap_log._FlushingFile, "write", write)
+    monkeypatch.setattr(log_process, "_shared_ring", lambda size: (-1, None))
+    monkeypatch.setattr(ProcessSink, "_write_all", write_all)
     log = tmp_path / "sig.mcap"
     try:
         code = cli.main(["simulate", str(PAPER), "--t-end", "20", "--rate", "1000",
@@ -152,11 +156,15 @@ def test_a_signal_in_the_middle_of_a_log_write_waits_for_its_end(tmp_path, monke
         "rod-sim simulate: interrupted")
     with LogReader(log) as reader:
         assert reader.complete and not reader.damaged
-        counts = {}
-        for topic, _, _ in reader.raw_messages():
+        counts, times = {}, {}
+        for topic, t_ns, _ in reader.raw_messages():
             counts[topic] = counts.get(topic, 0) + 1
+            times.setdefault(topic, []).append(t_ns)
     assert counts.pop("/scene") == 1                     # latched, written once at the start
     assert len(set(counts.values())) == 1, counts        # whole samples: every topic alike
+    for topic, t_ns in times.items():                    # and none lost: no chunk dropped
+        if topic != "/scene":
+            assert t_ns == [k * 1_000_000 for k in range(len(t_ns))], topic
 
 
 def test_an_interruption_python_cannot_raise_is_not_reported_as_ignored():

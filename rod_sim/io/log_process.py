@@ -84,6 +84,22 @@ def child_environment(environ=os.environ) -> dict[str, str]:
     return env
 
 
+def _shared_ring(size: int) -> tuple[int, mmap.mmap | None]:
+    """(descriptor, map) of ``size`` bytes of shared memory, its pages allocated now
+    (MAP_POPULATE), not in the first periods; (-1, None) where the system refuses it (a file
+    size limit, ``ulimit -f``, applies to a memfd too; memory locked down): the chunks then go
+    through the pipe."""
+    fd = -1
+    try:
+        fd = os.memfd_create("rod_sim-log-ring")
+        os.ftruncate(fd, size)
+        return fd, mmap.mmap(fd, size, flags=mmap.MAP_SHARED | getattr(mmap, "MAP_POPULATE", 0))
+    except OSError:
+        if fd >= 0:
+            os.close(fd)
+        return -1, None
+
+
 class ProcessSink:
     """A :class:`~rod_sim.io.mcap_writer.ChunkSink` in a child process, writing to the open
     file ``fd`` (inherited; the caller keeps and closes its own) with ``compression``.
@@ -105,11 +121,10 @@ class ProcessSink:
         ring_fd, ack_read, ack_write = -1, -1, -1
         try:
             if ring_bytes:
-                ring_fd = os.memfd_create("rod_sim-log-ring")
-                os.ftruncate(ring_fd, ring_bytes)
-                # its pages allocated now (MAP_POPULATE), not in the first periods
-                self._ring = mmap.mmap(ring_fd, ring_bytes, flags=mmap.MAP_SHARED
-                                       | getattr(mmap, "MAP_POPULATE", 0))
+                ring_fd, self._ring = _shared_ring(ring_bytes)
+            if self._ring is None:
+                self._ring_size = 0
+            else:
                 ack_read, ack_write = os.pipe()
                 os.set_blocking(ack_read, False)
             self._proc = subprocess.Popen(

@@ -15,6 +15,7 @@ the data section and the summary. ``test/test_mcap_writer.py`` checks the identi
 """
 from __future__ import annotations
 
+import errno
 import struct
 import zlib
 from typing import IO, Protocol
@@ -65,10 +66,21 @@ class ChunkSink:
         self._chunk_indexes: list[ChunkIndex] = []
 
     def _write(self, data: bytes) -> None:
+        """Data-section bytes: counted in its CRC, then written whole."""
         if data:
             self._data_crc = zlib.crc32(data, self._data_crc)
-            self._stream.write(data)
-            self._pos += len(data)
+            self._put(data)
+
+    def _put(self, data: bytes) -> None:
+        """Every byte of ``data`` to the stream: a raw file may take part of a write (a disk
+        filling up takes what fits, and the next write raises its error)."""
+        view, done = memoryview(data), 0
+        while done < len(view):
+            count = self._stream.write(view[done:])
+            if count is None or count <= 0:             # not a blocking regular file
+                raise OSError(errno.EIO, f"the log took {count!r} of {len(view) - done} bytes")
+            done += count
+        self._pos += len(view)
 
     def write_start(self, header: bytes) -> None:
         """The magic and the header record (its bytes)."""
@@ -144,8 +156,7 @@ class ChunkSink:
         tail = summary + _record(Footer(summary_start=summary_start,
                                         summary_offset_start=offset_start,
                                         summary_crc=crc)) + MAGIC
-        self._stream.write(tail)
-        self._pos += len(tail)
+        self._put(tail)
 
 
 class Sink(Protocol):

@@ -92,8 +92,10 @@ def run(args) -> int:
                 "integrator": integrator.describe(), "version": __version__,
                 "rate_hz": repr(args.rate), "source": "rod-sim simulate"}
     try:
+        # compression, checksums and file writes in a process of their own (the node's log
+        # writer): the samples' thread only encodes
         log = LogWriter(out, metadata=metadata, qos={SCENE_TOPIC: offered_qos_yaml(
-            depth=1, durability="transient_local")})
+            depth=1, durability="transient_local")}, writer_process=True)
         # the scene also as a latched topic: a log converted by rosbag2 tools (which drop MCAP
         # metadata records) stays self-contained
         log.write(SCENE_TOPIC, "std_msgs/msg/String", 0, {"data": metadata["scene"]})
