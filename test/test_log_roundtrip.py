@@ -453,12 +453,32 @@ def test_snapshot_messages_topic_selection():
     assert 0 < width < diameter < 1.0
 
 
+def full_disk(monkeypatch, budget: int) -> list[int]:
+    """Writes of an in-process log fail with ENOSPC once ``budget`` bytes are written; returns
+    the one-element list counting the bytes that did reach the file."""
+    import errno
+    import os
+
+    from rod_sim.io import log_writer
+
+    written = [0]
+    real = log_writer._FlushingFile.write
+
+    def write(self, data):
+        if written[0] + len(data) > budget:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        written[0] += len(data)
+        return real(self, data)
+
+    monkeypatch.setattr(log_writer._FlushingFile, "write", write)
+    return written
+
+
 def test_a_failed_write_leaves_the_complete_chunks_and_nothing_after(tmp_path, monkeypatch):
     """A full disk in the middle of a log: close() writes nothing more (no data-end record with
     a CRC over bytes that never reached the file), the file ends at its last complete chunk and
     the readers give every sample of those chunks (rosbags too, after `rod-sim repair`)."""
     from rod_sim.io.repair import repair_log
-    from test_cli_limits import full_disk
 
     budget = 20_000
     written = full_disk(monkeypatch, budget)
