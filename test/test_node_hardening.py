@@ -158,8 +158,10 @@ def test_recording_after_reset_skips_existing_files_and_reports_failures(harness
 
 def test_a_second_node_of_the_same_name_is_reported(harness, tmp_path):
     h = harness(scene_file=str(SMALL))
+    timers = len(list(h.node.timers))
     h.spin_for(2.5)
     assert h.node.diagnostic_report().values()["name_conflict"] == "false"
+    assert len(list(h.node.timers)) == timers - 1      # the one-shot check's timer is gone
     twin = RodSimNode(context=h.context, parameter_overrides=[
         Parameter("scene_file", value=str(SMALL))])
     h.nodes.append(twin)

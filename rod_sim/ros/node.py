@@ -144,8 +144,9 @@ class RodSimNode(Node):
         self._live = None if not s.live_view_port else NodeLiveView(self, s.live_view_port)
 
     def _check_name_unique(self) -> None:
-        """Once, after discovery: warn when another node has this node's full name."""
-        self._name_timer.cancel()
+        """Once, after discovery: warn when another node has this node's full name (its timer
+        destroyed: a cancelled one stays in the wait set of every executor wake-up)."""
+        self.destroy_timer(self._name_timer)
         warning = same_name_warning(self)
         if warning:
             self._monitor.name_conflict = warning
