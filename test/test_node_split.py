@@ -69,6 +69,8 @@ def test_inputs_hold_time_out_and_queue_in_lockstep():
     np.testing.assert_array_equal(inputs.next_queued(), [[1, 1, 0], [2, 2, 0]])
     np.testing.assert_array_equal(inputs.next_queued(), [[1, 1, 5], [2, 2, 6]])
     assert inputs.counts()["hinge_torques_received"] == "1"
+    inputs.receive(raw([7]), inputs.torques, 0, rec)                  # 1 value for 2 hinges
+    assert (inputs.total("received"), inputs.total("rejected")) == (5, 2)
     inputs.clear()
     assert not inputs.any_command() and not inputs.queue
 

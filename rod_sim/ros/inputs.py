@@ -146,6 +146,10 @@ class Inputs:
             step(self.next_queued())
         return bool(self.queue) and running()
 
+    def total(self, what: str) -> int:
+        """Commands ``what`` (``received`` or ``rejected``) so far, on every command topic."""
+        return sum(getattr(intake, what) for intake in self.intakes.values())
+
     def counts(self) -> dict[str, str]:
         """Diagnostics values: received, rejected and active per topic (``base_wrench_*``
         too: a wrench sent to a scene without a free base is rejected and counted)."""

@@ -182,7 +182,7 @@ class RodSimNode(Node):
                 self.settings = dataclasses.replace(self.settings, step_count=int(p.value))
 
     sim_time = property(lambda self: self.sim.t, doc="Simulated time [s].")
-    commands_rejected = property(lambda self: sum(i.rejected for i in self.inputs.intakes.values()),
+    commands_rejected = property(lambda self: self.inputs.total("rejected"),
                                  doc="Commands rejected so far, on every command topic.")
     log_path = property(lambda self: self._recording.path, doc="The log being written.")
 
