@@ -26,7 +26,8 @@ import test_node_ros as base  # noqa: E402
 from ros_domains import next_domain  # noqa: E402
 from rod_sim.io.log_reader import LogReader  # noqa: E402
 from rod_sim.io.scene_yaml import load_scene  # noqa: E402
-from rod_sim.ros.node import (DIAGNOSTICS_STATUS_NAME, NodeConfigError, RodSimNode,  # noqa: E402
+from rod_sim.io.topics import DIAGNOSTICS_STATUS_NAME  # noqa: E402
+from rod_sim.ros.node import (NodeConfigError, RodSimNode,  # noqa: E402
                               has_hinge_events, params_files)
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(90)]

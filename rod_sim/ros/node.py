@@ -28,7 +28,6 @@ from rclpy.node import Node
 from std_srvs.srv import SetBool, Trigger
 
 from rod_sim.core.units import NS_PER_S
-from rod_sim.io.topics import DIAGNOSTICS_STATUS_NAME
 from rod_sim.ros import simulation
 from rod_sim.ros.command_layout import CommandLayout
 from rod_sim.ros.commands import FORCES, MESSAGE_TYPES, TORQUES, CommandIntake
@@ -50,7 +49,7 @@ from rod_sim.ros.recording import NodeRecording, node_log_opener
 from rod_sim.ros.stepper import Stepper
 
 __all__ = ["RodSimNode", "NodeConfigError", "main", "PARAMETERS", "SERVICE_QUEUE_DEPTH",
-           "params_files", "has_hinge_events", "DIAGNOSTICS_STATUS_NAME"]
+           "params_files", "has_hinge_events"]
 
 
 class RodSimNode(Node):
