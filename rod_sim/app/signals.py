@@ -56,16 +56,91 @@ def interrupted_line(signum: int | None = None) -> str:
     return f"{command}: interrupted" + (" (SIGTERM)" if signum == signal.SIGTERM else "")
 
 
+class ArrivalWatch:
+    """Calls ``on_arrival(signum)`` in a daemon thread as soon as one of ``signals`` arrives,
+    whatever the main thread is doing. Python runs a signal's handler in the main thread
+    only between two bytecodes: while the main thread is in one long call that does not
+    return to the interpreter (LLVM compiling a driver, a compiled integrator's call, a C
+    library) the handler waits, and so did the watchdog it starts (CI: 1.28 s of CPU from a
+    SIGINT to the end of a 100 000-rod node's start-up). The C-level handler writes the
+    signal's number to :func:`signal.set_wakeup_fd`'s pipe at once; this thread reads it.
+    It runs Python as soon as the main thread releases the GIL, which C libraries and
+    rod_sim's compiled code (``nogil``, :mod:`rod_sim.core.jit`) do.
+
+    A context manager for the main thread (elsewhere, or where the wakeup descriptor cannot
+    be set, it does nothing); on exit the previous wakeup descriptor is restored. Only
+    signals with a Python handler are written to the pipe."""
+
+    def __init__(self, on_arrival, signals=(signal.SIGINT, signal.SIGTERM)):
+        self.on_arrival = on_arrival
+        self.signals = frozenset(int(s) for s in signals)
+        self._write_fd: int | None = None
+        self._previous = -1
+
+    def __enter__(self) -> "ArrivalWatch":
+        if threading.current_thread() is not threading.main_thread():
+            return self
+        read_fd, write_fd = os.pipe()
+        os.set_blocking(write_fd, False)
+        try:
+            self._previous = signal.set_wakeup_fd(write_fd, warn_on_full_buffer=False)
+        except (ValueError, OSError):
+            os.close(read_fd)
+            os.close(write_fd)
+            return self
+        self._write_fd = write_fd
+        threading.Thread(target=self._read, args=(read_fd,), daemon=True,
+                         name="rod-sim-signal-arrival").start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._write_fd is None:
+            return
+        with contextlib.suppress(ValueError, OSError):
+            signal.set_wakeup_fd(self._previous)
+        os.close(self._write_fd)        # the reader sees the end of the pipe and stops
+        self._write_fd = None
+
+    def _read(self, read_fd: int) -> None:
+        try:
+            while data := os.read(read_fd, 64):
+                for signum in data:
+                    if signum in self.signals:
+                        self.on_arrival(signum)
+        except OSError:
+            pass
+        finally:
+            os.close(read_fd)
+
+
+_first_lock = threading.RLock()
+_interrupting: list[int] = []
+"""The signal the main thread's handler has raised (or deferred) its interruption for."""
+
+
+def _arrived(signum: int) -> None:
+    """The first SIGINT / SIGTERM of the command, seen by whichever comes first, the
+    :class:`ArrivalWatch` thread or the main thread's handler: recorded, and the watchdog
+    starts."""
+    with _first_lock:
+        if _received:
+            return
+        _received.append(signum)
+        threading.Thread(target=_watchdog, args=(_done,), name="rod-sim-signal-watchdog",
+                         daemon=True).start()
+
+
 def _on_signal(signum, frame) -> None:
     """SIGINT raises KeyboardInterrupt, SIGTERM :class:`Terminated`; inside
     :func:`signals_deferred` (a log write) the exception waits until the write is done. The
-    first signal interrupts and starts the watchdog; later ones are ignored (the cleanup is
-    bounded by the watchdog)."""
-    if _received:
-        return
-    _received.append(signum)
-    threading.Thread(target=_watchdog, args=(_done,), name="rod-sim-signal-watchdog",
-                     daemon=True).start()
+    first signal interrupts and starts the watchdog (unless the :class:`ArrivalWatch` thread
+    saw it first); later ones are ignored (the cleanup is bounded by the watchdog)."""
+    _arrived(signum)
+    with _first_lock:
+        if _interrupting:
+            return
+        _interrupting.append(signum)
+    signum = _received[0]
     stop = Terminated if signum == signal.SIGTERM else KeyboardInterrupt
     if _deferring:
         _pending.append(stop)
@@ -170,6 +245,25 @@ def handle_sigterm() -> None:
         if current in (signal.default_int_handler, _on_signal) or getattr(
                 current, "rod_sim_early", False):     # rod_sim.tools.launch's first handler
             signal.signal(signal.SIGINT, _on_signal)
+        if _arrival_watch is None:
+            _start_arrival_watch()
+
+
+_arrival_watch: ArrivalWatch | None = None
+"""The commands' :class:`ArrivalWatch` (one per process, from the first
+:func:`handle_sigterm` on; the node's and replay's handlers set their own while they run)."""
+
+
+def _start_arrival_watch() -> None:
+    global _arrival_watch
+    _arrival_watch = ArrivalWatch(_arrived_here).__enter__()
+
+
+def _arrived_here(signum: int) -> None:
+    """:func:`_arrived` for a signal that this module's handler handles (not one that the
+    node's, or a handler set after the command returned, does)."""
+    if signal.getsignal(signum) is _on_signal:
+        _arrived(signum)
 
 
 def finished() -> None:
@@ -207,5 +301,6 @@ def reset(name: str = "rod-sim") -> None:
     _done = threading.Event()
     _pending.clear()
     _received.clear()
+    _interrupting.clear()
     _unfinished.clear()
     command = name

@@ -17,6 +17,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 
+from rod_sim.app.signals import ArrivalWatch
 from rod_sim.ros.errors import one_line
 from rod_sim.ros.executor import LeanExecutor
 from rod_sim.ros.startup import Progress
@@ -59,7 +60,9 @@ class StopRequest:
     ignored ..." and dropped, and the start-up ran on. So a signal during the start-up also
     starts a watchdog that ends the process :data:`START_GRACE_S` later with the start-up's
     one line and 130 / 143 unless :meth:`claim` was called first, and an interruption Python
-    drops is not printed (``sys.unraisablehook``)."""
+    drops is not printed (``sys.unraisablehook``). The watchdog starts when the signal
+    arrives (:class:`rod_sim.app.signals.ArrivalWatch`), not when Python gets round to the
+    handler, which waits for the end of a long compiled call."""
 
     SIGNALS = (signal.SIGINT, signal.SIGTERM)
     START_GRACE_S = 0.75
@@ -73,16 +76,21 @@ class StopRequest:
         self._previous: dict[int, Any] = {}
         self._claimed = threading.Event()
         self._claim_lock = threading.Lock()
+        self._first_lock = threading.RLock()     # the handler may run inside itself
+        self._watchdog_started = False
         self._unraisablehook = None
+        self._arrivals = ArrivalWatch(self._arrived, self.SIGNALS)
 
     def __enter__(self) -> "StopRequest":
         for sig in self.SIGNALS:
             self._previous[sig] = signal.signal(sig, self._handle)
         self._unraisablehook = sys.unraisablehook
         sys.unraisablehook = self._quiet_unraisable
+        self._arrivals.__enter__()
         return self
 
     def __exit__(self, *exc) -> None:
+        self._arrivals.__exit__(*exc)
         for sig, handler in self._previous.items():
             signal.signal(sig, handler)
         if sys.unraisablehook == self._quiet_unraisable:
@@ -98,12 +106,26 @@ class StopRequest:
             if self.starting:
                 return              # the start-up is already being interrupted
             raise KeyboardInterrupt
-        self.signum = signum
+        self._first(signum)
         self.event.set()
         if self.starting:
-            threading.Thread(target=self._start_watchdog, name="rod-sim-start-watchdog",
-                             daemon=True).start()
             raise KeyboardInterrupt
+
+    def _arrived(self, signum: int) -> None:
+        """A signal has arrived (the :class:`ArrivalWatch` thread): during the start-up the
+        watchdog starts now; the handler interrupts when the main thread gets to it."""
+        if self.starting:
+            self._first(signum)
+
+    def _first(self, signum: int) -> None:
+        """Record the first signal; during the start-up, start the watchdog (once)."""
+        with self._first_lock:
+            if self.signum is None:
+                self.signum = signum
+            if self.starting and not self._watchdog_started:
+                self._watchdog_started = True
+                threading.Thread(target=self._start_watchdog, name="rod-sim-start-watchdog",
+                                 daemon=True).start()
 
     def interrupted_line(self) -> str:
         """The one line of a start-up ended by the first signal."""

@@ -1,0 +1,132 @@
+"""A signal that arrives while the main thread is inside one long call that never returns to the
+interpreter still ends a command or a node start-up within the grace time (0.75 s).
+
+CI: SIGINT 1.60 s into a 100 000-rod node's start-up ended it after 1.28 s of CPU: Python runs
+a signal's handler in the main thread between two bytecodes only, and the handler started the
+watchdog. Now a thread reads the signal's number from the interpreter's wakeup descriptor the
+moment the signal arrives (rod_sim.app.signals.ArrivalWatch) and starts the watchdog itself.
+
+Each case runs a child whose main thread enters a call that never returns and that no signal
+interrupts (a pthread mutex locked again by its owner, through ctypes, which releases the GIL
+as rod_sim's compiled code and LLVM do; pthread_mutex_lock never fails with EINTR): Python's
+handler never runs, so the child ends only if the signal's arrival is seen elsewhere. The
+oracle is the child's exit status and output, not the module's own state."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from procs import terminal_signals
+
+REPO = Path(__file__).resolve().parents[1]
+
+LONG_CALL = """
+import ctypes
+libc = ctypes.CDLL(None)                   # its calls release the GIL
+mutex = ctypes.create_string_buffer(64)    # zeros: PTHREAD_MUTEX_INITIALIZER (glibc)
+libc.pthread_mutex_lock(mutex)
+print("ready", flush=True)
+libc.pthread_mutex_lock(mutex)             # locked again by its owner: never returns
+print("the long call ended", flush=True)
+"""
+
+WATCH_ALONE = """
+import os, signal, sys
+from rod_sim.app.signals import ArrivalWatch
+
+signal.signal(signal.SIGUSR1, lambda signum, frame: print("handler", flush=True))
+
+def arrived(signum):
+    os.write(1, f"arrived {signum}\\n".encode())
+    os._exit(7)
+
+with ArrivalWatch(arrived, (signal.SIGUSR1,)):
+""" + "\n".join("    " + line for line in LONG_CALL.strip().splitlines()) + "\n"
+
+COMMAND = """
+import sys
+from rod_sim.app import signals
+signals.handle_sigterm()
+signals.reset("rod-sim long")
+""" + LONG_CALL
+
+NODE_START_UP = """
+import sys
+from rod_sim.ros.process import run_node
+
+def make_node():
+""" + "\n".join("    " + line for line in LONG_CALL.strip().splitlines()) + """
+    from rclpy.node import Node
+    return Node("long_start_up")
+
+sys.exit(run_node("rod-sim node", make_node, [], ()))
+"""
+
+
+def run_and_signal(script: str, signum: int, env=None) -> tuple[int, str, str]:
+    """Start ``script``, send ``signum`` 0.3 s after it prints "ready"; its status, stdout and
+    stderr."""
+    proc = subprocess.Popen([sys.executable, "-c", script], cwd=REPO, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=env or os.environ.copy(),
+                            preexec_fn=terminal_signals)
+    try:
+        assert proc.stdout.readline() == "ready\n", proc.stderr.read()
+        time.sleep(0.3)
+        proc.send_signal(signum)
+        out, err = proc.communicate(timeout=60)         # a child that never ends: fails
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    return proc.returncode, out, err
+
+
+def test_the_watch_sees_a_signal_during_a_call_that_keeps_the_handler_waiting():
+    status, out, err = run_and_signal(WATCH_ALONE, signal.SIGUSR1)
+    assert (status, out) == (7, f"arrived {int(signal.SIGUSR1)}\n"), err
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_command_ends_within_its_grace_time_of_a_signal_during_a_long_call(sig):
+    status, out, err = run_and_signal(COMMAND, sig)
+    line = "rod-sim long: interrupted" + (" (SIGTERM)" if sig == signal.SIGTERM else "")
+    assert (status, out, err) == (128 + sig, "", line + "\n")
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_node_start_up_ends_within_its_grace_time_of_a_signal_during_a_long_call(sig):
+    pytest.importorskip("rclpy")
+    from ros_domains import next_domain
+
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+               ROS_DOMAIN_ID=str(next_domain()))
+    status, out, err = run_and_signal(NODE_START_UP, sig, env)
+    err = "".join(line for line in err.splitlines(keepends=True)
+                  if ": starting: " not in line)          # the start-up's progress after 2 s
+    line = "rod-sim node: interrupted during start-up" + (" (SIGTERM)" if sig == signal.SIGTERM
+                                                         else "")
+    assert (status, out, err) == (128 + sig, "", line + "\n")
+
+
+def test_the_watch_gives_back_the_wakeup_descriptor_it_replaced():
+    from rod_sim.app.signals import ArrivalWatch
+
+    read_fd, write_fd = os.pipe()
+    os.set_blocking(write_fd, False)
+    before = signal.set_wakeup_fd(write_fd)
+    try:
+        with ArrivalWatch(lambda signum: None):
+            inside = signal.set_wakeup_fd(-1)
+            signal.set_wakeup_fd(inside)
+            assert inside not in (-1, write_fd)             # its own pipe
+        assert signal.set_wakeup_fd(before) == write_fd
+    finally:
+        os.close(read_fd)
+        os.close(write_fd)
