@@ -1,5 +1,5 @@
-"""python -m rod_sim.ros.executor_cost: runs in a ROS domain of its own, prints one line per node
-and round, refuses bad settings (the figures are the machine's and are not asserted)."""
+"""python -m rod_sim.ros.executor_cost: runs in a ROS domain of its own, prints one line per node,
+executor and round, refuses bad settings (the figures are the machine's and are not asserted)."""
 import re
 import subprocess
 import sys
@@ -14,14 +14,16 @@ from ros_domains import next_domain  # noqa: E402
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
 
 
-def test_prints_the_cost_of_a_wake_up_for_both_nodes_in_turns():
+def test_prints_the_cost_of_a_wake_up_for_both_nodes_and_executors_in_turns():
     domain = next_domain()
     done = subprocess.run([sys.executable, "-m", "rod_sim.ros.executor_cost", "--seconds", "0.2",
                            "--rounds", "2", "--domain", str(domain)], cwd=REPO,
                           env=ros_env(domain), capture_output=True, text=True, timeout=100)
     assert done.returncode == 0, done.stderr
     lines = done.stdout.splitlines()
-    assert [line.split(":")[0] for line in lines] == ["bare", "node's entities"] * 2
+    assert [line.split(":")[0] for line in lines] == [
+        "bare, rclpy's executor", "bare, lean executor", "rod_sim node, rclpy's executor",
+        "rod_sim node, lean executor"] * 2
     for line in lines:
         m = re.fullmatch(r"[^:]+: (\d+) us of main-thread CPU per wake-up \((\d+) wake-ups of a "
                          r"1 ms timer\)", line)

@@ -1,48 +1,61 @@
-"""What one wake-up of rclpy's executor costs the main thread (rclpy's and the machine's, not
-the period's).
+"""What one wake-up of the executor costs the main thread (rclpy's and the machine's, not the
+period's), with rclpy's executor and with the node's own.
 
     python -m rod_sim.ros.executor_cost [--seconds 2] [--rounds 2] [--domain 227]
 
-The node's pacing timer wakes rclpy's ``SingleThreadedExecutor`` at every tick, and each
-wake-up rebuilds the wait set from every entity of the node, in Python. This measures the main
-thread's CPU time per wake-up of a 1 ms timer whose callback does nothing (``time.thread_time``
-over ``--seconds`` of spinning, divided by the timer's calls), on two nodes taking turns,
-``--rounds`` times: a ``bare`` node (the timer only, no parameter services) and one with the
-``node's entities`` (the timer, 5 more timers, 3 services, 3 command subscriptions and the
-parameter services, as :class:`~rod_sim.ros.node.RodSimNode` has them). No message is sent.
-``ROS_AUTOMATIC_DISCOVERY_RANGE`` is LOCALHOST and ``ROS_DOMAIN_ID`` is ``--domain``.
+The node's pacing timer wakes its executor at every tick, and each wake-up waits on every
+entity of the node. This measures the main thread's CPU time per wake-up of a 1 ms timer whose
+callback does nothing (``time.thread_time`` over ``--seconds`` of spinning, divided by the
+timer's calls) for two nodes and two executors, taking turns, ``--rounds`` times:
+
+- nodes: ``bare`` (the timer only, no parameter services) and ``rod_sim node`` (a real
+  :class:`~rod_sim.ros.node.RodSimNode` on the paper's example, paused, its pacing tick at
+  1 Hz, with the 1 ms timer added: every entity the node has, as it has them);
+- executors: ``rclpy's`` (:class:`rclpy.executors.SingleThreadedExecutor`) and ``lean``
+  (:class:`~rod_sim.ros.executor.LeanExecutor`, what ``rod-sim node`` spins).
+
+No message is sent. ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is LOCALHOST and ``ROS_DOMAIN_ID`` is
+``--domain``.
 """
 from __future__ import annotations
 
 import argparse
 import os
 import time
+from pathlib import Path
 
-KINDS = ("bare", "node's entities")
+NODES = ("bare", "rod_sim node")
+EXECUTORS = ("rclpy's", "lean")
 TICK_S = 0.001
 """[s] period of the timer that wakes the executor (the node's shortest pacing tick)."""
+SCENE = Path(__file__).resolve().parents[2] / "config" / "paper_example.yaml"
 
 
-def wake_cost(rclpy, kind: str, seconds: float) -> tuple[int, float]:
-    """(timer calls, main-thread CPU [us] per call) of one node of ``kind`` (:data:`KINDS`)
-    spun for ``seconds`` after 0.3 s of warm-up."""
+def make_node(rclpy, kind: str):
+    """A node of ``kind`` (:data:`NODES`) without its 1 ms timer."""
+    if kind == NODES[0]:
+        return rclpy.create_node("executor_cost_bare", start_parameter_services=False)
+    from rclpy.parameter import Parameter
+
+    from rod_sim.ros.node import RodSimNode
+
+    return RodSimNode(parameter_overrides=[
+        Parameter("scene_file", value=str(SCENE)), Parameter("rate_hz", value=1.0),
+        Parameter("start_paused", value=True)])
+
+
+def make_executor(kind: str):
+    """An executor of ``kind`` (:data:`EXECUTORS`)."""
     from rclpy.executors import SingleThreadedExecutor
-    from std_msgs.msg import Float64MultiArray
-    from std_srvs.srv import Trigger
 
-    full = kind == KINDS[1]
-    node = rclpy.create_node(f"executor_cost_{KINDS.index(kind)}",
-                             start_parameter_services=full)
-    calls = [0]
-    node.create_timer(TICK_S, lambda: calls.__setitem__(0, calls[0] + 1))
-    if full:
-        for i in range(5):
-            node.create_timer(1.0 + i, lambda: None)
-        for name in ("reset", "step", "pause"):
-            node.create_service(Trigger, f"~/{name}", lambda request, response: response)
-        for i in range(3):
-            node.create_subscription(Float64MultiArray, f"~/command_{i}", lambda m: None, 10)
-    executor = SingleThreadedExecutor()
+    from rod_sim.ros.executor import LeanExecutor
+
+    return SingleThreadedExecutor() if kind == EXECUTORS[0] else LeanExecutor()
+
+
+def wake_cost(node, executor, calls: list[int], seconds: float) -> tuple[int, float]:
+    """(timer calls, main-thread CPU [us] per call) of ``node`` spun by ``executor`` for
+    ``seconds`` after 0.3 s of warm-up; ``calls[0]`` counts the 1 ms timer's calls."""
     executor.add_node(node)
     try:
         warm_end = time.monotonic() + 0.3
@@ -54,15 +67,14 @@ def wake_cost(rclpy, kind: str, seconds: float) -> tuple[int, float]:
         cpu, n = time.thread_time() - cpu0, calls[0] - calls0
     finally:
         executor.remove_node(node)
-        node.destroy_node()
     return n, (1e6 * cpu / n if n else float("nan"))
 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m rod_sim.ros.executor_cost",
                                 description=__doc__.split("\n\n")[0])
-    p.add_argument("--seconds", type=float, default=2.0, help="[s] of spinning per node")
-    p.add_argument("--rounds", type=int, default=2, help="rounds of the two nodes")
+    p.add_argument("--seconds", type=float, default=2.0, help="[s] of spinning per turn")
+    p.add_argument("--rounds", type=int, default=2, help="rounds of the four turns")
     p.add_argument("--domain", type=int, default=227,
                    help="ROS_DOMAIN_ID (Fast DDS allows 0..232)")
     args = p.parse_args(argv)
@@ -73,13 +85,23 @@ def main(argv: list[str] | None = None) -> int:
     import rclpy
 
     rclpy.init()
+    nodes = {}
     try:
+        for kind in NODES:
+            calls = [0]
+            node = make_node(rclpy, kind)
+            node.create_timer(TICK_S, lambda calls=calls: calls.__setitem__(0, calls[0] + 1))
+            nodes[kind] = node, calls
+        executors = {kind: make_executor(kind) for kind in EXECUTORS}
         for _ in range(args.rounds):
-            for kind in KINDS:
-                n, us = wake_cost(rclpy, kind, args.seconds)
-                print(f"{kind}: {us:.0f} us of main-thread CPU per wake-up ({n} wake-ups of a "
-                      f"{TICK_S * 1e3:g} ms timer)", flush=True)
+            for kind, (node, calls) in nodes.items():
+                for ex in EXECUTORS:
+                    n, us = wake_cost(node, executors[ex], calls, args.seconds)
+                    print(f"{kind}, {ex} executor: {us:.0f} us of main-thread CPU per wake-up "
+                          f"({n} wake-ups of a {TICK_S * 1e3:g} ms timer)", flush=True)
     finally:
+        for node, _ in nodes.values():
+            node.destroy_node()
         rclpy.shutdown()
     return 0
 
