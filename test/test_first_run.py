@@ -101,6 +101,12 @@ def test_make_installs_quietly_and_warms_the_cache():
     assert re.search(r"^COMPILED = .*rod_sim/core/\*\.py", text, re.M)
     assert re.search(r"^\$\(WARM\): .*\$\(COMPILED\)", text, re.M)
     assert "-m rod_sim.tools.jit_warm --demo" in text
+    # rod_sim's bytecode is written ahead (PYTHONDONTWRITEBYTECODE=1 would otherwise make
+    # every process compile its modules again) for every target that runs rod_sim
+    assert re.search(r"^\$\(BYTECODE\): \$\(SOURCES\)", text, re.M)
+    assert "-m compileall -q rod_sim" in text
+    for target in ("test", "test-slow", "demo", "flake", "bench", "bench-report"):
+        assert re.search(rf"^{target}: .*\$\(BYTECODE\)", text, re.M), target
 
 
 def test_the_demo_warm_up_covers_what_the_demo_runs():
