@@ -69,15 +69,26 @@ sys.exit(run_node("rod-sim node", make_node, [], ()))
 """
 
 
+def wait_until_blocked(pid: int, timeout: float = 30.0) -> None:
+    """Wait until the main thread of ``pid`` has slept (state S in /proc) for 0.2 s in a row:
+    it is in the lock, not on its way there (however loaded the machine)."""
+    stat, asleep, end = Path(f"/proc/{pid}/task/{pid}/stat"), 0, time.monotonic() + timeout
+    while asleep < 20:
+        assert time.monotonic() < end, "the child's main thread never blocked"
+        state = stat.read_text().rpartition(")")[2].split()[0]
+        asleep = asleep + 1 if state == "S" else 0
+        time.sleep(0.01)
+
+
 def run_and_signal(script: str, signum: int, env=None) -> tuple[int, str, str]:
-    """Start ``script``, send ``signum`` 0.3 s after it prints "ready"; its status, stdout and
-    stderr."""
+    """Start ``script``, send ``signum`` once it has printed "ready" and its main thread is
+    blocked in the lock; its status, stdout and stderr."""
     proc = subprocess.Popen([sys.executable, "-c", script], cwd=REPO, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=env or os.environ.copy(),
                             preexec_fn=terminal_signals)
     try:
         assert proc.stdout.readline() == "ready\n", proc.stderr.read()
-        time.sleep(0.3)
+        wait_until_blocked(proc.pid)
         proc.send_signal(signum)
         out, err = proc.communicate(timeout=60)         # a child that never ends: fails
     finally:
