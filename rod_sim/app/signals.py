@@ -69,7 +69,9 @@ class ArrivalWatch:
 
     A context manager for the main thread (elsewhere, or where the wakeup descriptor cannot
     be set, it does nothing); on exit the previous wakeup descriptor is restored. Only
-    signals with a Python handler are written to the pipe."""
+    signals with a Python handler are written to the pipe. A child made by ``fork`` without
+    ``exec`` would write its own signals into the same pipe: rod_sim starts its processes by
+    exec, ``spawn`` or ``forkserver`` (the pipe's descriptors are not inherited across exec)."""
 
     def __init__(self, on_arrival, signals=(signal.SIGINT, signal.SIGTERM)):
         self.on_arrival = on_arrival
