@@ -235,3 +235,34 @@ def test_an_interruption_that_c_code_prints_itself_is_one_line():
     done = subprocess.run([sys.executable, "-c", PRINTED_BY_C, str(PAPER)], cwd=ROOT,
                           capture_output=True, text=True, timeout=60)
     assert (done.returncode, done.stderr) == (130, "rod-sim urdf: interrupted\n")
+
+
+INTERRUPTED_OPENING = """
+import os, signal, sys
+from rod_sim.io import log_process
+
+def signalled(self, *args, **kwargs):
+    os.kill(os.getpid(), signal.SIGTERM)      # lands as the log's writer process starts
+    raise AssertionError("the signal's handler did not raise")
+
+log_process.ProcessSink.__init__ = signalled
+from rod_sim.tools.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_a_signal_while_the_log_opens_leaves_no_log(tmp_path):
+    """CI (test_signal_moments): SIGTERM landed after `simulate` had created its log file and
+    before the log's writer process wrote a byte: the command ended with its status and line
+    and left an empty file. An interrupted command now removes the outputs it had not
+    finished, as its watchdog does: a log is whole or absent."""
+    out = tmp_path / "run.mcap"
+    done = subprocess.run([sys.executable, "-c", INTERRUPTED_OPENING, "simulate", str(PAPER),
+                           "--t-end", "1", "--out", str(out)], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=120,
+                          preexec_fn=terminal_signals)
+    assert done.returncode == 143, done.stderr
+    assert done.stderr.strip().splitlines()[-1] == (
+        f"rod-sim simulate: interrupted (SIGTERM); removed the unfinished {out}")
+    assert "Traceback" not in done.stderr
+    assert not out.exists()

@@ -155,14 +155,7 @@ def _watchdog(done: threading.Event) -> None:
     by then (``done``): the unfinished outputs removed, one line, exit 130 / 143."""
     if done.wait(GRACE_S):
         return
-    removed = []
-    for path in list(_unfinished):
-        with contextlib.suppress(OSError):
-            path.unlink()
-            removed.append(str(path))
-    line = interrupted_line()
-    if removed:
-        line += f"; removed the unfinished {', '.join(removed)}"
+    line = interrupted_line() + removed_note(remove_unfinished())
     with contextlib.suppress(Exception):
         sys.stderr.flush()
         os.write(2, (line + "\n").encode("utf-8", "replace"))
@@ -179,6 +172,24 @@ def unfinished(path) -> None:
 def done(path) -> None:
     """The output ``path`` is closed (complete): the watchdog leaves it."""
     _unfinished.pop(Path(path), None)
+
+
+def remove_unfinished() -> list[str]:
+    """Remove the outputs registered by :func:`unfinished` and not :func:`done` (an
+    interrupted command's: e.g. a log whose file was created but whose writer had not
+    started); the paths removed."""
+    removed = []
+    for path in list(_unfinished):
+        _unfinished.pop(path, None)
+        with contextlib.suppress(OSError):
+            path.unlink()
+            removed.append(str(path))
+    return removed
+
+
+def removed_note(removed: list[str]) -> str:
+    """The tail of the interrupted line that names the outputs removed ('' for none)."""
+    return f"; removed the unfinished {', '.join(removed)}" if removed else ""
 
 
 @contextlib.contextmanager

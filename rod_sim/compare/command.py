@@ -283,6 +283,7 @@ def run(args) -> int:
     from rod_sim.io.log_format import LogFormatError
     from rod_sim.io.log_source import read_log
     from rod_sim.app.common import new_output_path
+    from rod_sim.app.signals import done
     from .comparison import DEFAULT_TOLERANCE, CompareInputError, compare_log
 
     plot = new_output_path(args.plot, "--plot") if args.plot else None
@@ -313,6 +314,7 @@ def run(args) -> int:
     if plot is not None:
         try:
             write_plot(report, plot, f"{info['log']}: {info['model']} model vs full")
+            done(plot)
         except ImportError:
             print("rod-sim compare: --plot needs matplotlib (pip install 'rod_sim[plot]'); "
                   f"{plot} was not written", file=sys.stderr)

@@ -390,6 +390,7 @@ def run(args) -> int:
                    {p.path for p in spec.parameters if p.random}, plot,
                    title=f"{spec.name}: {', '.join(spec.models)}, t_end = {spec.t_end:g} s",
                    logx={p.path for p in spec.parameters if p.log})
+        done(plot)
     print(f"{spec.name}: {_summary(rows, len(tasks))}; {wall:.1f} s wall -> {out}"
           + (f", {plot}" if plot else ""))
     return EXIT_OK

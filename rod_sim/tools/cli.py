@@ -158,9 +158,11 @@ def _interruption(err: BaseException) -> KeyboardInterrupt | None:
 
 
 def _interrupted(err: KeyboardInterrupt) -> int:
-    """Print the interrupted command's one line; its exit status (130, or 143 for SIGTERM)."""
+    """Remove the outputs the interrupted command had not finished (an output is whole or
+    absent), print its one line; its exit status (130, or 143 for SIGTERM)."""
     signum = signal.SIGTERM if isinstance(err, Terminated) else signal.SIGINT
-    print(signals.interrupted_line(signum), file=sys.stderr)
+    removed = signals.removed_note(signals.remove_unfinished())
+    print(signals.interrupted_line(signum) + removed, file=sys.stderr)
     return signals.exit_status(signum)
 
 

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..core.quote import quote
 from rod_sim.app.common import UsageError, new_output_path
+from rod_sim.app.signals import done
 
 HELP = "draw snapshots of a logged chain (e.g. the deployment scene) with its latch events"
 
@@ -128,6 +129,7 @@ def run(args) -> int:
         fig.savefig(png, dpi=110)
     except OSError as err:
         raise UsageError(f"png: cannot write {png}: {err.strerror or err}") from None
+    done(png)
     print(f"{png}: {len(times)} snapshots, {len(latches)} latch events")
     return 0
 

@@ -17,6 +17,7 @@ import sys
 from pathlib import Path
 
 from rod_sim.app.common import EXIT_OK, UsageError, new_output_path
+from rod_sim.app.signals import done
 
 HELP = "rewrite a truncated (writer killed) or damaged log with a new summary and indexes"
 
@@ -53,6 +54,7 @@ def run(args) -> int:
         result = repair_log(log, out)
     except OSError as exc:
         raise UsageError(f"cannot write {out}: {exc.strerror or exc} (nothing written)") from None
+    done(out)
     span = ("no messages" if result.first_ns is None else
             f"log time {result.first_ns / 1e9:.9g}..{result.last_ns / 1e9:.9g} s")
     print(f"{out}: {result.messages} messages on {result.channels} channels ({span}), "
