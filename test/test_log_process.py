@@ -480,3 +480,24 @@ def test_handover_bench_runs_and_both_ways_write_the_same_file(capsys):
     with pytest.raises(SystemExit) as exit_:
         handover_bench.main(["--rounds", "0"])
     assert exit_.value.code == 2
+
+
+@pytest.mark.parametrize("writer_process", [True, False])
+def test_an_interrupt_while_the_log_opens_leaves_no_file(tmp_path, monkeypatch, writer_process):
+    """Ctrl-C or SIGTERM inside the writer's set-up (the writer process starting, the header
+    written) left the file it had created, empty or with a header only: the log is whole or
+    absent."""
+    from rod_sim.io import log_process
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    if writer_process:
+        monkeypatch.setattr(log_process.ProcessSink, "__init__", interrupted)
+    else:
+        monkeypatch.setattr(ChunkedMcapWriter, "add_metadata", interrupted)
+    path = tmp_path / "opening.mcap"
+    with pytest.raises(KeyboardInterrupt):
+        LogWriter(path, metadata={"scene": "x", "model": "reduced", "integrator": "rk4"},
+                  writer_process=writer_process)
+    assert not path.exists()

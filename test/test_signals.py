@@ -239,23 +239,23 @@ def test_an_interruption_that_c_code_prints_itself_is_one_line():
 
 INTERRUPTED_OPENING = """
 import os, signal, sys
-from rod_sim.io import log_process
+from rod_sim.io.log_writer import LogWriter
 
 def signalled(self, *args, **kwargs):
-    os.kill(os.getpid(), signal.SIGTERM)      # lands as the log's writer process starts
+    os.kill(os.getpid(), signal.SIGTERM)      # lands as the open log's first record is written
     raise AssertionError("the signal's handler did not raise")
 
-log_process.ProcessSink.__init__ = signalled
+LogWriter.write = signalled
 from rod_sim.tools.cli import main
 sys.exit(main(sys.argv[1:]))
 """
 
 
-def test_a_signal_while_the_log_opens_leaves_no_log(tmp_path):
+def test_a_signal_before_the_log_is_in_its_closing_block_leaves_no_log(tmp_path):
     """CI (test_signal_moments): SIGTERM landed after `simulate` had created its log file and
-    before the log's writer process wrote a byte: the command ended with its status and line
-    and left an empty file. An interrupted command now removes the outputs it had not
-    finished, as its watchdog does: a log is whole or absent."""
+    before the log was in the block that closes it whole: the command ended with its status
+    and line and left an incomplete file. An interrupted command now removes the outputs it
+    had not finished, as its watchdog does, and says so: a log is whole or absent."""
     out = tmp_path / "run.mcap"
     done = subprocess.run([sys.executable, "-c", INTERRUPTED_OPENING, "simulate", str(PAPER),
                            "--t-end", "1", "--out", str(out)], cwd=tmp_path,

@@ -117,10 +117,11 @@ class LogWriter:
                                              compression=compression, sink=self._sink)
             self._writer.start(profile=PROFILE, library=f"rod_sim/{__version__}")
             self._writer.add_metadata(METADATA_NAME, record)
-        except BaseException:
+        except BaseException:       # e.g. Ctrl-C while the writer process starts
             if self._sink is not None:
                 self._sink.close()
             self._file.close()
+            self.path.unlink(missing_ok=True)       # a log is whole or absent
             raise
         self._schemas: dict[str, int] = {}
         self._encoders: dict[str, Any] = {}
