@@ -62,8 +62,9 @@ COMPILED = $(shell grep -l njit rod_sim/core/*.py)
 
 # rod_sim's bytecode, written ahead: Python caches it by itself unless PYTHONDONTWRITEBYTECODE
 # is set (as on this project's CI machine), and then every process compiled rod_sim's modules
-# again (a warm 10 ms `rod-sim simulate` of the paper example: 2.8-2.9 s against 2.0-2.2 s with
-# the bytecode written, alternating, load ~1). compileall writes it whatever that variable says;
+# again (a warm 10 ms `rod-sim simulate` of the paper example, alternating: 1.7-2.7 s without,
+# 1.6-2.3 s with the bytecode, faster in 8 of 9 pairs at load 0.2-1; 2.8-2.9 s against 2.0-2.2 s
+# beside a CI run). compileall writes it whatever that variable says;
 # imports read it; a module edited since is compiled in memory until the next `make`.
 BYTECODE = $(VENV)/.bytecode
 SOURCES = $(shell find rod_sim -name '*.py')
