@@ -536,7 +536,7 @@ def drive(model, integrator: Integrator, y0, t0: float, t_out, held=None, mode=N
     t_out = np.atleast_1d(np.asarray(t_out, dtype=float))
     if t_out.size == 0:
         raise ValueError("t_out: at least one output time is needed")
-    if np.any(np.diff(t_out) < 0):
+    if t_out.size > 1 and (t_out[1:] < t_out[:-1]).any():
         raise ValueError("t_out: output times must be sorted")
     held = model._held(held)
     events = [] if events is None else events

@@ -336,8 +336,13 @@ class Scene:
     def breakpoints(self) -> tuple[float, ...]:
         """Sorted times [s] where a scripted load or the base's prescribed motion may jump
         (:meth:`load_breakpoints` and :meth:`motion_breakpoints`): integrators end a step
-        there and the ledgers book a sample there."""
-        return tuple(sorted(set(self.load_breakpoints()) | set(self.motion_breakpoints())))
+        there and the ledgers book a sample there. Found once (the scene is immutable): every
+        drive of the integrator asks."""
+        found = self.__dict__.get("_breakpoints")
+        if found is None:
+            found = tuple(sorted(set(self.load_breakpoints()) | set(self.motion_breakpoints())))
+            object.__setattr__(self, "_breakpoints", found)
+        return found
 
     def scripted_forces(self, t: float) -> np.ndarray:
         """Scripted nodal forces at time ``t`` [s]: array (n, 2) of (X_k, Y_k) [N] (the chain

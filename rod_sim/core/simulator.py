@@ -166,6 +166,8 @@ class Simulator:
 
     def _check_finite(self, t: np.ndarray, Y: np.ndarray) -> None:
         """Never hand out a NaN: IntegrationError naming the first non-finite sample."""
+        if np.isfinite(Y).all():        # one pass; the row is found only when one is bad
+            return
         bad = ~np.all(np.isfinite(Y), axis=1)
         if np.any(bad):
             i = int(np.argmax(bad))
