@@ -168,12 +168,10 @@ class Simulator:
         """Never hand out a NaN: IntegrationError naming the first non-finite sample."""
         if np.isfinite(Y).all():        # one pass; the row is found only when one is bad
             return
-        bad = ~np.all(np.isfinite(Y), axis=1)
-        if np.any(bad):
-            i = int(np.argmax(bad))
-            raise IntegrationError("the state became non-finite (NaN/Inf); "
-                                   + explain_state(self.model, float(t[i]), Y[i], self.held),
-                                   float(t[i]))
+        i = int(np.argmax(~np.all(np.isfinite(Y), axis=1)))
+        raise IntegrationError("the state became non-finite (NaN/Inf); "
+                               + explain_state(self.model, float(t[i]), Y[i], self.held),
+                               float(t[i]))
 
     def snapshot(self) -> Snapshot:
         """The chain now."""
