@@ -86,7 +86,8 @@ class StopRequest:
             self._previous[sig] = signal.signal(sig, self._handle)
         self._unraisablehook = sys.unraisablehook
         sys.unraisablehook = self._quiet_unraisable
-        self._arrivals.__enter__()
+        if self.starting:           # it acts only during a start-up (replay, demo: none)
+            self._arrivals.__enter__()
         return self
 
     def __exit__(self, *exc) -> None:
