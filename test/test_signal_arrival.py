@@ -141,3 +141,39 @@ def test_the_watch_gives_back_the_wakeup_descriptor_it_replaced():
     finally:
         os.close(read_fd)
         os.close(write_fd)
+
+
+WATCHDOG = """
+import sys, time
+from rod_sim.app.signals import Watchdog
+
+claimed_after = float(sys.argv[1])          # < 0: never claimed
+dog = Watchdog(lambda: "the forced end's line", lambda: 77, grace_s=0.3)
+dog.start()
+dog.start()                                 # a second start: still one countdown
+if claimed_after >= 0:
+    time.sleep(claimed_after)
+    print("claimed" if dog.claim() else "too late", flush=True)
+    print("claimed again" if dog.claim() else "claimed once", flush=True)
+time.sleep(2.0)
+print("still running after the grace time", flush=True)
+"""
+
+
+def test_the_shared_watchdog_ends_the_process_with_its_line_and_status_unless_claimed():
+    """The one watchdog class of the commands and the node's start-up
+    (rod_sim.app.signals.Watchdog): unclaimed, it ends the process after its grace time with
+    its line on stderr and its status; claimed in time, it stands down (claim is True once);
+    claimed too late, the process has already ended."""
+    def run(claimed_after: float) -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, "-c", WATCHDOG, str(claimed_after)], cwd=REPO,
+                              capture_output=True, text=True, timeout=60)
+
+    forced = run(-1.0)
+    assert (forced.returncode, forced.stdout) == (77, ""), forced
+    assert forced.stderr == "the forced end's line\n"
+    stood_down = run(0.0)
+    assert stood_down.returncode == 0, stood_down
+    assert stood_down.stdout.splitlines() == ["claimed", "claimed once",
+                                              "still running after the grace time"]
+    assert stood_down.stderr == ""

@@ -16,6 +16,7 @@ import signal
 import sys
 import threading
 from pathlib import Path
+from typing import Callable
 
 
 class Terminated(KeyboardInterrupt):
@@ -33,8 +34,6 @@ _received: list[int] = []
 _unfinished: dict[Path, int] = {}
 command = "rod-sim"
 """The name the forced end's line gives the command (``rod-sim simulate``)."""
-_done = threading.Event()
-"""Set when the current command has returned (:func:`finished`): its watchdog stands down."""
 
 
 def received() -> int | None:
@@ -115,6 +114,51 @@ class ArrivalWatch:
             os.close(read_fd)
 
 
+class Watchdog:
+    """Ends the process ``grace_s`` [s] after :meth:`start` unless :meth:`claim` is called
+    before: writes ``line()`` to stderr and exits with ``status()`` through ``os._exit`` (no
+    cleanup: a cleanup that hangs is what it ends). The first signal of a command starts
+    one (:func:`_arrived`), and so does a signal during a node's start-up
+    (:class:`rod_sim.ros.process.StopRequest`); the code that ends by itself in time claims
+    it. Both methods may be called from a signal handler, from any thread, more than once."""
+
+    def __init__(self, line: Callable[[], str], status: Callable[[], int],
+                 grace_s: float = GRACE_S, name: str = "rod-sim-signal-watchdog"):
+        self.line = line
+        self.status = status
+        self.grace_s = grace_s
+        self.name = name
+        self._claimed = threading.Event()
+        self._lock = threading.RLock()      # a handler may run inside a method of the main thread
+        self._started = False
+
+    def start(self) -> None:
+        """Start the countdown (the first call only)."""
+        with self._lock:
+            if self._started:
+                return
+            self._started = True
+        threading.Thread(target=self._run, name=self.name, daemon=True).start()
+
+    def claim(self) -> bool:
+        """The caller has ended (or reports the end) itself: True the first time, and the
+        watchdog stands down; False once the watchdog (or an earlier call) has claimed it."""
+        with self._lock:
+            if self._claimed.is_set():
+                return False
+            self._claimed.set()
+            return True
+
+    def _run(self) -> None:
+        if self._claimed.wait(self.grace_s) or not self.claim():
+            return
+        line = self.line()
+        with contextlib.suppress(Exception):
+            sys.stderr.flush()
+            os.write(2, (line + "\n").encode("utf-8", "replace"))
+        os._exit(self.status())
+
+
 _first_lock = threading.RLock()
 _interrupting: list[int] = []
 """The signal the main thread's handler has raised (or deferred) its interruption for."""
@@ -128,8 +172,7 @@ def _arrived(signum: int) -> None:
         if _received:
             return
         _received.append(signum)
-        threading.Thread(target=_watchdog, args=(_done,), name="rod-sim-signal-watchdog",
-                         daemon=True).start()
+        _watchdog.start()
 
 
 def _on_signal(signum, frame) -> None:
@@ -150,16 +193,18 @@ def _on_signal(signum, frame) -> None:
     raise stop
 
 
-def _watchdog(done: threading.Event) -> None:
-    """End the process :data:`GRACE_S` after the first signal unless the command has returned
-    by then (``done``): the unfinished outputs removed, one line, exit 130 / 143."""
-    if done.wait(GRACE_S):
-        return
-    line = interrupted_line() + removed_note(remove_unfinished())
-    with contextlib.suppress(Exception):
-        sys.stderr.flush()
-        os.write(2, (line + "\n").encode("utf-8", "replace"))
-    os._exit(exit_status())
+def _forced_end_line() -> str:
+    """The line of a command the watchdog ends: the unfinished outputs removed and named."""
+    return interrupted_line() + removed_note(remove_unfinished())
+
+
+def _command_watchdog() -> Watchdog:
+    """The watchdog of a command: :data:`GRACE_S` after its first signal, unless it has
+    returned (:func:`finished`), the unfinished outputs are removed, one line, 130 / 143."""
+    return Watchdog(_forced_end_line, exit_status)
+
+
+_watchdog = _command_watchdog()
 
 
 def unfinished(path) -> None:
@@ -281,7 +326,7 @@ def _arrived_here(signum: int) -> None:
 
 def finished() -> None:
     """The current command has returned: its watchdog (if a signal started one) stands down."""
-    _done.set()
+    _watchdog.claim()
 
 
 def exit_now(status: int) -> None:
@@ -309,9 +354,9 @@ def exit_quietly_on_signal() -> None:
 def reset(name: str = "rod-sim") -> None:
     """Start a command: forget a signal of an earlier command of this process (``rod-sim`` in
     tests); ``name`` is the command's name in the forced end's line."""
-    global command, _done
-    _done.set()
-    _done = threading.Event()
+    global command, _watchdog
+    _watchdog.claim()
+    _watchdog = _command_watchdog()
     _pending.clear()
     _received.clear()
     _interrupting.clear()

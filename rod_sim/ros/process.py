@@ -5,7 +5,6 @@ Knows no particular node: :mod:`rod_sim.ros.node` wires its node class into :fun
 from __future__ import annotations
 
 import argparse
-import contextlib
 import gc
 import signal
 import sys
@@ -17,7 +16,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 
-from rod_sim.app.signals import ArrivalWatch
+from rod_sim.app.signals import ArrivalWatch, Watchdog
 from rod_sim.ros.errors import one_line
 from rod_sim.ros.executor import LeanExecutor
 from rod_sim.ros.startup import Progress
@@ -74,10 +73,9 @@ class StopRequest:
         self.prog = prog
         self.signum: int | None = None
         self._previous: dict[int, Any] = {}
-        self._claimed = threading.Event()
-        self._claim_lock = threading.Lock()
         self._first_lock = threading.RLock()     # the handler may run inside itself
-        self._watchdog_started = False
+        self._watchdog = Watchdog(self.interrupted_line, self.exit_status, self.START_GRACE_S,
+                                  "rod-sim-start-watchdog")
         self._unraisablehook = None
         self._arrivals = ArrivalWatch(self._arrived, self.SIGNALS)
 
@@ -123,34 +121,22 @@ class StopRequest:
         with self._first_lock:
             if self.signum is None:
                 self.signum = signum
-            if self.starting and not self._watchdog_started:
-                self._watchdog_started = True
-                threading.Thread(target=self._start_watchdog, name="rod-sim-start-watchdog",
-                                 daemon=True).start()
+            if self.starting:
+                self._watchdog.start()
 
     def interrupted_line(self) -> str:
         """The one line of a start-up ended by the first signal."""
         return (f"{self.prog}: interrupted during start-up"
                 + (" (SIGTERM)" if self.signum == signal.SIGTERM else ""))
 
+    def exit_status(self) -> int:
+        """130 / 143: the exit status of a start-up the first signal ended."""
+        return 128 + (self.signum or signal.SIGINT)
+
     def claim(self) -> bool:
         """The caller reports the interrupted start-up (True once; then the watchdog stands
         down), or the watchdog already has (False)."""
-        with self._claim_lock:
-            if self._claimed.is_set():
-                return False
-            self._claimed.set()
-            return True
-
-    def _start_watchdog(self) -> None:
-        if self._claimed.wait(self.START_GRACE_S) or not self.claim():
-            return
-        import os
-
-        with contextlib.suppress(Exception):
-            sys.stderr.flush()
-            os.write(2, (self.interrupted_line() + "\n").encode())
-        os._exit(128 + (self.signum or signal.SIGINT))
+        return self._watchdog.claim()
 
     @property
     def requested(self) -> bool:
@@ -200,7 +186,7 @@ def run_node(prog: str, make_node, args: list[str], config_errors) -> int:
             if not spinning:        # stopped during the start-up: one line, 130 / 143
                 if stop.claim():
                     print(stop.interrupted_line(), file=sys.stderr)
-                return 128 + (stop.signum or signal.SIGINT)
+                return stop.exit_status()
         finally:
             if node is not None:
                 node.destroy_node()
