@@ -50,6 +50,12 @@ another tree, run it from inside that tree (``python -m`` puts the current direc
 ``sys.path``, before ``PYTHONPATH``). ``--rtol`` sets the node's ``rtol`` parameter (every mode). CPU time is what a loaded machine
 disturbs least.
 
+Before each run this process times :mod:`rod_sim.bench.yardstick` (a pure-Python loop, small
+numpy calls, a compiled right-hand side of 1024 rods; ~1 s) and reports it with the figures
+(``yardstick`` in the JSON, a second line otherwise): this machine's speed swings 2-3x from
+hour to hour, and figures of different hours compare only beside it. ``--no-yardstick`` skips
+it.
+
 ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is LOCALHOST and ``ROS_DOMAIN_ID`` is ``--domain`` (default
 226) for both processes: nothing leaves the machine.
 """
@@ -67,6 +73,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+from rod_sim.bench import yardstick
 
 REPO = Path(__file__).resolve().parents[2]
 DEFAULT_SCENE = REPO / "config" / "paper_example.yaml"
@@ -104,6 +112,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--held-constant", action="store_true",
                    help="with --period-cost: zero held inputs instead of a new command each "
                         "period")
+    p.add_argument("--no-yardstick", dest="yardstick", action="store_false",
+                   help="do not time the machine's yardstick (rod_sim.bench.yardstick) first")
     return p
 
 
@@ -545,27 +555,36 @@ def _count(value: int | None) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    stick = yardstick.measure() if args.yardstick else None
+
+    def report(result: dict, line: str) -> None:
+        """The result as JSON (with the yardstick) or as its line (then the yardstick's)."""
+        if stick is not None:
+            result["yardstick"] = stick
+        print(json.dumps(result, indent=1) if args.json else
+              line + ("" if stick is None else "\n" + yardstick.describe(stick)))
+
     if args.period_cost:
         result = measure_period_cost(args)
-        print(json.dumps(result, indent=1) if args.json else
-              f"n = {result['n']} {result['model']}, {args.rate:g} Hz, held {result['held']}"
-              f"{', recording' if args.record else ''}: CPU per period: integration "
-              f"{result['integration_ms']:.3f} ms, period {result['period_ms']:.3f} ms, with "
-              f"outputs {result['period_with_outputs_ms']:.3f} ms (min of 3 x "
-              f"{result['periods']})")
+        report(result,
+               f"n = {result['n']} {result['model']}, {args.rate:g} Hz, held {result['held']}"
+               f"{', recording' if args.record else ''}: CPU per period: integration "
+               f"{result['integration_ms']:.3f} ms, period {result['period_ms']:.3f} ms, with "
+               f"outputs {result['period_with_outputs_ms']:.3f} ms (min of 3 x "
+               f"{result['periods']})")
         return 0
     if args.lockstep:
         result = measure_lockstep(args)
-        print(json.dumps(result, indent=1) if args.json else
-              f"n = {result['n']} {result['model']}, lockstep at rate_hz {args.rate:g}"
-              f"{' + recording' if args.record else ''}: {result['round_trips']} round trips, "
-              f"{result['round_trips_per_s']:.0f} per second, node CPU "
-              f"{result['node_cpu_ms_per_round_trip']:.3f} ms per round trip"
-              + ("" if result["complete"] else " (INCOMPLETE)"))
+        report(result,
+               f"n = {result['n']} {result['model']}, lockstep at rate_hz {args.rate:g}"
+               f"{' + recording' if args.record else ''}: {result['round_trips']} round trips, "
+               f"{result['round_trips_per_s']:.0f} per second, node CPU "
+               f"{result['node_cpu_ms_per_round_trip']:.3f} ms per round trip"
+               + ("" if result["complete"] else " (INCOMPLETE)"))
         return 0 if result["complete"] else 1
     result = measure(args)
     if args.json:
-        print(json.dumps(result, indent=1))
+        report(result, "")
     else:
         ia = result["interarrival_ms"]
         print(f"n = {result['n']} {result['model']}, rate_hz {args.rate:g}"
@@ -579,6 +598,8 @@ def main(argv: list[str] | None = None) -> int:
               f"{100 * result.get('node_main_thread_cpu_fraction', float('nan')):.0f}%)"
               + (f", live view: {result['viewer_frames']} frames received"
                  if args.live_view else ""))
+        if stick is not None:
+            print(yardstick.describe(stick))
     return 0
 
 
