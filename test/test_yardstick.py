@@ -1,5 +1,5 @@
 """The machine's yardstick (rod_sim.bench.yardstick): three workloads timed in turns, each
-reported as its minimum and median over the rounds, beside every rate_bench figure. No timing
+reported as its minimum and median over the rounds, before and after every rate_bench run. No timing
 is asserted (the machine's load decides the values): their structure and ordering are."""
 from __future__ import annotations
 
@@ -45,10 +45,13 @@ def test_rate_bench_reports_the_yardstick_beside_its_figures_unless_told_not_to(
 
     assert main(["--period-cost", "9", "--rate", "500", "--json"]) == 0
     result = json.loads(capsys.readouterr().out)
-    assert set(result["yardstick"]) == WORKLOADS and result["period_ms"] > 0.0
+    assert set(result["yardstick"]) == {"before", "after"} and result["period_ms"] > 0.0
+    assert all(set(result["yardstick"][when]) == WORKLOADS for when in ("before", "after"))
     assert main(["--period-cost", "9", "--rate", "500", "--no-yardstick"]) == 0
     out = capsys.readouterr().out
     assert "period" in out and "yardstick" not in out
     assert main(["--period-cost", "9", "--rate", "500"]) == 0
-    first, second = capsys.readouterr().out.splitlines()
-    assert first.startswith("n = 8 reduced") and second.startswith("yardstick (min / median")
+    first, before, after = capsys.readouterr().out.splitlines()
+    assert first.startswith("n = 8 reduced")
+    assert before.startswith("before the run: yardstick (min / median")
+    assert after.startswith("after the run: yardstick (min / median")

@@ -17,7 +17,7 @@ another one only beside a yardstick measured at the same time. Three fixed workl
   calls back to back: compiled arithmetic on ~0.2 MB of work arrays.
 
 Each is reported as its minimum [ms] over the rounds (what the machine can do now) and its
-median (what other jobs left of it). :mod:`rod_sim.ros.rate_bench` measures it before each run.
+median (what other jobs left of it). :mod:`rod_sim.ros.rate_bench` measures it before and after each run.
 """
 from __future__ import annotations
 

@@ -50,9 +50,10 @@ another tree, run it from inside that tree (``python -m`` puts the current direc
 ``sys.path``, before ``PYTHONPATH``). ``--rtol`` sets the node's ``rtol`` parameter (every mode). CPU time is what a loaded machine
 disturbs least.
 
-Before each run this process times :mod:`rod_sim.bench.yardstick` (a pure-Python loop, small
-numpy calls, a compiled right-hand side of 1024 rods; ~1 s) and reports it with the figures
-(``yardstick`` in the JSON, a second line otherwise): this machine's speed swings 2-3x from
+Before and after each run this process times :mod:`rod_sim.bench.yardstick` (a pure-Python
+loop, small numpy calls, a compiled right-hand side of 1024 rods; ~1 s each) and reports both
+with the figures (``yardstick`` {``before``, ``after``} in the JSON, two more lines
+otherwise): this machine's speed swings 2-3x from
 hour to hour, and figures of different hours compare only beside it. ``--no-yardstick`` skips
 it.
 
@@ -555,14 +556,16 @@ def _count(value: int | None) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    stick = yardstick.measure() if args.yardstick else None
+    before = yardstick.measure() if args.yardstick else None
 
     def report(result: dict, line: str) -> None:
         """The result as JSON (with the yardstick) or as its line (then the yardstick's)."""
-        if stick is not None:
-            result["yardstick"] = stick
-        print(json.dumps(result, indent=1) if args.json else
-              line + ("" if stick is None else "\n" + yardstick.describe(stick)))
+        stick = None
+        if before is not None:
+            stick = result["yardstick"] = {"before": before, "after": yardstick.measure()}
+        print(json.dumps(result, indent=1) if args.json else line + (
+            "" if stick is None else "".join(f"\n{when} the run: {yardstick.describe(v)}"
+                                             for when, v in stick.items())))
 
     if args.period_cost:
         result = measure_period_cost(args)
@@ -583,25 +586,20 @@ def main(argv: list[str] | None = None) -> int:
                + ("" if result["complete"] else " (INCOMPLETE)"))
         return 0 if result["complete"] else 1
     result = measure(args)
-    if args.json:
-        report(result, "")
-    else:
-        ia = result["interarrival_ms"]
-        print(f"n = {result['n']} {result['model']}, rate_hz {args.rate:g}"
-              f"{' + recording' if args.record else ''}: {result['rate_hz']:.1f} msg/s, "
-              f"RTF {result['rtf']:.3f}, inter-arrival median {ia['median']:.3f} ms, "
-              f"p99 {ia['p99']:.3f} ms, max {ia['max']:.2f} ms, "
-              f"{result['missing_periods']} missing periods of {result['messages']} at the "
-              f"subscriber, {_count(result['node_dropped_periods'])} dropped by the node, "
-              f"node CPU {100 * result.get('node_cpu_fraction', float('nan')):.0f}% of a core "
-              f"(main thread "
-              f"{100 * result.get('node_main_thread_cpu_fraction', float('nan')):.0f}%)"
-              + (f", live view: {result['viewer_frames']} frames received"
-                 if args.live_view else ""))
-        if stick is not None:
-            print(yardstick.describe(stick))
+    ia = result["interarrival_ms"]
+    report(result,
+           f"n = {result['n']} {result['model']}, rate_hz {args.rate:g}"
+           f"{' + recording' if args.record else ''}: {result['rate_hz']:.1f} msg/s, "
+           f"RTF {result['rtf']:.3f}, inter-arrival median {ia['median']:.3f} ms, "
+           f"p99 {ia['p99']:.3f} ms, max {ia['max']:.2f} ms, "
+           f"{result['missing_periods']} missing periods of {result['messages']} at the "
+           f"subscriber, {_count(result['node_dropped_periods'])} dropped by the node, "
+           f"node CPU {100 * result.get('node_cpu_fraction', float('nan')):.0f}% of a core "
+           f"(main thread "
+           f"{100 * result.get('node_main_thread_cpu_fraction', float('nan')):.0f}%)"
+           + (f", live view: {result['viewer_frames']} frames received"
+              if args.live_view else ""))
     return 0
-
 
 if __name__ == "__main__":
     sys.exit(main())
