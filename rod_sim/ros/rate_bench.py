@@ -53,9 +53,8 @@ disturbs least.
 Before and after each run this process times :mod:`rod_sim.bench.yardstick` (a pure-Python
 loop, small numpy calls, a compiled right-hand side of 1024 rods; ~1 s each) and reports both
 with the figures (``yardstick`` {``before``, ``after``} in the JSON, two more lines
-otherwise): this machine's speed swings 2-3x from
-hour to hour, and figures of different hours compare only beside it. ``--no-yardstick`` skips
-it.
+otherwise): this machine's speed swings 2-3x from hour to hour, and figures of different
+hours compare only beside it. ``--no-yardstick`` skips it.
 
 ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is LOCALHOST and ``ROS_DOMAIN_ID`` is ``--domain`` (default
 226) for both processes: nothing leaves the machine.
@@ -114,7 +113,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --period-cost: zero held inputs instead of a new command each "
                         "period")
     p.add_argument("--no-yardstick", dest="yardstick", action="store_false",
-                   help="do not time the machine's yardstick (rod_sim.bench.yardstick) first")
+                   help="do not time the machine's yardstick (rod_sim.bench.yardstick) before "
+                        "and after the run")
     return p
 
 
@@ -600,6 +600,7 @@ def main(argv: list[str] | None = None) -> int:
            + (f", live view: {result['viewer_frames']} frames received"
               if args.live_view else ""))
     return 0
+
 
 if __name__ == "__main__":
     sys.exit(main())
