@@ -161,7 +161,9 @@ class ChunkSink:
 
 class Sink(Protocol):
     """What :class:`ChunkedMcapWriter` writes through: a :class:`ChunkSink` or a proxy of one
-    in another process (:class:`rod_sim.io.log_process.ProcessSink`)."""
+    in another process (:class:`rod_sim.io.log_process.ProcessSink`). ``write_chunk`` gets
+    ``raw`` as a view of the writer's chunk buffer, which is written again after the call:
+    a sink uses (or copies) it before it returns and keeps no reference to it."""
 
     def write_start(self, header: bytes) -> None: ...
     def write_metadata(self, name: str, record: bytes) -> None: ...
@@ -195,7 +197,15 @@ class ChunkedMcapWriter:
         self._message_count = 0
         self._start_time = 0
         self._end_time = 0
-        self._chunk = bytearray()           # the open chunk's records, uncompressed
+        self._buffer = bytearray(2 * chunk_size + (1 << 16))
+        """The open chunk's records, uncompressed: its first ``_used`` bytes. One buffer,
+        written again for every chunk (grown only for a record larger than its free
+        space): a new bytearray per chunk, grown by each record, cost 75 us per 1 kHz
+        period at n = 1024 (~176 KB of messages in six records) against 8.5 us for the
+        appends alone, and recording such a period through the writer process cost 102-105
+        against 84-87 us of the main process's CPU (2026-11-27, 3 alternating pairs)."""
+        self._view = memoryview(self._buffer)
+        self._used = 0
         self._index: dict[int, list[int]] = {}  # channel -> [log_time, offset, ...] in the chunk
         self._chunk_messages = 0
         self._chunk_start = 0
@@ -227,9 +237,22 @@ class ChunkedMcapWriter:
         self._add_record(_record(channel))
         return channel.id
 
+    def _room(self, size: int) -> int:
+        """The buffer's offset where ``size`` more bytes of the open chunk go (the buffer
+        grows, its bytes kept, for a record larger than its free space)."""
+        used = self._used
+        if used + size > len(self._buffer):
+            bigger = bytearray(max(used + size, 2 * len(self._buffer)))
+            bigger[:used] = self._view[:used]
+            self._view.release()
+            self._buffer, self._view = bigger, memoryview(bigger)
+        return used
+
     def _add_record(self, record: bytes) -> None:
-        self._chunk += record
-        if len(self._chunk) > self._chunk_size:
+        at = self._room(len(record))
+        self._used = end = at + len(record)
+        self._view[at:end] = record
+        if end > self._chunk_size:
             self._finish_chunk()
 
     def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int,
@@ -237,7 +260,6 @@ class ChunkedMcapWriter:
         """Append one message record (times [ns]) to the open chunk; closes the chunk once it
         exceeds ``chunk_size``. The file's and the chunk's time spans are kept inline, one
         after the other (a helper call per message would cost more than the rest)."""
-        chunk = self._chunk
         if self._message_count:
             if log_time < self._start_time:
                 self._start_time = log_time
@@ -259,24 +281,28 @@ class ChunkedMcapWriter:
         index = self._index.get(channel_id)
         if index is None:
             index = self._index[channel_id] = []
-        index += (log_time, len(chunk))
-        chunk += _MESSAGE.pack(Opcode.MESSAGE, _MESSAGE_FIXED + len(data), channel_id,
-                               sequence, log_time, publish_time)
-        chunk += data
-        if len(chunk) > self._chunk_size:
+        at = self._room(_MESSAGE.size + len(data))
+        index += (log_time, at)
+        _MESSAGE.pack_into(self._buffer, at, Opcode.MESSAGE, _MESSAGE_FIXED + len(data),
+                           channel_id, sequence, log_time, publish_time)
+        body = at + _MESSAGE.size
+        self._used = end = body + len(data)
+        self._view[body:end] = data
+        if end > self._chunk_size:
             self._finish_chunk()
 
     def _finish_chunk(self) -> None:
         """Hand the open chunk to the sink, if it holds a message, and open a new one."""
         if not self._chunk_messages:
             return
-        raw, index = self._chunk, self._index
-        self._chunk = bytearray()
+        raw, index = self._view[:self._used], self._index
+        self._used = 0
         self._index = {}
         self._chunk_messages = 0
         start, end = self._chunk_start, self._chunk_end
         self._chunk_start = self._chunk_end = 0
-        self._sink.write_chunk(raw, index, start, end)
+        with raw:       # the sink uses the bytes during the call (Sink)
+            self._sink.write_chunk(raw, index, start, end)
 
     def finish(self) -> None:
         """Write the last chunk, the data end, the summary, the footer and the closing magic."""
