@@ -193,15 +193,17 @@ def _on_signal(signum, frame) -> None:
     raise stop
 
 
-def _forced_end_line() -> str:
-    """The line of a command the watchdog ends: the unfinished outputs removed and named."""
-    return interrupted_line() + removed_note(remove_unfinished())
+def ended_line(signum: int | None = None) -> str:
+    """The one line of an interrupted command (``signum``, else the first signal received),
+    its unfinished outputs removed first and named (an output is whole or absent): what the
+    command says when it unwinds (``rod_sim.tools.cli``) and what its watchdog says."""
+    return interrupted_line(signum) + removed_note(remove_unfinished())
 
 
 def _command_watchdog() -> Watchdog:
     """The watchdog of a command: :data:`GRACE_S` after its first signal, unless it has
     returned (:func:`finished`), the unfinished outputs are removed, one line, 130 / 143."""
-    return Watchdog(_forced_end_line, exit_status)
+    return Watchdog(ended_line, exit_status)
 
 
 _watchdog = _command_watchdog()

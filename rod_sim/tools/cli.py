@@ -161,8 +161,7 @@ def _interrupted(err: KeyboardInterrupt) -> int:
     """Remove the outputs the interrupted command had not finished (an output is whole or
     absent), print its one line; its exit status (130, or 143 for SIGTERM)."""
     signum = signal.SIGTERM if isinstance(err, Terminated) else signal.SIGINT
-    removed = signals.removed_note(signals.remove_unfinished())
-    print(signals.interrupted_line(signum) + removed, file=sys.stderr)
+    print(signals.ended_line(signum), file=sys.stderr)
     return signals.exit_status(signum)
 
 
