@@ -16,14 +16,18 @@ from __future__ import annotations
 import argparse
 import statistics
 import time
+from typing import Callable
 
 import numpy as np
 
 WAYS = ("back to back", "after spinning", "after sleeping")
 
 
-def measure(rods: int, wait_ms: float, blocks: int, calls: int) -> dict[str, list[float]]:
-    """Wall time [us] of each right-hand side call, per way of waiting before it (:data:`WAYS`)."""
+def rhs_call(rods: int) -> Callable[[], None]:
+    """A call of the reduced model's right-hand side of ``rods`` rods
+    (:func:`rod_sim.bench.long_chains.uniform_chain`, random angles and rates, seed 1), its
+    compiled code loaded and the caches warm (20 calls made): what each call costs is the
+    compiled kernel and its Python entry (also :mod:`rod_sim.bench.yardstick`'s workload)."""
     from rod_sim.bench.long_chains import uniform_chain
     from rod_sim.core.models import make_model
 
@@ -31,8 +35,18 @@ def measure(rods: int, wait_ms: float, blocks: int, calls: int) -> dict[str, lis
     data = model.new_data()
     rng = np.random.default_rng(1)
     y = np.concatenate([0.3 * rng.standard_normal(rods), rng.standard_normal(rods)])
-    for _ in range(20):                                     # compiled code loaded, caches warm
+
+    def call() -> None:
         model.rhs(0.0, y, None, None, None, data)
+
+    for _ in range(20):
+        call()
+    return call
+
+
+def measure(rods: int, wait_ms: float, blocks: int, calls: int) -> dict[str, list[float]]:
+    """Wall time [us] of each right-hand side call, per way of waiting before it (:data:`WAYS`)."""
+    rhs = rhs_call(rods)
     wait_s = wait_ms / 1e3
     out: dict[str, list[float]] = {way: [] for way in WAYS}
     for block in range(blocks):
@@ -45,7 +59,7 @@ def measure(rods: int, wait_ms: float, blocks: int, calls: int) -> dict[str, lis
             elif way == "after sleeping":
                 time.sleep(wait_s)
             start = time.perf_counter_ns()
-            model.rhs(0.0, y, None, None, None, data)
+            rhs()
             out[way].append((time.perf_counter_ns() - start) / 1e3)
     return out
 

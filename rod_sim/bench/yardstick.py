@@ -57,20 +57,15 @@ def _numpy_small(a: np.ndarray, b: np.ndarray) -> None:
 
 def _rhs_workload():
     """A function that runs the 1024-rod right-hand side 50 times and returns the median [s]."""
-    from rod_sim.bench.long_chains import uniform_chain
-    from rod_sim.core.models import make_model
+    from rod_sim.bench.wake_cost import rhs_call
 
-    model = make_model("reduced", uniform_chain(1024))
-    data = model.new_data()
-    rng = np.random.default_rng(1)
-    y = np.concatenate([0.3 * rng.standard_normal(1024), rng.standard_normal(1024)])
-    model.rhs(0.0, y, None, None, None, data)       # compiled code loaded
+    rhs = rhs_call(1024)
 
     def run() -> float:
         times = []
         for _ in range(50):
             start = time.perf_counter()
-            model.rhs(0.0, y, None, None, None, data)
+            rhs()
             times.append(time.perf_counter() - start)
         return statistics.median(times)
     return run
