@@ -69,3 +69,64 @@ def test_node_cpu_counts_its_live_children(tmp_path):
     finally:
         os.killpg(parent.pid, signal.SIGKILL)       # the child too
         parent.wait()
+
+
+# ----- the bench end to end: a node process, this process its subscriber or controller -----
+
+def _bench_json(capsys, argv) -> dict:
+    import json
+    import os
+    import sys
+
+    sys.path.insert(0, os.path.dirname(__file__))
+    from ros_domains import next_domain
+
+    from rod_sim.ros.rate_bench import main
+
+    pytest.importorskip("rclpy")
+
+    status = main(argv + ["--json", "--no-yardstick", "--domain", str(next_domain())])
+    result = json.loads(capsys.readouterr().out)
+    result["status"] = status
+    return result
+
+
+@pytest.mark.ros
+@pytest.mark.timeout(240)
+@pytest.mark.parametrize("executor", ["lean", "rclpy"])
+def test_lockstep_bench_runs_its_round_trips_and_keeps_the_log(executor, capsys, tmp_path):
+    """--lockstep 40 --record --keep-log: 40 round trips complete with either executor in the
+    controller; the kept log (read by the mcap package) holds the states of periods 0..40 of
+    the 1 ms period and the 40 commands; every CPU figure is a positive number (none asserted
+    against a time)."""
+    from mcap.reader import make_reader
+
+    log = tmp_path / "lockstep.mcap"
+    argv = ["--lockstep", "40", "--rate", "1000", "--record", "--keep-log", str(log)]
+    result = _bench_json(capsys, argv + (["--rclpy-executor"] if executor == "rclpy" else []))
+    assert result["status"] == 0 and result["complete"] and result["round_trips"] == 40
+    assert result["controller_executor"] == executor
+    for key in ("node_cpu_ms_per_round_trip", "node_main_thread_ms_per_round_trip",
+                "controller_cpu_ms_per_round_trip", "round_trips_per_s"):
+        assert result[key] > 0.0, (key, result)
+    stamps, commands = set(), 0
+    with open(log, "rb") as f:
+        for _, channel, message in make_reader(f).iter_messages():
+            if channel.topic == "/rod_states":
+                stamps.add(message.log_time)
+            elif channel.topic == "/nodal_forces":
+                commands += 1
+    assert stamps == {k * 1_000_000 for k in range(41)}
+    assert commands == 40
+
+
+@pytest.mark.ros
+@pytest.mark.timeout(240)
+def test_real_time_bench_reports_the_node_and_its_own_cpu(capsys):
+    """A short real-time run (200 Hz, 1 s window): states arrive, and the node's CPU, its main
+    thread's and this subscriber's own (lean executor by default) are reported."""
+    result = _bench_json(capsys, ["--rate", "200", "--duration", "1", "--warmup", "0.5"])
+    assert result["status"] == 0 and result["messages"] > 0
+    assert result["bench_executor"] == "lean"
+    for key in ("node_cpu_fraction", "node_main_thread_cpu_fraction", "bench_cpu_fraction"):
+        assert result[key] > 0.0, (key, result)

@@ -17,14 +17,18 @@ the order in which ready entities run) and changes only how it waits:
 - the entities and their handles are gathered once, and again only when a node's entity lists
   change (compared by identity: a timer destroyed and another created is a change);
 - one rcl wait set sized for them is cleared and refilled per wait;
+- the entity lists are compared with the cached ones only after the executor was woken
+  (rclpy's nodes call :meth:`wake` whenever they create or destroy an entity) or its nodes
+  changed;
 - a callback group is asked once per wait whether it can run (rclpy's two group classes answer
-  the same for each of their entities), not once per entity;
+  the same for each of their entities), not once per entity; while no entity is taken (no
+  handler of it created and not yet begun), that is all the wait asks;
 - the ready entities are found from the wait set's ready lists (a dict by handle pointer);
 - the timeout is the wait's own (a deadline across the loop's rounds), no rcl timer.
 
 Entities are created and destroyed only from the thread that spins (the node's callbacks and
 its set-up), never during a wait, so the handles' use counts (rclpy's ``with handle:``) are not
-taken. A handle found invalid when it is added drops the cache and the wait starts again.
+taken (a waitable's ``add_to_wait_set`` takes its own). A handle found invalid when it is added drops the cache and the wait starts again.
 """
 from __future__ import annotations
 
@@ -70,6 +74,13 @@ class _Plan:
         can run (the usual wait), built on first use."""
         self.wait_set = None
         self.sizes = None
+        groups = {}
+        for entity in self.entities:
+            groups.setdefault(entity.callback_group, entity)
+        self.group_members = tuple(groups.items())
+        """(callback group, one of its entities) for each group of the entities."""
+        self.same_answer = all(type(g) in _SAME_ANSWER_GROUPS for g in groups)
+        """Whether every group answers ``can_execute`` the same for each of its entities."""
 
     def everything(self, extra_guards) -> tuple:
         if self.all_runnable is None:
@@ -108,10 +119,26 @@ class LeanExecutor(SingleThreadedExecutor):
     def __init__(self, *, context=None) -> None:
         super().__init__(context=context)
         self._plan: _Plan | None = None
+        self._plan_nodes: tuple = ()
+        self._woken = True
+        self._taken = 0
+        """Entities taken: a handler made for them that has not begun (their
+        ``_executor_event`` is set)."""
+
+    def wake(self) -> None:
+        """rclpy's wake-up (a node created or destroyed an entity, a future is done): the
+        next wait compares the entity lists again."""
+        self._woken = True
+        super().wake()
 
     def _current_plan(self, nodes) -> _Plan:
-        key = _plan_key(nodes)
         plan = self._plan
+        nodes = tuple(nodes)
+        if plan is not None and not self._woken and nodes == self._plan_nodes:
+            return plan
+        self._woken = False
+        self._plan_nodes = nodes
+        key = _plan_key(nodes)
         if plan is None or plan.key != key:
             plan = self._plan = _Plan(key, nodes)
         return plan
@@ -123,14 +150,17 @@ class LeanExecutor(SingleThreadedExecutor):
         builds its next wait after the callback in any case, and the trigger only made that
         wait return at once, empty (one wasted wait per callback)."""
         entity._executor_event = True
+        self._taken += 1
 
         async def handler(entity, is_shutdown, work_tracker):
             if is_shutdown or not entity.callback_group.beginning_execution(entity):
                 entity._executor_event = False
+                self._taken -= 1
                 return
             with work_tracker:
                 call_coroutine = take_from_wait_list(entity)
                 entity._executor_event = False
+                self._taken -= 1
                 try:
                     if call_coroutine is not None:
                         await call_coroutine()
@@ -153,6 +183,14 @@ class LeanExecutor(SingleThreadedExecutor):
         if answer is None:
             answer = groups[group] = bool(group.can_execute(entity))
         return answer
+
+    def _all_can_run(self, plan: _Plan, groups: dict) -> bool:
+        """Whether every entity of ``plan`` can run (:meth:`_can_run` of each): with no entity
+        taken and groups that answer the same for all their entities, one question per
+        group."""
+        if self._taken == 0 and plan.same_answer:
+            return all(group.can_execute(entity) for group, entity in plan.group_members)
+        return all(self._can_run(e, groups) for e in plan.entities)
 
     def _wait_for_ready_callbacks(self, timeout_sec=None, nodes=None,
                                   condition: Callable[[], bool] = lambda: False):
@@ -179,7 +217,7 @@ class LeanExecutor(SingleThreadedExecutor):
             plan = self._current_plan(nodes_to_use)
             extra = (self._guard, self._sigint_gc)
             groups: dict = {}
-            if all(self._can_run(e, groups) for e in plan.entities):    # the usual wait
+            if self._all_can_run(plan, groups):                         # the usual wait
                 waitables, timers, subs, clients, services, guards, sizes = \
                     plan.everything(extra)
             else:
@@ -206,8 +244,7 @@ class LeanExecutor(SingleThreadedExecutor):
                     for gc in guards:
                         wait_set.add_guard_condition(gc.handle)
                     for w, _ in waitables:
-                        with w:
-                            w.add_to_wait_set(wait_set)
+                        w.add_to_wait_set(wait_set)
                     if deadline is None:
                         wait_set.wait(timeout_nsec)     # 0: poll; < 0: until something is ready
                     else:

@@ -27,8 +27,8 @@ With ``--lockstep K`` the node runs in lockstep (``sync_mode``) instead and this
 its controller in another process: on each ``rod_states`` (taken as serialized bytes) it
 publishes the next ``nodal_forces`` command (a fixed function of the step number, so that two
 runs get the same inputs), K round trips (command -> period -> states) after the t = 0 state;
-it reports round trips per wall second and the node process's CPU time per round trip (the
-figure a loaded machine disturbs least). ``--keep-log`` keeps the node's log (``--record``);
+it reports round trips per wall second, the node process's CPU time per round trip (the
+figure a loaded machine disturbs least), its main thread's, and this controller's own. ``--keep-log`` keeps the node's log (``--record``);
 ``--node-pythonpath`` runs the node from another source tree (e.g. to compare the logs of two
 versions for the same inputs).
 
@@ -55,6 +55,12 @@ loop, small numpy calls, a compiled right-hand side of 1024 rods; ~1 s each) and
 with the figures (``yardstick`` {``before``, ``after``} in the JSON, two more lines
 otherwise): this machine's speed swings 2-3x from hour to hour, and figures of different
 hours compare only beside it. ``--no-yardstick`` skips it.
+
+This process (the subscriber, or the lockstep controller) spins
+:class:`~rod_sim.ros.executor.LeanExecutor`, as ``rod-sim controller`` and the node do; with
+``--rclpy-executor`` it spins rclpy's ``SingleThreadedExecutor`` instead. Its own CPU is
+reported too (``bench_cpu_fraction``, ``controller_cpu_ms_per_round_trip``): on 2 cores it
+competes with the node (measured, docs/bench.md "The bench's own executor").
 
 ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is LOCALHOST and ``ROS_DOMAIN_ID`` is ``--domain`` (default
 226) for both processes: nothing leaves the machine.
@@ -112,6 +118,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--held-constant", action="store_true",
                    help="with --period-cost: zero held inputs instead of a new command each "
                         "period")
+    p.add_argument("--rclpy-executor", action="store_true",
+                   help="spin this process (subscriber or lockstep controller) with rclpy's "
+                        "SingleThreadedExecutor instead of rod_sim's LeanExecutor")
     p.add_argument("--no-yardstick", dest="yardstick", action="store_false",
                    help="do not time the machine's yardstick (rod_sim.bench.yardstick) before "
                         "and after the run")
@@ -290,6 +299,22 @@ def lockstep_force(k: int, n: int) -> np.ndarray:
     return out
 
 
+def bench_executor(args):
+    """The executor this process spins: rod_sim's LeanExecutor, or rclpy's own with
+    ``--rclpy-executor``."""
+    if args.rclpy_executor:
+        from rclpy.executors import SingleThreadedExecutor
+
+        return SingleThreadedExecutor()
+    from rod_sim.ros.executor import LeanExecutor
+
+    return LeanExecutor()
+
+
+def executor_name(args) -> str:
+    return "rclpy" if args.rclpy_executor else "lean"
+
+
 def _node_process(args, params: dict) -> subprocess.Popen:
     cmd = [sys.executable, *os.environ.get("ROD_SIM_BENCH_NODE", "-m rod_sim.ros.node").split(),
            "--ros-args"]
@@ -315,7 +340,6 @@ def measure_lockstep(args) -> dict:
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     os.environ["ROS_DOMAIN_ID"] = str(args.domain)
     import rclpy
-    from rclpy.executors import SingleThreadedExecutor
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64MultiArray
 
@@ -340,6 +364,8 @@ def measure_lockstep(args) -> dict:
         sent = [0]
         times: list[int] = []
         cpu0: list[float | None] = [None]
+        main0: list[float | None] = [None]
+        own0 = [0.0]
         try:
             node = rclpy.create_node("rate_bench_controller")
             pub = node.create_publisher(Float64MultiArray, "nodal_forces", COMMAND_QOS)
@@ -355,12 +381,14 @@ def measure_lockstep(args) -> dict:
                 times.append(time.perf_counter_ns())
                 if k == 0:
                     cpu0[0] = process_cpu_s(node_proc.pid)
+                    main0[0] = main_thread_cpu_s(node_proc.pid)
+                    own0[0] = time.process_time()
                 sent[0] = k + 1
                 pub.publish(commands[k])
 
             node.create_subscription(JointState, "rod_states", on_state, LOCKSTEP_STATE_QOS,
                                      raw=True)
-            executor = SingleThreadedExecutor()
+            executor = bench_executor(args)
             executor.add_node(node)
             deadline = time.monotonic() + 120.0
             while sent[0] < len(commands) and time.monotonic() < deadline:
@@ -377,7 +405,9 @@ def measure_lockstep(args) -> dict:
             while not last[0] and time.monotonic() < deadline:
                 executor.spin_once(timeout_sec=0.1)
             end = time.perf_counter_ns()
+            own1 = time.process_time()
             cpu1 = process_cpu_s(node_proc.pid)
+            main1 = main_thread_cpu_s(node_proc.pid)
             executor.shutdown()
             node.destroy_node()
         finally:
@@ -388,9 +418,15 @@ def measure_lockstep(args) -> dict:
             args.keep_log.write_bytes(log.read_bytes())
     span = (end - times[0]) / 1e9 if times else float("nan")
     cpu = (cpu1 - cpu0[0]) if cpu0[0] is not None and cpu1 is not None else float("nan")
+    main = (main1 - main0[0]) if main0[0] is not None and main1 is not None else float("nan")
+    per_trip = (lambda seconds: 1e3 * seconds / done if done else float("nan"))
     return {"n": n, "model": args.model, "rate_hz_set": args.rate, "record": args.record,
             "round_trips": done, "round_trips_per_s": done / span if times else 0.0,
-            "node_cpu_ms_per_round_trip": 1e3 * cpu / done if done else float("nan"),
+            "node_cpu_ms_per_round_trip": per_trip(cpu),
+            "node_main_thread_ms_per_round_trip": per_trip(main),
+            "controller_cpu_ms_per_round_trip": per_trip(own1 - own0[0]) if times
+            else float("nan"),
+            "controller_executor": executor_name(args),
             "complete": bool(last[0] and done == len(commands))}
 
 
@@ -398,7 +434,6 @@ def measure(args) -> dict:
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     os.environ["ROS_DOMAIN_ID"] = str(args.domain)
     import rclpy
-    from rclpy.executors import SingleThreadedExecutor
     from diagnostic_msgs.msg import DiagnosticArray
     from sensor_msgs.msg import JointState
 
@@ -443,7 +478,7 @@ def measure(args) -> dict:
 
             node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics,
                                      keep_last(10))
-            executor = SingleThreadedExecutor()
+            executor = bench_executor(args)
             executor.add_node(node)
             deadline = time.monotonic() + 60.0
             while not wall and time.monotonic() < deadline:
@@ -459,7 +494,9 @@ def measure(args) -> dict:
                 if first_kept is None and time.monotonic() >= start + args.warmup:
                     main0 = main_thread_cpu_s(node_proc.pid)
                     first_kept, cpu0 = len(wall), process_cpu_s(node_proc.pid)
+                    own0 = time.process_time()
             main1, cpu1 = main_thread_cpu_s(node_proc.pid), process_cpu_s(node_proc.pid)
+            own1 = time.process_time()
             if viewer is not None:
                 viewer_frames = viewer.stop()
             executor.shutdown()
@@ -477,6 +514,9 @@ def measure(args) -> dict:
         result["node_cpu_fraction"] = (cpu1 - cpu0) / args.duration
     if main0 is not None and main1 is not None:
         result["node_main_thread_cpu_fraction"] = (main1 - main0) / args.duration
+    if first_kept is not None:
+        result["bench_cpu_fraction"] = (own1 - own0) / args.duration
+    result["bench_executor"] = executor_name(args)
     result["node_dropped_periods"] = dropped_in_window(reports, start + args.warmup)
     if args.live_view:
         result["viewer_frames"] = viewer_frames
@@ -582,7 +622,10 @@ def main(argv: list[str] | None = None) -> int:
                f"n = {result['n']} {result['model']}, lockstep at rate_hz {args.rate:g}"
                f"{' + recording' if args.record else ''}: {result['round_trips']} round trips, "
                f"{result['round_trips_per_s']:.0f} per second, node CPU "
-               f"{result['node_cpu_ms_per_round_trip']:.3f} ms per round trip"
+               f"{result['node_cpu_ms_per_round_trip']:.3f} ms per round trip (main thread "
+               f"{result['node_main_thread_ms_per_round_trip']:.3f} ms; this controller, "
+               f"{result['controller_executor']} executor: "
+               f"{result['controller_cpu_ms_per_round_trip']:.3f} ms)"
                + ("" if result["complete"] else " (INCOMPLETE)"))
         return 0 if result["complete"] else 1
     result = measure(args)
@@ -596,7 +639,9 @@ def main(argv: list[str] | None = None) -> int:
            f"subscriber, {_count(result['node_dropped_periods'])} dropped by the node, "
            f"node CPU {100 * result.get('node_cpu_fraction', float('nan')):.0f}% of a core "
            f"(main thread "
-           f"{100 * result.get('node_main_thread_cpu_fraction', float('nan')):.0f}%)"
+           f"{100 * result.get('node_main_thread_cpu_fraction', float('nan')):.0f}%; this "
+           f"subscriber, {result['bench_executor']} executor: "
+           f"{100 * result.get('bench_cpu_fraction', float('nan')):.0f}%)"
            + (f", live view: {result['viewer_frames']} frames received"
               if args.live_view else ""))
     return 0
