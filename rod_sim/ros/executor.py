@@ -28,7 +28,8 @@ the order in which ready entities run) and changes only how it waits:
 
 Entities are created and destroyed only from the thread that spins (the node's callbacks and
 its set-up), never during a wait, so the handles' use counts (rclpy's ``with handle:``) are not
-taken (a waitable's ``add_to_wait_set`` takes its own). A handle found invalid when it is added drops the cache and the wait starts again.
+taken (a waitable's ``add_to_wait_set`` takes its own). A handle found invalid when it is
+added drops the cache and the wait starts again.
 """
 from __future__ import annotations
 

@@ -28,9 +28,9 @@ its controller in another process: on each ``rod_states`` (taken as serialized b
 publishes the next ``nodal_forces`` command (a fixed function of the step number, so that two
 runs get the same inputs), K round trips (command -> period -> states) after the t = 0 state;
 it reports round trips per wall second, the node process's CPU time per round trip (the
-figure a loaded machine disturbs least), its main thread's, and this controller's own. ``--keep-log`` keeps the node's log (``--record``);
-``--node-pythonpath`` runs the node from another source tree (e.g. to compare the logs of two
-versions for the same inputs).
+figure a loaded machine disturbs least), its main thread's, and this controller's own.
+``--keep-log`` keeps the node's log (``--record``); ``--node-pythonpath`` runs the node from
+another source tree (e.g. to compare the logs of two versions for the same inputs).
 
 ``--spacecraft`` runs two chains of ``--rods`` rods each (default 512) on a free base instead
 (:func:`rod_sim.bench.spacecraft.two_chain_scene`: the base turning, the chains bent and
@@ -56,11 +56,13 @@ with the figures (``yardstick`` {``before``, ``after``} in the JSON, two more li
 otherwise): this machine's speed swings 2-3x from hour to hour, and figures of different
 hours compare only beside it. ``--no-yardstick`` skips it.
 
-This process (the subscriber, or the lockstep controller) spins
-:class:`~rod_sim.ros.executor.LeanExecutor`, as ``rod-sim controller`` and the node do; with
-``--rclpy-executor`` it spins rclpy's ``SingleThreadedExecutor`` instead. Its own CPU is
-reported too (``bench_cpu_fraction``, ``controller_cpu_ms_per_round_trip``): on 2 cores it
-competes with the node (measured, docs/bench.md "The bench's own executor").
+This process (the subscriber, or the lockstep controller) takes its messages with
+``--bench-executor``: ``bare`` (default: :class:`BareTaker`, one rcl wait set and the
+subscriptions' own take, no executor: the least a Python subscriber spends per message),
+``lean`` (:class:`~rod_sim.ros.executor.LeanExecutor`, as ``rod-sim controller`` spins) or
+``rclpy`` (rclpy's ``SingleThreadedExecutor``). Its own CPU is reported too
+(``bench_cpu_fraction``, ``controller_cpu_ms_per_round_trip``): on 2 cores it competes with
+the node it measures (docs/bench.md, "The bench's own subscriber").
 
 ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is LOCALHOST and ``ROS_DOMAIN_ID`` is ``--domain`` (default
 226) for both processes: nothing leaves the machine.
@@ -118,9 +120,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--held-constant", action="store_true",
                    help="with --period-cost: zero held inputs instead of a new command each "
                         "period")
-    p.add_argument("--rclpy-executor", action="store_true",
-                   help="spin this process (subscriber or lockstep controller) with rclpy's "
-                        "SingleThreadedExecutor instead of rod_sim's LeanExecutor")
+    p.add_argument("--bench-executor", choices=BENCH_EXECUTORS, default=BENCH_EXECUTORS[0],
+                   help="how this process (subscriber or lockstep controller) takes its "
+                        "messages: a bare wait set (default), rod_sim's LeanExecutor or "
+                        "rclpy's SingleThreadedExecutor")
     p.add_argument("--no-yardstick", dest="yardstick", action="store_false",
                    help="do not time the machine's yardstick (rod_sim.bench.yardstick) before "
                         "and after the run")
@@ -299,20 +302,62 @@ def lockstep_force(k: int, n: int) -> np.ndarray:
     return out
 
 
+BENCH_EXECUTORS = ("bare", "lean", "rclpy")
+
+
+class BareTaker:
+    """The subscriptions of the nodes added, served without an executor: per ``spin_once``
+    one rcl wait set of them, then every ready subscription's messages taken and given to
+    its callback (serialized bytes for ``raw=True``). No timer, service, guard condition or
+    event is served. Subscriptions created after :meth:`add_node` are served too."""
+
+    def __init__(self) -> None:
+        self.nodes: list = []
+        self._wait_set = None
+        self._subs: tuple = ()
+
+    def add_node(self, node) -> None:
+        self.nodes.append(node)
+
+    def spin_once(self, timeout_sec: float) -> None:
+        from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+
+        subs = tuple(s for node in self.nodes for s in node.subscriptions)
+        if subs != self._subs or self._wait_set is None:
+            self._subs = subs
+            self._wait_set = _rclpy.WaitSet(len(subs), 0, 0, 0, 0, 0,
+                                            self.nodes[0].context.handle)
+        wait_set = self._wait_set
+        wait_set.clear_entities()
+        for sub in subs:
+            wait_set.add_subscription(sub.handle)
+        wait_set.wait(round(timeout_sec * 1e9))
+        ready = wait_set.get_ready_entities("subscription")
+        for sub in subs:
+            if sub.handle.pointer in ready:
+                taken = sub.handle.take_message(sub.msg_type, sub.raw)
+                if taken is not None:
+                    sub.callback(taken[0])
+
+    def shutdown(self) -> None:
+        self.nodes.clear()
+
+
 def bench_executor(args):
-    """The executor this process spins: rod_sim's LeanExecutor, or rclpy's own with
-    ``--rclpy-executor``."""
-    if args.rclpy_executor:
+    """What this process spins (``--bench-executor``)."""
+    if args.bench_executor == "rclpy":
         from rclpy.executors import SingleThreadedExecutor
 
         return SingleThreadedExecutor()
-    from rod_sim.ros.executor import LeanExecutor
+    if args.bench_executor == "lean":
+        from rod_sim.ros.executor import LeanExecutor
 
-    return LeanExecutor()
+        return LeanExecutor()
+    return BareTaker()
 
 
 def executor_name(args) -> str:
-    return "rclpy" if args.rclpy_executor else "lean"
+    return args.bench_executor
 
 
 def _node_process(args, params: dict) -> subprocess.Popen:
