@@ -62,7 +62,7 @@ subscriptions' own take, no executor: the least a Python subscriber spends per m
 ``lean`` (:class:`~rod_sim.ros.executor.LeanExecutor`, as ``rod-sim controller`` spins) or
 ``rclpy`` (rclpy's ``SingleThreadedExecutor``). Its own CPU is reported too
 (``bench_cpu_fraction``, ``controller_cpu_ms_per_round_trip``): on 2 cores it competes with
-the node it measures (docs/bench.md, "The bench's own subscriber").
+the node it measures (docs/bench.md, "The bench's own subscriber and controller").
 
 ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is LOCALHOST and ``ROS_DOMAIN_ID`` is ``--domain`` (default
 226) for both processes: nothing leaves the machine.
