@@ -103,7 +103,7 @@ def test_lockstep_bench_runs_its_round_trips_and_keeps_the_log(executor, capsys,
 
     log = tmp_path / "lockstep.mcap"
     argv = ["--lockstep", "40", "--rate", "1000", "--record", "--keep-log", str(log)]
-    result = _bench_json(capsys, argv + (["--bench-executor", executor]))
+    result = _bench_json(capsys, argv + ["--bench-executor", executor])
     assert result["status"] == 0 and result["complete"] and result["round_trips"] == 40
     assert result["controller_executor"] == executor
     for key in ("node_cpu_ms_per_round_trip", "node_main_thread_ms_per_round_trip",

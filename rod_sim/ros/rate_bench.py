@@ -356,10 +356,6 @@ def bench_executor(args):
     return BareTaker()
 
 
-def executor_name(args) -> str:
-    return args.bench_executor
-
-
 def _node_process(args, params: dict) -> subprocess.Popen:
     cmd = [sys.executable, *os.environ.get("ROD_SIM_BENCH_NODE", "-m rod_sim.ros.node").split(),
            "--ros-args"]
@@ -471,7 +467,7 @@ def measure_lockstep(args) -> dict:
             "node_main_thread_ms_per_round_trip": per_trip(main),
             "controller_cpu_ms_per_round_trip": per_trip(own1 - own0[0]) if times
             else float("nan"),
-            "controller_executor": executor_name(args),
+            "controller_executor": args.bench_executor,
             "complete": bool(last[0] and done == len(commands))}
 
 
@@ -561,7 +557,7 @@ def measure(args) -> dict:
         result["node_main_thread_cpu_fraction"] = (main1 - main0) / args.duration
     if first_kept is not None:
         result["bench_cpu_fraction"] = (own1 - own0) / args.duration
-    result["bench_executor"] = executor_name(args)
+    result["bench_executor"] = args.bench_executor
     result["node_dropped_periods"] = dropped_in_window(reports, start + args.warmup)
     if args.live_view:
         result["viewer_frames"] = viewer_frames
