@@ -174,3 +174,36 @@ def test_shutdown_ends_spinning(domain):
     graph.executor.shutdown()
     graph.executor.spin_once(timeout_sec=None)        # returns at once: shut down
     graph.close()
+
+
+@pytest.mark.parametrize("kind", ["rclpy", "lean"])
+def test_an_exception_in_a_plain_callback_comes_out_of_spin_once_and_frees_its_group(
+        kind, domain):
+    """A timer callback (a plain function, of the default mutually exclusive group) that
+    raises: spin_once raises it, as rclpy's executor does, and the group runs the next
+    callbacks (the timer's own and a raw subscription's) afterwards."""
+    graph = Client(domain, f"lean_raise_{kind}", executor_class=EXECUTORS[kind])
+    node, executor = graph.node, graph.executor
+    calls, got = [], []
+
+    def tick():
+        calls.append(len(calls))
+        if len(calls) == 1:
+            raise ValueError("first tick")
+
+    try:
+        node.create_timer(0.001, tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        with pytest.raises(ValueError, match="first tick"):
+            deadline = time.monotonic() + LIMIT_S
+            while not calls and time.monotonic() < deadline:
+                executor.spin_once(timeout_sec=0.05)
+        graph.spin_until(lambda: len(calls) >= 3, LIMIT_S, "the timer after its exception")
+        node.create_subscription(Int32, "lean_raise", lambda data: got.append(bytes(data)), 10,
+                                 raw=True)
+        pub = node.create_publisher(Int32, "lean_raise", 10)
+        graph.spin_until(lambda: pub.get_subscription_count() > 0, LIMIT_S, "discovery")
+        pub.publish(Int32(data=7))
+        graph.spin_until(lambda: got, LIMIT_S, "the message")
+        assert got[0][-4:] == (7).to_bytes(4, "little")
+    finally:
+        graph.close()

@@ -24,7 +24,10 @@ the order in which ready entities run) and changes only how it waits:
   the same for each of their entities), not once per entity; while no entity is taken (no
   handler of it created and not yet begun), that is all the wait asks;
 - the ready entities are found from the wait set's ready lists (a dict by handle pointer);
-- the timeout is the wait's own (a deadline across the loop's rounds), no rcl timer.
+- the timeout is the wait's own (a deadline across the loop's rounds), no rcl timer;
+- a subscription or timer whose callback is a plain function gets a plain handler
+  (:class:`_PlainHandler`: the same steps as rclpy's Task, without the Task and its coroutine
+  bookkeeping), run by ``spin_once`` as rclpy runs its Task.
 
 Entities are created and destroyed only from the thread that spins (the node's callbacks and
 its set-up), never during a wait, so the handles' use counts (rclpy's ``with handle:``) are not
@@ -33,6 +36,7 @@ added drops the cache and the wait starts again.
 """
 from __future__ import annotations
 
+import inspect
 import time
 from typing import Callable
 
@@ -106,6 +110,51 @@ def _select(plan: _Plan, runs, extra_guards) -> tuple:
     return waitables, timers, subs, clients, services, guards, sizes
 
 
+class _PlainHandler:
+    """What rclpy's handler Task does for a subscription or timer whose callback is a plain
+    function, in one call: the callback group's ``beginning_execution``, the take, the
+    callback, ``ending_execution``; an exception is kept for ``spin_once`` to raise (as a
+    Task keeps it). Nothing in it can suspend (rclpy awaits a callback only when it is a
+    coroutine function), so no Task, coroutine to resume or task list entry is needed; the
+    entity is not marked taken: a handler that never runs (the executor's generator
+    replaced) leaves its message in the wait set's next round."""
+
+    __slots__ = ("executor", "entity", "take", "_exception")
+
+    def __init__(self, executor, entity, take):
+        self.executor, self.entity, self.take = executor, entity, take
+        self._exception = None
+
+    def __call__(self) -> None:
+        executor, entity = self.executor, self.entity
+        group = entity.callback_group
+        if executor._is_shutdown or not group.beginning_execution(entity):
+            return
+        try:
+            with executor._work_tracker:
+                call_coroutine = self.take(entity)
+                if call_coroutine is not None:
+                    coroutine = call_coroutine()
+                    try:
+                        coroutine.send(None)
+                    except StopIteration:
+                        pass
+                    else:
+                        coroutine.close()
+                        raise RuntimeError(f"the plain callback of {entity!r} suspended")
+        except Exception as exc:            # rclpy's Task keeps it; spin_once raises it
+            self._exception = exc
+        finally:
+            group.ending_execution(entity)
+
+    def exception(self):
+        return self._exception
+
+    def result(self) -> None:
+        if self._exception is not None:
+            raise self._exception
+
+
 def _plan_key(nodes) -> tuple:
     return tuple((node, tuple(node.subscriptions), tuple(node.timers), tuple(node.clients),
                   tuple(node.services), tuple(node.guards), tuple(node.waitables))
@@ -171,6 +220,15 @@ class LeanExecutor(SingleThreadedExecutor):
         with self._tasks_lock:
             self._tasks.append((task, entity, node))
         return task
+
+    def _handler(self, entity, node, take):
+        """The handler of a ready ``entity`` taken by ``take``: a :class:`_PlainHandler` for a
+        subscription or timer with a plain callback, else rclpy's Task
+        (:meth:`_make_handler`)."""
+        if (take == self._take_subscription or take == self._take_timer) and \
+                not inspect.iscoroutinefunction(entity.callback):
+            return _PlainHandler(self, entity, take)
+        return self._make_handler(entity, node, take)
 
     def _can_run(self, entity, groups: dict) -> bool:
         """rclpy's ``can_execute``: not taken, and its callback group can run it (``groups``
@@ -287,7 +345,7 @@ class LeanExecutor(SingleThreadedExecutor):
                         continue
                     if entity.callback_group.can_execute(entity):
                         yielded_work = True
-                        yield self._make_handler(entity, node, take), entity, node
+                        yield self._handler(entity, node, take), entity, node
 
             if not yielded_work and (timeout_nsec == 0 or (
                     deadline is not None and time.monotonic_ns() >= deadline)):
