@@ -177,3 +177,38 @@ def test_the_shared_watchdog_ends_the_process_with_its_line_and_status_unless_cl
     assert stood_down.stdout.splitlines() == ["claimed", "claimed once",
                                               "still running after the grace time"]
     assert stood_down.stderr == ""
+
+
+NODE_SAID_STARTED = """
+import sys, time
+from rod_sim.ros import startup
+from rod_sim.ros.process import run_node
+
+def make_node():
+    from rclpy.node import Node
+    node = Node("said_started")
+    startup.started()                   # what RodSimNode calls before its start line
+    print("ready", flush=True)
+    end = time.monotonic() + 3.0
+    while time.monotonic() < end:       # the rest of the constructor: the signal comes here
+        time.sleep(0.05)
+    return node
+
+sys.exit(run_node("rod-sim node", make_node, [], ()))
+"""
+
+
+@pytest.mark.ros
+def test_a_signal_after_the_node_said_it_started_stops_the_running_node():
+    """The start line is printed after ``startup.started()``: a user (or a test) that signals
+    once it has read the line gets the running node's stop (status 0, no start-up line), even
+    when the constructor has not returned yet (the flake hunt caught a SIGINT between the line
+    and the end of the start-up, and its 130)."""
+    pytest.importorskip("rclpy")
+    from ros_domains import next_domain
+
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+               ROS_DOMAIN_ID=str(next_domain()))
+    status, out, err = run_and_signal(NODE_SAID_STARTED, signal.SIGINT, env)
+    assert status == 0, err
+    assert "interrupted during start-up" not in err

@@ -28,7 +28,7 @@ from rclpy.node import Node
 from std_srvs.srv import SetBool, Trigger
 
 from rod_sim.core.units import NS_PER_S
-from rod_sim.ros import simulation
+from rod_sim.ros import simulation, startup
 from rod_sim.ros.command_layout import CommandLayout
 from rod_sim.ros.commands import FORCES, MESSAGE_TYPES, TORQUES, CommandIntake
 from rod_sim.ros.control import (STEP_SLICE_S, WAITING_LOG_PERIOD_S, WAITING_REPUBLISH_PERIOD_S,
@@ -99,6 +99,7 @@ class RodSimNode(Node):
         unknown = self._monitor.unknown_parameters = tuple(unknown_overrides(self))
         if unknown:
             self.get_logger().warning(unknown_warning(list(unknown)))
+        startup.started()           # a signal after the line stops a running node
         self.get_logger().info(simulation.start_line(
             full_name, built, self.control.mode(),
             tuple(self._topic_names[t] for t in self.inputs.named_topics()), self.log_path, s))

@@ -19,6 +19,7 @@ from rclpy.utilities import remove_ros_args
 from rod_sim.app.signals import ArrivalWatch, Watchdog
 from rod_sim.ros.errors import one_line
 from rod_sim.ros.executor import LeanExecutor
+from rod_sim.ros import startup
 from rod_sim.ros.startup import Progress
 
 ROS_ARGS_HINT = "ROS arguments go after --ros-args, e.g. --ros-args -p scene_file:=SCENE.yaml"
@@ -72,6 +73,8 @@ class StopRequest:
         self.starting = starting
         self.prog = prog
         self.signum: int | None = None
+        self.during_startup = False
+        """Whether the first signal arrived while ``starting``."""
         self._previous: dict[int, Any] = {}
         self._first_lock = threading.RLock()     # the handler may run inside itself
         self._watchdog = Watchdog(self.interrupted_line, self.exit_status, self.START_GRACE_S,
@@ -122,7 +125,13 @@ class StopRequest:
             if self.signum is None:
                 self.signum = signum
             if self.starting:
+                self.during_startup = True
                 self._watchdog.start()
+
+    def startup_over(self) -> None:
+        """The start-up has ended (:func:`rod_sim.ros.startup.started`, or the node returned):
+        a signal from now on stops a running node."""
+        self.starting = False
 
     def interrupted_line(self) -> str:
         """The one line of a start-up ended by the first signal."""
@@ -164,12 +173,17 @@ def run_node(prog: str, make_node, args: list[str], config_errors) -> int:
     with StopRequest(starting=True, prog=prog) as stop:
         spinning = False
         try:
-            with Progress(prog):
-                node = make_node()
-            stop.starting = False
-            if stop.requested:
+            startup.on_started(stop.startup_over)
+            try:
+                with Progress(prog):
+                    node = make_node()
+            finally:
+                startup.on_started(None)
+            stop.startup_over()
+            if stop.during_startup:
                 # a signal during the start-up whose interruption Python dropped (a ctypes
-                # callback): the start-up was interrupted all the same
+                # callback), or whose handler ran only after the node said it had started:
+                # the start-up was interrupted all the same
                 raise KeyboardInterrupt
             # the start-up heap (numba, rclpy, the model) out of the collector's full passes:
             # they stalled a 1024-rod node ~60 ms every few seconds (rate_bench --record:

@@ -27,6 +27,24 @@ def phase(text: str) -> None:
     _phase = text
 
 
+_on_started = None
+
+
+def on_started(callback) -> None:
+    """``callback()`` (or None) is what :func:`started` calls: the process's stop handler
+    (:class:`rod_sim.ros.process.StopRequest`) ends its start-up state there."""
+    global _on_started
+    _on_started = callback
+
+
+def started() -> None:
+    """The node is built and about to say so (its start line): from here a signal stops a
+    running node (exit 0), not a start-up (130 / 143). Called before the line is printed,
+    so that whoever has read the line and then signals gets the running node's stop."""
+    if _on_started is not None:
+        _on_started()
+
+
 class Progress:
     """Context manager around a start-up: a daemon thread prints what it is doing after
     :data:`NOTICE_AFTER_S` and every :data:`NOTICE_EVERY_S` after that, until the block
