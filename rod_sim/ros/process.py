@@ -199,7 +199,7 @@ def run_node(prog: str, make_node, args: list[str], config_errors) -> int:
         except (KeyboardInterrupt, ExternalShutdownException):
             if not spinning:        # stopped during the start-up: one line, 130 / 143
                 if stop.claim():
-                    print(stop.interrupted_line(), file=sys.stderr)
+                    startup.write_line(stop.interrupted_line(), sys.stderr)
                 return stop.exit_status()
         finally:
             if node is not None:

@@ -27,6 +27,14 @@ def phase(text: str) -> None:
     _phase = text
 
 
+def write_line(text: str, stream) -> None:
+    """``text`` and its newline in one write, flushed: a line another thread writes (the
+    main thread's interrupted line, this thread's progress) can come before or after it,
+    never inside it (``print`` writes the text and the newline in two calls)."""
+    stream.write(text + "\n")
+    stream.flush()
+
+
 _on_started = None
 
 
@@ -80,6 +88,6 @@ class Progress:
                     extra = ""
             text = f"{self.prog}: starting: {_phase} ({elapsed:.0f} s so far"
             text += f"; {extra})" if extra else ")"
-            print(text, file=self.stream or sys.stderr, flush=True)
+            write_line(text, self.stream or sys.stderr)
             self.lines += 1
             wait = NOTICE_EVERY_S
