@@ -19,8 +19,7 @@ from rclpy.utilities import remove_ros_args
 from rod_sim.app.signals import ArrivalWatch, Watchdog
 from rod_sim.ros.errors import one_line
 from rod_sim.ros.executor import LeanExecutor
-from rod_sim.ros import startup
-from rod_sim.ros.startup import Progress
+from rod_sim.ros.startup import Progress, on_started, write_line
 
 ROS_ARGS_HINT = "ROS arguments go after --ros-args, e.g. --ros-args -p scene_file:=SCENE.yaml"
 
@@ -173,12 +172,12 @@ def run_node(prog: str, make_node, args: list[str], config_errors) -> int:
     with StopRequest(starting=True, prog=prog) as stop:
         spinning = False
         try:
-            startup.on_started(stop.startup_over)
+            on_started(stop.startup_over)
             try:
                 with Progress(prog):
                     node = make_node()
             finally:
-                startup.on_started(None)
+                on_started(None)
             stop.startup_over()
             if stop.during_startup:
                 # a signal during the start-up whose interruption Python dropped (a ctypes
@@ -199,7 +198,7 @@ def run_node(prog: str, make_node, args: list[str], config_errors) -> int:
         except (KeyboardInterrupt, ExternalShutdownException):
             if not spinning:        # stopped during the start-up: one line, 130 / 143
                 if stop.claim():
-                    startup.write_line(stop.interrupted_line(), sys.stderr)
+                    write_line(stop.interrupted_line(), sys.stderr)
                 return stop.exit_status()
         finally:
             if node is not None:

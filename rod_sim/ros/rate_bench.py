@@ -320,10 +320,10 @@ class BareTaker:
         self.nodes.append(node)
 
     def spin_once(self, timeout_sec: float) -> None:
-        from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
-
         subs = tuple(s for node in self.nodes for s in node.subscriptions)
         if subs != self._subs or self._wait_set is None:
+            from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+
             self._subs = subs
             self._wait_set = _rclpy.WaitSet(len(subs), 0, 0, 0, 0, 0,
                                             self.nodes[0].context.handle)
