@@ -143,6 +143,56 @@ def test_the_watch_gives_back_the_wakeup_descriptor_it_replaced():
         os.close(write_fd)
 
 
+BLOCKING_READ = """
+import os, signal, sys, threading
+from rod_sim.app import signals
+signals.handle_sigterm()
+signals.reset("rod-sim read")
+read_fd, write_fd = os.pipe()                 # nothing is ever written: the read blocks
+
+def deliver_elsewhere():
+    sys.stdin.readline()                      # the test says when the main thread blocks
+    # the signal lands on this thread, not the main one (as the kernel may deliver a
+    # process's signal); its C handler runs here, the main thread's read goes on
+    signal.pthread_kill(threading.get_ident(), int(sys.argv[1]))
+
+threading.Thread(target=deliver_elsewhere, daemon=True).start()
+print("ready", flush=True)
+try:
+    os.read(read_fd, 1)
+except KeyboardInterrupt as stop:
+    print(f"the main thread's handler raised {type(stop).__name__}", flush=True)
+    signals.finished()
+    sys.exit(3)
+"""
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_delivered_to_another_thread_interrupts_the_main_threads_blocking_call(sig):
+    """The main thread blocked in a system call that a signal would interrupt (a read: CI's
+    sweep sat in the forkserver's read of its new worker's pid, ~2 s of preloading) while the
+    signal went to another thread: Python's handler waited for the call to return, the
+    watchdog ended the command at 0.75 s, and multiprocessing's resource tracker then printed
+    a warning of 5 leaked semaphores after the command's line. The main thread is nudged
+    now: its read fails with EINTR, and its handler raises (status 3 here, not the
+    watchdog's 130 / 143)."""
+    proc = subprocess.Popen([sys.executable, "-c", BLOCKING_READ, str(int(sig))], cwd=REPO,
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, preexec_fn=terminal_signals)
+    try:
+        assert proc.stdout.readline() == "ready\n", proc.stderr.read()
+        wait_until_blocked(proc.pid)
+        proc.stdin.write("go\n")
+        proc.stdin.flush()
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    raised = "Terminated" if sig == signal.SIGTERM else "KeyboardInterrupt"
+    assert (proc.returncode, out, err) == (3, f"the main thread's handler raised {raised}\n", "")
+
+
 WATCHDOG = """
 import sys, time
 from rod_sim.app.signals import Watchdog
@@ -177,6 +227,29 @@ def test_the_shared_watchdog_ends_the_process_with_its_line_and_status_unless_cl
     assert stood_down.stdout.splitlines() == ["claimed", "claimed once",
                                               "still running after the grace time"]
     assert stood_down.stderr == ""
+
+
+WATCHDOG_WITH_SEMAPHORES = """
+import multiprocessing, time
+from rod_sim.app.signals import Watchdog
+
+ctx = multiprocessing.get_context("forkserver")
+pool_like = [ctx.Lock(), ctx.BoundedSemaphore(2), ctx.SimpleQueue()]   # named semaphores: 4
+Watchdog(lambda: "the forced end's line", lambda: 130, grace_s=0.2).start()
+time.sleep(5.0)
+"""
+
+
+def test_a_forced_end_releases_the_semaphores_the_process_holds():
+    """The watchdog ends the process with ``os._exit`` (no interpreter teardown): the named
+    semaphores of its multiprocessing objects stayed registered with multiprocessing's
+    resource tracker, a process that outlives it, which then printed "There appear to be 5
+    leaked semaphore objects" after the command's line (CI: a sweep ended while starting its
+    process pool). They are released first now: stderr holds the line alone (the tracker
+    shares it, and the run waits for it to close)."""
+    done = subprocess.run([sys.executable, "-c", WATCHDOG_WITH_SEMAPHORES], cwd=REPO,
+                          capture_output=True, text=True, timeout=60)
+    assert (done.returncode, done.stderr) == (130, "the forced end's line\n")
 
 
 NODE_SAID_STARTED = """

@@ -15,6 +15,7 @@ import os
 import signal
 import sys
 import threading
+import time
 from pathlib import Path
 from typing import Callable
 
@@ -26,6 +27,8 @@ class Terminated(KeyboardInterrupt):
 
 GRACE_S = 0.75
 """[s] from the first signal to the forced end of a command that has not ended by itself."""
+NUDGE_S = 0.02
+"""[s] between two nudges of the main thread whose handler has not run yet (:func:`_nudge_main`)."""
 EXIT_SIGINT, EXIT_SIGTERM = 128 + signal.SIGINT, 128 + signal.SIGTERM      # 130, 143
 
 _deferring = 0
@@ -156,12 +159,39 @@ class Watchdog:
         with contextlib.suppress(Exception):
             sys.stderr.flush()
             os.write(2, (line + "\n").encode("utf-8", "replace"))
+        releaser = threading.Thread(target=release_semaphores, daemon=True,
+                                    name="rod-sim-semaphore-release")
+        releaser.start()
+        releaser.join(SEMAPHORE_RELEASE_S)      # bounded: the end must not wait on a lock
         os._exit(self.status())
+
+
+SEMAPHORE_RELEASE_S = 0.1
+"""[s] the most a forced end waits for :func:`release_semaphores`."""
+
+
+def release_semaphores() -> None:
+    """Unlink the named semaphores that multiprocessing objects of this process still hold (a
+    process pool's queues hold 5) and unregister them from multiprocessing's resource tracker,
+    as the interpreter's exit would (``os._exit`` skips it). Else the tracker, a process that
+    outlives this one, prints a warning of "leaked semaphore objects" after the forced end's
+    line (CI: a sweep ended by its watchdog while starting its pool)."""
+    util = sys.modules.get("multiprocessing.util")
+    synchronize = sys.modules.get("multiprocessing.synchronize")
+    if util is None or synchronize is None:
+        return
+    cleanup = getattr(synchronize.SemLock, "_cleanup", None)
+    for finalizer in list(getattr(util, "_finalizer_registry", {}).values()):
+        if cleanup is not None and getattr(finalizer, "_callback", None) is cleanup:
+            with contextlib.suppress(Exception):
+                finalizer()
 
 
 _first_lock = threading.RLock()
 _interrupting: list[int] = []
 """The signal the main thread's handler has raised (or deferred) its interruption for."""
+_generation = [0]
+"""Counts the commands of this process (:func:`reset`): a nudge stops when it changes."""
 
 
 def _arrived(signum: int) -> None:
@@ -321,9 +351,39 @@ def _start_arrival_watch() -> None:
 
 def _arrived_here(signum: int) -> None:
     """:func:`_arrived` for a signal that this module's handler handles (not one that the
-    node's, or a handler set after the command returned, does)."""
-    if signal.getsignal(signum) is _on_signal:
+    node's, or a handler set after the command returned, does); for the first, the main
+    thread is nudged until its handler has run (:func:`_nudge_main`)."""
+    if signal.getsignal(signum) is not _on_signal:
+        return
+    with _first_lock:
+        first = not _received
         _arrived(signum)
+        generation = _generation[0]
+    if first:
+        _nudge_main(signum, generation)
+
+
+def _nudge_main(signum: int, generation: int) -> None:
+    """Send ``signum`` to the main thread itself every :data:`NUDGE_S` until its handler has
+    run, for at most :data:`GRACE_S` (the watchdog's time), unless the command changed (a new
+    :func:`reset`, another handler). CI's sweep sat in the forkserver's read of a new worker's
+    pid (its preloading takes ~2 s) until the watchdog ended it: the signal had not
+    interrupted that read (the kernel may deliver a process's signal to another thread, and
+    one that lands just before the call does not interrupt it; which of these happened is not
+    known), and Python runs the handler only when the call returns. Sent to the main thread,
+    the signal makes such a call fail with EINTR, and Python runs the handler. Called by the
+    :class:`ArrivalWatch` thread."""
+    main = threading.main_thread().ident
+    for _ in range(int(GRACE_S / NUDGE_S)):
+        time.sleep(NUDGE_S)
+        with _first_lock:
+            if (_interrupting or _generation[0] != generation
+                    or signal.getsignal(signum) is not _on_signal):
+                return
+        try:
+            signal.pthread_kill(main, signum)
+        except (OSError, ValueError):            # the main thread has ended
+            return
 
 
 def finished() -> None:
@@ -363,4 +423,5 @@ def reset(name: str = "rod-sim") -> None:
     _received.clear()
     _interrupting.clear()
     _unfinished.clear()
+    _generation[0] += 1
     command = name
