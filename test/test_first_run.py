@@ -2,9 +2,13 @@
 `make test` every registered driver into numba's cache (rod_sim.tools.jit_warm), whatever the
 registries hold, in 2 processes (one model each at a time)."""
 import re
+import subprocess
+import sys
 from pathlib import Path
 
-from rod_sim.core import names
+import pytest
+
+from rod_sim.core import jit, names
 from rod_sim.tools import jit_warm
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -117,3 +121,48 @@ def test_the_demo_warm_up_covers_what_the_demo_runs():
     assert "rod-sim table1" in recipe and "rod_sim.ros.demo" in recipe and "compare" in recipe
     assert set(jit_warm.DEMO) == {("paper_example.yaml", m, "dop853-jit")
                                   for m in ("full", "reduced")}
+
+
+WARM_THEN_RUN = """
+import sys, tempfile
+from pathlib import Path
+import rod_sim.core
+from rod_sim.tools import jit_warm
+
+
+def used():
+    '''rod_sim.core's compiled functions with each signature that holds machine code in
+    this process (loaded from the cache or compiled): numba's own record.'''
+    from numba.core.dispatcher import Dispatcher
+    out = set()
+    for name, module in list(sys.modules.items()):
+        if name.startswith("rod_sim.core."):
+            for attr, value in vars(module).items():
+                if isinstance(value, Dispatcher):
+                    out.update(f"{name}.{attr}{sig}" for sig in value.overloads)
+    return out
+
+
+jit_warm.run_group([("paper_example.yaml", sys.argv[1], "dop853-jit")])
+warmed = used()
+from rod_sim.tools.cli import main
+out = Path(tempfile.mkdtemp()) / "run.mcap"
+assert main(["simulate", str(jit_warm.CONFIG / "paper_example.yaml"), "--model", sys.argv[1],
+             "--t-end", "0.01", "--out", str(out)]) == 0
+print("NOT WARMED:", sorted(used() - warmed))
+"""
+
+
+@pytest.mark.skipif(not jit.HAVE_NUMBA, reason="numba not installed")
+@pytest.mark.parametrize("model", ["reduced", "full"])
+def test_a_run_after_the_warm_up_needs_no_compiled_function_it_did_not_reach(model):
+    """`make demo` warms the demo's drivers; the first `simulate` after it then compiled the
+    validity monitor's mass operator (the chain's lowest bending mode, called from Python:
+    a 3 s compile with its notice, a 5 s start). The warm-up now runs what every run's start
+    and every sample call from Python: a 10 ms run of the paper example uses no compiled
+    function (or signature) the warm-up did not load (numba's record of the functions
+    holding machine code)."""
+    done = subprocess.run([sys.executable, "-c", WARM_THEN_RUN, model], cwd=ROOT,
+                          capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "NOT WARMED: []" in done.stdout, done.stdout

@@ -94,14 +94,16 @@ def progress_line(done: int, total: int, what: str, took: float, elapsed: float,
 
 
 def run_group(group) -> list[tuple[str, float, float, bool]]:
-    """Run each (scene, model, integrator) of ``group`` for 1 ms, then one energy balance
-    sample (the energies, the powers and the balance's central difference: the helpers every
-    sample of a node or a log uses): per item (label, wall s, CPU s, skipped). A combination
-    the library refuses (ValueError) is skipped."""
+    """Run each (scene, model, integrator) of ``group`` for 1 ms, then what every sample of a
+    node or a log and every run's start call from Python: one snapshot, one energy balance
+    sample (the energies, the powers and the balance's central difference) and the validity
+    monitor (the chain's lowest bending mode: the mass and stiffness operators, and the
+    velocity projection of locked hinges): per item (label, wall s, CPU s, skipped). A
+    combination the library refuses (ValueError) is skipped."""
     from ..core.integrators import make_integrator
     from ..core.models import make_model
     from ..core.simulator import Simulator
-    from ..core.validity import balance_sample
+    from ..core.validity import ValidityMonitor, balance_sample
     from ..io.scene_yaml import load_scene
 
     out = []
@@ -112,7 +114,9 @@ def run_group(group) -> list[tuple[str, float, float, bool]]:
             model = make_model(model_name, load_scene(CONFIG / scene))
             sim = Simulator(model, make_integrator(integrator))
             sim.advance(1e-3)
+            model.snapshot(sim.t, sim.y, sim.held, sim.mode)
             balance_sample(model, sim.t, sim.y, sim.held, sim.mode)
+            ValidityMonitor(model)
         except ValueError:
             skipped = True
         out.append((f"{model_name} x {integrator} on {scene}", time.perf_counter() - w0,
