@@ -113,6 +113,33 @@ def test_an_interrupt_raised_inside_a_compiled_call_is_still_an_interrupt(monkey
     assert capsys.readouterr().err.strip() == "rod-sim compare: interrupted (SIGTERM)"
 
 
+@pytest.mark.parametrize("where", ["before", "inside"])
+def test_an_interrupt_raised_inside_a_class_creation_is_still_an_interrupt(monkeypatch, capsys,
+                                                                          where):
+    """A signal handler's exception that fires inside a descriptor's ``__set_name__`` while
+    a class is made (numba's import, ``BaseContext``'s cached properties) comes back as
+    "RuntimeError: Error calling __set_name__ ..." caused by it: still exit 143, one line.
+    CI: SIGTERM 0.56 s into ``simulate`` printed that traceback and exited 1 (it came in the
+    compile watch's import of numba, before the command ran: ``before``); inside the command
+    (``inside``) the RuntimeError was reported as the command's error."""
+    from rod_sim.app import common
+    from rod_sim.tools import cli
+
+    class Interrupting:
+        def __set_name__(self, owner, name):
+            raise cli.Terminated
+
+    def make_class(*args):
+        type("Context", (), {"cached": Interrupting()})
+
+    if where == "before":
+        monkeypatch.setattr(common, "watch_compiles", make_class)
+    else:
+        monkeypatch.setattr(cli.plugin_modules()["compare"], "run", make_class)
+    assert cli.main(["compare", "x.mcap"]) == 143
+    assert capsys.readouterr().err.strip() == "rod-sim compare: interrupted (SIGTERM)"
+
+
 @pytest.mark.timing
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_a_signal_in_the_middle_of_a_log_write_waits_for_its_end(tmp_path, monkeypatch, capsys,

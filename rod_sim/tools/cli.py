@@ -89,11 +89,12 @@ def main(argv: list[str] | None = None) -> int:
         status = _main(argv)
     except KeyboardInterrupt as err:
         status = _interrupted(err)
-    except (SystemError, ImportError) as err:
+    except Exception as err:
         # a signal handler's exception raised inside a compiled (numba) call comes back as
-        # "SystemError: ... returned a result with an exception set", and inside a C
-        # extension's initialization (numpy's, during an import) as "ImportError:
-        # initialization failed", each caused by it
+        # "SystemError: ... returned a result with an exception set", inside a C extension's
+        # initialization (numpy's, during an import) as "ImportError: initialization
+        # failed", and inside a descriptor's __set_name__ while a class is made (numba's
+        # import, CI) as "RuntimeError: Error calling __set_name__ ...", each caused by it
         stop = _interruption(err)
         if stop is None and isinstance(err, ImportError) and signals.received() is not None:
             stop = Terminated() if signals.received() == signal.SIGTERM else KeyboardInterrupt()
@@ -136,14 +137,25 @@ def _main(argv: list[str]) -> int:
     try:
         return run(args)
     except (SceneError, UsageError, FileExistsError, ValueError) as err:   # ModelError too
+        _raise_interruption(err)
         return _error(args.command, err, EXIT_BAD_INPUT)
     except OSError as err:                  # a file that cannot be read or written
+        _raise_interruption(err)
         where = f"{err.filename}: " if err.filename else ""
         return _error(args.command, f"{where}{err.strerror or err}", EXIT_BAD_INPUT)
     except MemoryError:
         return _error(args.command, "out of memory", EXIT_CHECK_FAILED)
     except RuntimeError as err:             # IntegrationError: the run could not go on
+        _raise_interruption(err)
         return _error(args.command, err, EXIT_CHECK_FAILED)
+
+
+def _raise_interruption(err: BaseException) -> None:
+    """Raise the KeyboardInterrupt (Ctrl-C or SIGTERM) that ``err`` was raised from, if any:
+    an interrupted command is reported as interrupted, not as its error."""
+    stop = _interruption(err)
+    if stop is not None:
+        raise stop from None
 
 
 def _interruption(err: BaseException) -> KeyboardInterrupt | None:
