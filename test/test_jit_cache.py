@@ -283,12 +283,12 @@ print(json.dumps(out))
 def test_a_cached_function_loads_without_numbas_registries_and_compiling_still_works(tmp_path):
     """numba refreshed its whole target context before every cache load: importing and
     installing every lowering module (sets, lists, complex math, ...; numpy's array math,
-    which imports scipy.linalg) cost 1.3 s of the 2.2 s of CPU of a warm 10 ms run. A
-    process that only loads machine code now installs none of them (this probe's function
-    still imports numpy's array math when its environment is rebuilt, for np.sum; set
-    support comes with a refresh only), gets the same value (and allocates its arrays
-    through numba's runtime, which the load initializes), and a function compiled after the load (numba's compiler
-    refreshes the context itself) still works."""
+    which imports scipy.linalg), 0.38-0.47 s of a warm start on an idle machine. A process
+    that only loads machine code now installs none of them (this probe's function still
+    imports numpy's array math when its environment is rebuilt, for np.sum; set support
+    comes with a refresh only), gets the same value (its arrays allocated through numba's
+    runtime, which the load initializes: without it this probe segfaulted), and a function
+    compiled after the load (numba's compiler refreshes the context itself) still works."""
     import json
     import subprocess
     import sys

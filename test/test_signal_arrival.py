@@ -169,13 +169,14 @@ except KeyboardInterrupt as stop:
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_a_signal_delivered_to_another_thread_interrupts_the_main_threads_blocking_call(sig):
-    """The main thread blocked in a system call that a signal would interrupt (a read: CI's
-    sweep sat in the forkserver's read of its new worker's pid, ~2 s of preloading) while the
-    signal went to another thread: Python's handler waited for the call to return, the
-    watchdog ended the command at 0.75 s, and multiprocessing's resource tracker then printed
-    a warning of 5 leaked semaphores after the command's line. The main thread is nudged
-    now: its read fails with EINTR, and its handler raises (status 3 here, not the
-    watchdog's 130 / 143)."""
+    """The main thread blocked in a system call that a signal would interrupt, and the
+    signal did not: CI's sweep sat in the forkserver's read of its new worker's pid (~2 s of
+    preloading; whether the signal went to another thread or landed just before the call is
+    not known), Python's handler waited for the call to return, the watchdog ended the
+    command at 0.75 s, and multiprocessing's resource tracker then printed a warning of 5
+    leaked semaphores after the command's line. Here the signal goes to another thread. The
+    main thread is nudged now: its read fails with EINTR, and its handler raises (status 3
+    here, not the watchdog's 130 / 143)."""
     proc = subprocess.Popen([sys.executable, "-c", BLOCKING_READ, str(int(sig))], cwd=REPO,
                             stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, preexec_fn=terminal_signals)
