@@ -126,7 +126,6 @@ def test_the_demo_warm_up_covers_what_the_demo_runs():
 WARM_THEN_RUN = """
 import sys, tempfile
 from pathlib import Path
-import rod_sim.core
 from rod_sim.tools import jit_warm
 
 

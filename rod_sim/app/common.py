@@ -92,9 +92,10 @@ from rod_sim.core.compile_watch import COMPILE_NOTICE  # noqa: E402,F401  (tests
 def watch_compiles(prefix: str = "rod-sim"):
     """Say on stderr what numba compiles, why and how long it takes, when it does (a driver
     not in the cache compiles on first use): :mod:`rod_sim.core.compile_watch`."""
+    from .signals import write_line
     from rod_sim.core.compile_watch import watch_compiles as _watch
 
-    return _watch(lambda line: print(f"{prefix}: {line}", file=sys.stderr, flush=True))
+    return _watch(lambda line: write_line(f"{prefix}: {line}", sys.stderr))
 
 
 def importable(module: str) -> bool:

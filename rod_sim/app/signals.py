@@ -194,15 +194,16 @@ _generation = [0]
 """Counts the commands of this process (:func:`reset`): a nudge stops when it changes."""
 
 
-def _arrived(signum: int) -> None:
+def _arrived(signum: int) -> bool:
     """The first SIGINT / SIGTERM of the command, seen by whichever comes first, the
     :class:`ArrivalWatch` thread or the main thread's handler: recorded, and the watchdog
-    starts."""
+    starts. Whether this call was the first."""
     with _first_lock:
         if _received:
-            return
+            return False
         _received.append(signum)
         _watchdog.start()
+        return True
 
 
 def _on_signal(signum, frame) -> None:
@@ -356,8 +357,7 @@ def _arrived_here(signum: int) -> None:
     if signal.getsignal(signum) is not _on_signal:
         return
     with _first_lock:
-        first = not _received
-        _arrived(signum)
+        first = _arrived(signum)
         generation = _generation[0]
     if first:
         _nudge_main(signum, generation)
@@ -389,6 +389,15 @@ def _nudge_main(signum: int, generation: int) -> None:
 def finished() -> None:
     """The current command has returned: its watchdog (if a signal started one) stands down."""
     _watchdog.claim()
+
+
+def write_line(text: str, stream) -> None:
+    """``text`` and its newline in one write, flushed: a line another thread writes (the
+    main thread's interrupted line; a node's start-up progress, a command's compile notice)
+    can come before or after it, never inside it (``print`` writes the text and the newline
+    in two calls: CI once got a node's interrupted line glued to a progress line)."""
+    stream.write(text + "\n")
+    stream.flush()
 
 
 def exit_now(status: int) -> None:

@@ -16,10 +16,10 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 
-from rod_sim.app.signals import ArrivalWatch, Watchdog
+from rod_sim.app.signals import ArrivalWatch, Watchdog, write_line
 from rod_sim.ros.errors import one_line
 from rod_sim.ros.executor import LeanExecutor
-from rod_sim.ros.startup import Progress, on_started, write_line
+from rod_sim.ros.startup import Progress, on_started
 
 ROS_ARGS_HINT = "ROS arguments go after --ros-args, e.g. --ros-args -p scene_file:=SCENE.yaml"
 

@@ -13,6 +13,8 @@ import sys
 import threading
 import time
 
+from rod_sim.app.signals import write_line
+
 NOTICE_AFTER_S = 2.0
 """[s] of start-up after which the first progress line is printed."""
 NOTICE_EVERY_S = 5.0
@@ -25,14 +27,6 @@ def phase(text: str) -> None:
     """Name what the start-up is doing now (e.g. 'calibrating the work budget')."""
     global _phase
     _phase = text
-
-
-def write_line(text: str, stream) -> None:
-    """``text`` and its newline in one write, flushed: a line another thread writes (the
-    main thread's interrupted line, this thread's progress) can come before or after it,
-    never inside it (``print`` writes the text and the newline in two calls)."""
-    stream.write(text + "\n")
-    stream.flush()
 
 
 _on_started = None

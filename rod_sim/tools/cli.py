@@ -173,7 +173,7 @@ def _interrupted(err: KeyboardInterrupt) -> int:
     """Remove the outputs the interrupted command had not finished (an output is whole or
     absent), print its one line; its exit status (130, or 143 for SIGTERM)."""
     signum = signal.SIGTERM if isinstance(err, Terminated) else signal.SIGINT
-    print(signals.ended_line(signum), file=sys.stderr)
+    signals.write_line(signals.ended_line(signum), sys.stderr)
     return signals.exit_status(signum)
 
 
