@@ -137,6 +137,24 @@ def chaos_lines(report) -> list[str]:
     return [w for line in lines for w in _wrap(line)]
 
 
+TABLE_ROWS = 20
+"""Rods the text report's table lists at most: a longer chain shows the rods of the largest
+phi error (every rod is in the JSON report)."""
+
+
+def rows_shown(phi_max, n: int) -> list[int]:
+    """The rods (1-based, ascending) the table lists: all of them up to :data:`TABLE_ROWS`,
+    else the :data:`TABLE_ROWS` of the largest ``phi_max`` (n,) [rad] (a NaN counts as the
+    largest; ties go to the lower rod)."""
+    if n <= TABLE_ROWS:
+        return list(range(1, n + 1))
+    import numpy as np
+
+    key = np.nan_to_num(np.asarray(phi_max, dtype=float), nan=np.inf)
+    worst = np.argsort(-key, kind="stable")[:TABLE_ROWS]
+    return sorted(int(k) + 1 for k in worst)
+
+
 def format_report(report, info: dict) -> str:
     """The human-readable report (lines of at most WIDTH columns): header, per-rod table,
     predictability, notes, verdict."""
@@ -160,12 +178,16 @@ def format_report(report, info: dict) -> str:
                f"max |T| {report.forces['max_abs_torque']:.3g} N m"
                if report.forces.get("torque_messages") else "")]
     lines = [w for line in head for w in _wrap(line)] + [""]
-    lines.append("max |log - full| per rod (node_position: node k, the end of rod k):")
+    shown = rows_shown(q["phi"].col_max, report.n)
+    lines += _wrap("max |log - full| per rod (node_position: node k, the end of rod k)"
+                   + (":" if len(shown) == report.n else
+                      f"; the {len(shown)} rods of the largest phi error of {report.n} "
+                      "(--json has every rod):"))
     lines.append(f"{'rod':>3}  " + "".join(f"{name:>14}" for name, _ in COLUMNS)
                  + f"{'t of max':>14}")
     lines.append(f"{'':>3}  " + "".join(f"{'[' + unit + ']':>14}" for _, unit in COLUMNS)
                  + f"{'phi err [s]':>14}")
-    for k in range(1, report.n + 1):
+    for k in shown:
         cells = []
         for name, _ in COLUMNS:
             if name in q and k in q[name].labels:
@@ -279,6 +301,42 @@ def validity_messages(scene, model_name: str, report) -> list[str]:
     return out
 
 
+PROGRESS_FIRST_S = 2.0
+"""[s] of wall time before the first progress line (a short compare prints none)."""
+PROGRESS_EVERY_S = 10.0
+"""[s] of wall time between the next ones."""
+
+
+def _progress(runs, end_s: float | None):
+    """The progress lines of a compare: how far the full-model re-runs are (``runs()`` ->
+    the simulated time [s] all of them have reached, and the reference's Simulator) out of
+    the log's ``end_s`` [s] (None: not known, e.g. a truncated log), and the wall time left
+    (:class:`~rod_sim.app.progress.Pace`)."""
+    from rod_sim.app.progress import Pace, Progress, duration
+    from .runs import COMPARE_CHECK_RTOL, COMPARE_REFERENCE_RTOL
+
+    t, ref = runs()
+    pace = Pace(end_s if end_s is not None else math.inf, t, ref.stats.steps)
+    which = (f"reference rtol {COMPARE_REFERENCE_RTOL:g}, check {COMPARE_CHECK_RTOL:g}, "
+             "chaos twin")
+
+    def line(elapsed: float) -> str:
+        t, ref = runs()
+        h = getattr(ref.carry, "h", 0.0)
+        steps = (f"; the reference at {ref.stats.steps} steps" +
+                 (f" of ~{h:.2g} s" if h > 0 else ""))
+        if end_s is None:
+            return (f"rod-sim compare: full-model re-runs at t = {t:.6g} s of the log after "
+                    f"{elapsed:.0f} s ({which}{steps})")
+        left = pace.left(t, ref.stats.steps, h)
+        more = f"~{duration(left)} more at this pace" if math.isfinite(left) else \
+            "no estimate yet"
+        return (f"rod-sim compare: full-model re-runs at t = {t:.6g} of {end_s:g} s after "
+                f"{elapsed:.0f} s ({which}{steps}; {more})")
+
+    return Progress(line, PROGRESS_FIRST_S, PROGRESS_EVERY_S, "rod-sim-compare-progress")
+
+
 def run(args) -> int:
     from rod_sim.io.log_format import LogFormatError
     from rod_sim.io.log_source import read_log
@@ -296,7 +354,9 @@ def run(args) -> int:
                     **{k: quote(meta.get(k, "unknown"), 80, plain=True)
                        for k in ("model", "integrator", "source", "version")}}
             tolerance = DEFAULT_TOLERANCE if args.tolerance is None else args.tolerance
-            report = compare_log(log, scene, tolerance, rate_hz=_rate(meta))
+            end_s = log.end_ns / 1e9 if log.metadata and log.end_ns is not None else None
+            report = compare_log(log, scene, tolerance, rate_hz=_rate(meta),
+                                 progress=lambda reached: _progress(reached, end_s))
     except LogFormatError as exc:
         raise UsageError(str(exc)) from None
     except CompareInputError as exc:

@@ -42,6 +42,7 @@ named ``*_ns``).
 """
 from __future__ import annotations
 
+import contextlib
 import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -218,6 +219,13 @@ class _Comparison:
         self.bending: list[tuple[int, np.ndarray, np.ndarray]] = []
         self.nodes: list[tuple[int, np.ndarray]] = []
         self.bases: list[tuple[int, np.ndarray]] = []
+
+    def reached(self):
+        """(the simulated time [s] every full-model re-run (reference, check, twin) has
+        reached, the reference's :class:`~rod_sim.core.simulator.Simulator`): what is left
+        to compare starts there."""
+        runs = [self.refs.ref, self.refs.check, self.chaos.twin]
+        return min(r.sim.t for r in runs if r is not None), self.refs.ref.sim
 
     # ----- input -----
 
@@ -396,15 +404,20 @@ class _Comparison:
 def compare_log(log: "LogStream", scene: Scene, tolerance: float = DEFAULT_TOLERANCE, *,
                 rtol: float = COMPARE_REFERENCE_RTOL,
                 check_rtol: float | None = COMPARE_CHECK_RTOL,
-                rate_hz: float | None = None, keep_samples: bool = False) -> Report:
+                rate_hz: float | None = None, keep_samples: bool = False,
+                progress=None) -> Report:
     """Compare a log opened by :func:`rod_sim.io.log_source.read_log` with the full model of
     ``scene``, window by window (memory independent of the log's length; ``keep_samples``
-    also keeps every sample's errors, for tests). Raises CompareInputError when it cannot be
-    compared honestly, LogFormatError for a log that turns out unreadable."""
+    also keeps every sample's errors, for tests). ``progress``: None, or a function that takes
+    a function giving the simulated time [s] the re-runs have reached and the reference's
+    Simulator (:meth:`_Comparison.reached`) and returns a context manager, held while the
+    log is compared (the command's progress lines). Raises CompareInputError when it cannot
+    be compared honestly, LogFormatError for a log that turns out unreadable."""
     if not (math.isfinite(tolerance) and tolerance > 0):
         raise CompareInputError(f"--tolerance must be > 0 (got {tolerance!r})")
     run = _Comparison(log, scene, float(tolerance), rtol, check_rtol, rate_hz, keep_samples)
-    for group in log.groups():
-        run.add(group)
-    run.finish()
+    with (contextlib.nullcontext() if progress is None else progress(run.reached)):
+        for group in log.groups():
+            run.add(group)
+        run.finish()
     return run.report()

@@ -25,8 +25,25 @@ from mcap.records import Channel, Chunk, Header, Message, Metadata, Schema
 from mcap.stream_reader import breakup_chunk, get_chunk_data_stream
 from mcap_ros2.decoder import DecoderFactory
 
+try:    # mcap_ros2's vendored .msg parser prints to stderr before it raises on a corrupt schema
+    from mcap_ros2._vendor.rosidl_adapter import parser as _msg_parser
+except ImportError:         # pragma: no cover - another mcap_ros2 layout: its prints stay
+    _msg_parser = None
+
 from rod_sim.io.crc_locate import locate_single_bit
 from rod_sim.io.log_format import MAGIC, METADATA_NAME, LogFormatError
+
+
+def _drop_print(*args, **kwargs) -> None:
+    """The vendored parser's ``print``: its error text precedes an exception that the log's
+    readers report as one line of their own. Shadowing the name in that module alone leaves
+    ``sys.stderr`` to every other thread (a process-wide redirection around each decode hid
+    the progress lines and compile notices printed meanwhile)."""
+
+
+if _msg_parser is not None:
+    _msg_parser.print = _drop_print
+
 
 _RECORD_READERS = {
     Opcode.HEADER: Header.read,
@@ -517,6 +534,15 @@ class LogReader:
         """Schemas and channels by id, and the metadata records, as found in the file."""
         schemas, channels = self._schemas_channels()
         return dict(schemas), {c.id: c for c in channels}, list(self._metadata)
+
+    @property
+    def message_end_ns(self) -> int | None:
+        """[ns] the log time of the file's last message, from its summary's statistics; None
+        without them (a truncated or damaged file, or one written without statistics)."""
+        stats = self._summary.statistics if self._summary is not None else None
+        if stats is None or not stats.message_count:
+            return None
+        return int(stats.message_end_time)
 
     @property
     def data_end(self) -> int:

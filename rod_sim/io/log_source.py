@@ -29,8 +29,6 @@ be said (a truncated file, duplicate messages) are collected in ``LogStream.note
 """
 from __future__ import annotations
 
-import contextlib
-import io
 import os
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -111,6 +109,13 @@ class LogStream:
     def _readers(self) -> list[LogReader]:
         return self._log.readers if self._log is not None else []
 
+    @property
+    def end_ns(self) -> int | None:
+        """[ns] the log time of the last message of every file, from their summaries; None
+        when a file has no statistics (truncated, damaged, or written without them)."""
+        ends = [r.message_end_ns for r in self._readers]
+        return max(ends) if ends and None not in ends else None
+
     def close(self) -> None:
         if self._log is not None:
             self._log.close()
@@ -167,10 +172,7 @@ class LogStream:
         messages = self._messages()
         try:
             while True:
-                # mcap_ros2's vendored .msg parser prints to stderr before raising on a corrupt
-                # schema; the error is re-raised below as one line, so the print is dropped
-                with contextlib.redirect_stderr(io.StringIO()):
-                    item = next(messages, None)
+                item = next(messages, None)       # (the parser's stderr print: log_reader)
                 if item is None:
                     break
                 log_ns, topic, msg = item

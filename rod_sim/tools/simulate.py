@@ -18,6 +18,7 @@ from rod_sim.app import limits
 from rod_sim.app.common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, new_output_path
 from rod_sim.app.common import port_number
 from rod_sim.app.common import positive_float as _positive_float
+from rod_sim.app.progress import Pace, Progress, duration
 from rod_sim.app.signals import done, signals_deferred
 
 HELP = "offline run of a scene, written as an MCAP log"
@@ -284,7 +285,8 @@ class _LoggedRun:
         self._write(sim.t, sim.y, sim.mode)
         end_ns = round(t_end * 1e9)
         per_chunk = max(1, min(self.CHUNK_SAMPLES, math.floor(self.CHUNK_SECONDS * rate_hz)))
-        with _Progress(sim, t_end, self.PROGRESS_EVERY_S):
+        every = self.PROGRESS_EVERY_S
+        with Progress(_RunLine(sim, t_end), every, every, "rod-sim-simulate-progress"):
             return self._chunks(sim, end_ns, rate_hz, per_chunk, failure)
 
     def _chunks(self, sim, end_ns: int, rate_hz: float, per_chunk: int, failure) -> int:
@@ -331,56 +333,28 @@ class _LoggedRun:
         return out
 
 
-class _Progress:
-    """A slow run says what it is doing (issue 27, item 10: radau-jit at rtol 1e-12 on a stiff
-    scene ran past 60 s silently): a daemon thread prints, every ``every`` [s] of wall time,
-    the simulated time reached, the integrator, its steps (and current step size) and rhs
-    evaluations, and the wall time left at the pace of the last interval. The compiled
-    integrators return after bounded work, so the thread gets to run during a long sample."""
+class _RunLine:
+    """The progress line of a slow run (issue 27, item 10: radau-jit at rtol 1e-12 on a stiff
+    scene ran past 60 s silently; :class:`~rod_sim.app.progress.Progress` prints it every
+    :attr:`_LoggedRun.PROGRESS_EVERY_S`): the simulated time reached, the integrator, its steps
+    (and current step size) and rhs evaluations, and the wall time left
+    (:class:`~rod_sim.app.progress.Pace`)."""
 
-    def __init__(self, sim, t_end: float, every: float):
-        import threading
+    def __init__(self, sim, t_end: float):
+        self.sim, self.t_end = sim, t_end
+        self.pace = Pace(t_end, sim.t, sim.stats.steps)
 
-        self.sim, self.t_end, self.every = sim, t_end, every
-        self._done = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True,
-                                        name="rod-sim-simulate-progress")
-
-    def __enter__(self) -> "_Progress":
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self._done.set()
-
-    def _run(self) -> None:
-        sim, begun = self.sim, time.perf_counter()
-        last = (begun, sim.t, sim.stats.steps)
-        while not self._done.wait(self.every):
-            now, t, steps = time.perf_counter(), sim.t, sim.stats.steps
-            h = getattr(sim.carry, "h", 0.0)
-            rate = (steps - last[2]) / (now - last[0]) if now > last[0] else 0.0
-            if t > last[1]:              # samples came: their pace
-                left = (now - last[0]) * (self.t_end - t) / (t - last[1])
-            elif h > 0 and rate > 0:     # inside a sample: the steps' pace at the current size
-                left = (self.t_end - t) / h / rate
-            else:
-                left = math.inf
-            pace = f"~{_duration(left)} more at this pace" if math.isfinite(left) else \
-                "no estimate yet"
-            step = f" of ~{h:.2g} s" if h > 0 else ""
-            print(f"rod-sim simulate: t = {t:.6g} of {self.t_end:g} s after {now - begun:.0f} s "
-                  f"({sim.integrator.describe()}: {steps} steps{step}, {sim.stats.nfev} rhs "
-                  f"evaluations; {pace})", file=sys.stderr, flush=True)
-            last = (now, t, steps)
-
-
-def _duration(seconds: float) -> str:
-    if seconds < 120:
-        return f"{seconds:.0f} s"
-    if seconds < 7200:
-        return f"{seconds / 60:.0f} min"
-    return f"{seconds / 3600:.3g} h"
+    def __call__(self, elapsed: float) -> str:
+        sim = self.sim
+        t, steps = sim.t, sim.stats.steps
+        h = getattr(sim.carry, "h", 0.0)
+        left = self.pace.left(t, steps, h)
+        pace = f"~{duration(left)} more at this pace" if math.isfinite(left) else \
+            "no estimate yet"
+        step = f" of ~{h:.2g} s" if h > 0 else ""
+        return (f"rod-sim simulate: t = {t:.6g} of {self.t_end:g} s after {elapsed:.0f} s "
+                f"({sim.integrator.describe()}: {steps} steps{step}, {sim.stats.nfev} rhs "
+                f"evaluations; {pace})")
 
 
 def _salvage(path: Path) -> str:

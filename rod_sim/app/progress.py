@@ -1,0 +1,79 @@
+"""A long command says what it is doing: :class:`Progress` prints a progress line on stderr
+from a daemon thread, the first after ``first_s`` seconds of wall time, then every ``every_s``,
+until its ``with`` block ends; :class:`Pace` estimates the wall time left from how fast a
+simulated time advanced over the last interval. ``rod-sim simulate`` and ``rod-sim compare`` use
+them (their integrators return after bounded work, so the thread gets to run during a long
+step).
+"""
+from __future__ import annotations
+
+import math
+import sys
+import threading
+import time
+from typing import Callable
+
+from rod_sim.app.signals import write_line
+
+
+class Progress:
+    """Calls ``line(elapsed_s)`` (-> the text, or None for no line this time) after
+    ``first_s`` [s] of wall time and then every ``every_s`` [s], and writes each text as one
+    line on ``stream`` (stderr by default), while the ``with`` block runs."""
+
+    def __init__(self, line: Callable[[float], str | None], first_s: float, every_s: float,
+                 name: str = "rod-sim-progress", stream=None):
+        self.line, self.first_s, self.every_s = line, float(first_s), float(every_s)
+        self.stream = stream
+        self._done = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True, name=name)
+
+    def __enter__(self) -> "Progress":
+        self._begun = time.perf_counter()
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._done.set()
+
+    def _run(self) -> None:
+        wait = self.first_s
+        while not self._done.wait(wait):
+            text = self.line(time.perf_counter() - self._begun)
+            if text is not None and not self._done.is_set():
+                write_line(text, self.stream if self.stream is not None else sys.stderr)
+            wait = self.every_s
+
+
+class Pace:
+    """Wall time left to reach ``t_end`` [s] of simulated time, at the pace of the interval
+    since the last :meth:`left` call (the first interval starts at construction): the pace of
+    the simulated time when it advanced, else (inside one long stretch of integration, whose
+    time is set only at its end) the accepted steps' pace at the current step size."""
+
+    def __init__(self, t_end: float, t_now: float = 0.0, steps: int = 0):
+        self.t_end = float(t_end)
+        self._last = (time.perf_counter(), float(t_now), int(steps))
+
+    def left(self, t_now: float, steps: int = 0, h: float = 0.0) -> float:
+        """[s] of wall time left; ``steps``: accepted steps so far, ``h`` [s] the current step
+        size (0: unknown); inf when there is no estimate yet."""
+        now = time.perf_counter()
+        wall0, t0, steps0 = self._last
+        self._last = (now, float(t_now), int(steps))
+        togo = max(0.0, self.t_end - t_now)
+        if t_now > t0:
+            return (now - wall0) * togo / (t_now - t0)
+        rate = (steps - steps0) / (now - wall0) if now > wall0 else 0.0
+        if h > 0 and rate > 0:
+            return togo / h / rate
+        return math.inf
+
+
+def duration(seconds: float) -> str:
+    """``seconds`` in words for a progress line: 42 s, 7 min, 1.5 h."""
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.3g} h"

@@ -1,0 +1,169 @@
+"""Progress lines of long commands (rod_sim.app.progress) and what could hide them.
+
+``rod-sim compare`` of a long or stiff log ran for minutes without a word (the brief: every
+start shows progress after 2 s); worse, while it decoded the log it swapped ``sys.stderr`` for a
+``StringIO`` around every message (to drop a print of mcap_ros2's schema parser), so a line any
+other thread wrote meanwhile (a compile notice, a progress line) was lost: with a 1200-rod log
+the first progress line came at 12 s instead of 2 s. These tests fail on that code.
+"""
+from __future__ import annotations
+
+import json
+import math
+import re
+import sys
+import threading
+from pathlib import Path
+
+import pytest
+
+from rod_sim.tools import cli
+
+ROOT = Path(__file__).resolve().parents[1]
+PAPER = ROOT / "config" / "paper_example.yaml"
+CHAIN32 = ROOT / "config" / "bench" / "chain_n32.yaml"
+
+
+def test_progress_writes_each_line_whole_until_its_block_ends():
+    from rod_sim.app.progress import Progress
+
+    calls = []
+    enough = threading.Event()
+
+    class Stream:
+        def __init__(self):
+            self.writes = []
+
+        def write(self, text):
+            self.writes.append(text)
+
+        def flush(self):
+            pass
+
+    def line(elapsed):
+        calls.append(elapsed)
+        if len(calls) >= 3:
+            enough.set()
+        return None if len(calls) == 2 else f"line {len(calls)}"
+
+    stream = Stream()
+    with Progress(line, 0.0, 0.01, stream=stream):
+        assert enough.wait(30)
+    after = len(calls)
+    threading.Event().wait(0.1)
+    assert len(calls) <= after + 1                 # at most the one being made at the end
+    # the second call returned None: no line; every write is one whole line
+    assert stream.writes[:2] == ["line 1\n", "line 3\n"]
+    assert all(w.endswith("\n") and w.count("\n") == 1 for w in stream.writes)
+    assert calls == sorted(calls) and calls[0] >= 0.0
+
+
+def test_pace_uses_the_simulated_time_then_the_steps(monkeypatch):
+    from rod_sim.app import progress
+
+    clock = iter([100.0, 101.0, 103.0, 104.0])
+    monkeypatch.setattr(progress.time, "perf_counter", lambda: next(clock))
+    pace = progress.Pace(10.0, 0.0, 0)                     # wall 100
+    assert pace.left(2.0, 50) == pytest.approx(4.0)          # wall 101: 2 s in 1 s, 8 to go
+    # wall 103: the time stood still (one long stretch); 400 steps of 1e-3 s in 2 s
+    assert pace.left(2.0, 450, 1e-3) == pytest.approx(8.0 / 1e-3 / 200.0)
+    assert math.isinf(pace.left(2.0, 450, 1e-3))             # wall 104: nothing moved
+
+
+def test_decoding_a_log_leaves_stderr_to_the_other_threads(tmp_path, monkeypatch):
+    """Every message of the log is read with ``sys.stderr`` untouched."""
+    from rod_sim.io import log_source
+    from rod_sim.io.log_source import read_log
+
+    out = tmp_path / "run.mcap"
+    assert cli.main(["simulate", str(PAPER), "--t-end", "0.05", "--out", str(out)]) == 0
+    original = sys.stderr
+    seen = []
+    messages = log_source.LogStream._messages
+
+    def watched(self):
+        for item in messages(self):
+            seen.append(sys.stderr is original)
+            yield item
+
+    monkeypatch.setattr(log_source.LogStream, "_messages", watched)
+    with read_log(out) as log:
+        groups = sum(1 for _ in log.groups())
+    assert groups == 6 and len(seen) > 6 and all(seen)
+
+
+def test_the_schema_parsers_print_is_dropped_and_its_error_raised(capsys):
+    """mcap_ros2's vendored .msg parser prints before it raises; that print is dropped (the
+    readers report the error as one line of their own), without touching sys.stderr."""
+    import rod_sim.io.log_reader  # noqa: F401  (installs the parser's print)
+    from mcap.records import Schema
+    from mcap_ros2.decoder import DecoderFactory
+
+    schema = Schema(id=1, name="bad_msgs/msg/Bad", encoding="ros2msg", data=b"float64\n")
+    with pytest.raises(Exception):
+        DecoderFactory().decoder_for("cdr", schema)
+    assert capsys.readouterr().err == ""
+
+
+def test_a_compare_says_how_far_its_reruns_are(tmp_path, capsys, monkeypatch):
+    """With the first line due at once, a compare prints it before its first window is
+    compared (the window waits for it): the re-runs' time out of the log's end, after how
+    long, and which runs; the report on stdout is whole."""
+    from rod_sim.app import progress
+    from rod_sim.compare import command, comparison
+
+    out = tmp_path / "run.mcap"
+    assert cli.main(["simulate", str(PAPER), "--t-end", "0.3", "--out", str(out)]) == 0
+    capsys.readouterr()
+    written = threading.Event()
+    write_line = progress.write_line
+
+    def noted(text, stream):
+        write_line(text, stream)
+        written.set()
+
+    window = comparison._Comparison.window
+
+    def after_a_line(self, t_cut):
+        assert written.wait(60)
+        return window(self, t_cut)
+
+    monkeypatch.setattr(command, "PROGRESS_FIRST_S", 0.0)
+    monkeypatch.setattr(progress, "write_line", noted)
+    monkeypatch.setattr(comparison._Comparison, "window", after_a_line)
+    assert cli.main(["compare", str(out)]) == 0
+    res = capsys.readouterr()
+    lines = [ln for ln in res.err.splitlines() if ln.startswith("rod-sim compare: full-model")]
+    assert lines, res.err
+    pattern = (r"rod-sim compare: full-model re-runs at t = ([0-9.e+-]+) of 0.3 s after \d+ s "
+               r"\(reference rtol 1e-10, check 1e-12, chaos twin; the reference at \d+ steps"
+               r"( of ~[0-9.e+-]+ s)?; (~\d+ (s|min) more at this pace|no estimate yet)\)$")
+    for ln in lines:
+        m = re.match(pattern, ln)
+        assert m, ln
+        assert 0.0 <= float(m.group(1)) <= 0.3
+    assert res.out.splitlines()[0].startswith("log: ") and "PASS" in res.out
+
+
+def test_a_long_chains_table_lists_its_worst_rods(tmp_path, capsys):
+    """n = 32: the text table lists the 20 rods of the largest phi error (per the JSON
+    report's per-rod maxima), in rod order, and says so; every line fits 100 columns."""
+    out = tmp_path / "run.mcap"
+    assert cli.main(["simulate", str(CHAIN32), "--t-end", "0.2", "--out", str(out)]) == 0
+    capsys.readouterr()
+    cli.main(["compare", str(out), "--json"])
+    report = json.loads(capsys.readouterr().out)
+    per_rod = {row["rod"]: row["phi"] for row in report["per_rod"]}
+    assert len(per_rod) == 32
+    cli.main(["compare", str(out)])
+    text = capsys.readouterr().out
+    assert "the 20 rods of the largest phi error of 32 (--json has every rod):" in " ".join(
+        text.split())
+    rows = [ln for ln in text.splitlines() if re.match(r"^\s*\d+\s+[0-9.]+e[+-]\d+", ln)]
+    shown = [int(ln.split()[0]) for ln in rows]
+    assert shown == sorted(shown) and len(shown) == 20
+    worst = sorted(per_rod, key=lambda k: -per_rod[k])[:20]
+    assert set(shown) == set(worst)
+    for k in shown:
+        assert float(rows[shown.index(k)].split()[1]) == pytest.approx(per_rod[k], rel=1e-3)
+    assert max(len(ln) for ln in text.splitlines()) <= 100
