@@ -62,13 +62,21 @@ def test_sigterm_closes_the_simulate_log_with_its_summary(tmp_path):
 @pytest.mark.slow
 @pytest.mark.timing
 def test_sigterm_stops_compare_cleanly(tmp_path):
+    """SIGTERM once compare says it is re-running the log (its first progress line, 2 s into
+    the comparison of a 10 s log, which takes ~20 s more): one line, 143."""
     log = tmp_path / "c.mcap"
     done = subprocess.run([sys.executable, "-m", "rod_sim.tools.cli", "simulate", str(PAPER),
-                           "--t-end", "60", "--rate", "1000", "--out", str(log)],
+                           "--t-end", "10", "--out", str(log)],
                           capture_output=True, text=True, cwd=ROOT)
     assert done.returncode == 0, done.stderr
     proc = rod_sim_proc("compare", log)
-    time.sleep(2.5)                                # inside the comparison (it takes longer)
+    seen = []
+    for line in proc.stderr:                       # (a compile notice may come first)
+        seen.append(line)
+        if line.startswith("rod-sim compare: full-model re-runs at t = "):
+            break                                  # inside the comparison
+    else:
+        raise AssertionError("".join(seen))
     assert proc.poll() is None, proc.communicate()
     status, err = terminate(proc)
     assert status == 143, err
