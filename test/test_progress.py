@@ -167,3 +167,49 @@ def test_a_long_chains_table_lists_its_worst_rods(tmp_path, capsys):
     for k in shown:
         assert float(rows[shown.index(k)].split()[1]) == pytest.approx(per_rod[k], rel=1e-3)
     assert max(len(ln) for ln in text.splitlines()) <= 100
+
+
+def test_an_advise_says_which_run_is_under_way(capsys, monkeypatch):
+    """advise runs 12 simulations (the reference, its check, 10 candidates) and said nothing
+    for minutes on a long chain: its lines name the run under way, its time and steps and
+    the runs done (the first run waits until a line has described it)."""
+    from rod_sim.app import progress
+    from rod_sim.tools import advise
+
+    lines = []
+    described = threading.Event()
+    write_line = progress.write_line
+
+    def noted(text, stream):
+        write_line(text, stream)
+        lines.append(text)
+        if "; now " in text:
+            described.set()
+
+    running = advise.Watch.running
+
+    def wait_once(self, label, sim):
+        running(self, label, sim)
+        if not described.is_set():
+            assert described.wait(60)
+
+    monkeypatch.setattr(advise, "PROGRESS_FIRST_S", 0.0)
+    monkeypatch.setattr(advise, "PROGRESS_EVERY_S", 0.01)
+    monkeypatch.setattr(progress, "write_line", noted)
+    monkeypatch.setattr(advise.Watch, "running", wait_once)
+    assert cli.main(["advise", str(PAPER), "--tolerance", "0.01", "--t-end", "0.05",
+                     "--repeats", "1"]) == 0
+    res = capsys.readouterr()
+    assert "recommended:" in res.out and "rod-sim advise" not in res.out
+    pattern = (r"rod-sim advise: (\d+) of 12 runs done after \d+ s; now (the full-model "
+               r"reference's check \(rtol 1e-10\)|the full-model reference \(rtol 1e-11\)|"
+               r"candidate (rigid|reduced|full) rtol 1e-\d+): t = ([0-9.e+-]+) of 0.05 s, "
+               r"\d+ steps( of ~[0-9.e+-]+ s)? \((no estimate yet|~\d+ (s|min) more for it at "
+               r"this pace)\)$")
+    described_lines = [ln for ln in lines if "; now " in ln]
+    assert described_lines and all(re.match(pattern, ln) for ln in described_lines), lines
+    first = re.match(pattern, described_lines[0])
+    assert first.group(1) == "0" and "check" in first.group(2)
+    done = [int(re.match(r"rod-sim advise: (\d+) of 12", ln).group(1)) for ln in lines]
+    assert done == sorted(done) and max(done) <= 12
+    assert all(0.0 <= float(re.match(pattern, ln).group(4)) <= 0.05 for ln in described_lines)

@@ -15,6 +15,7 @@ tolerance. The advice holds for the trial's loads and duration only.
 from __future__ import annotations
 
 import json
+import math
 import time
 
 import numpy as np
@@ -48,40 +49,68 @@ def configure(parser) -> None:
     parser.add_argument("--json", action="store_true", help="machine-readable output")
 
 
-def _run(scene, model_name: str, rtol: float, t_end: float, repeats: int = 1):
+class Watch:
+    """What :func:`advise` is running now, for its progress lines: ``label`` (e.g. "the
+    full-model reference (rtol 1e-11)"), its :class:`~rod_sim.core.simulator.Simulator`
+    ``sim`` (None between runs) and how many of the ``total`` runs have ended (``done``)."""
+
+    def __init__(self):
+        self.label, self.sim, self.done = "setting up", None, 0
+        self.total = 2 + len(CANDIDATES)
+
+    def running(self, label: str, sim) -> None:
+        self.label, self.sim = label, sim
+
+
+def _run(scene, model_name: str, rtol: float, t_end: float, repeats: int = 1,
+         watch: Watch | None = None, label: str = ""):
     """(angles (N, n) or on a free base (N, n + 1): phi and then psi [rad], best wall time [s],
-    nfev) of one model/tolerance over [0, t_end]."""
+    nfev) of one model/tolerance over [0, t_end]; each repeat's Simulator is handed to
+    ``watch`` (:meth:`Watch.running`) under ``label``."""
     from ..api import Simulator, make_integrator, make_model
 
     model = make_model(model_name, scene)
     Simulator(model, make_integrator(rtol=rtol)).advance(1e-4)       # compile outside timing
     best, phi, nfev = np.inf, None, 0
-    for _ in range(max(1, repeats)):
+    repeats = max(1, repeats)
+    for k in range(repeats):
         sim = Simulator(model, make_integrator(rtol=rtol))
+        if watch is not None:
+            watch.running(label + (f", repeat {k + 1} of {repeats}" if repeats > 1 else ""),
+                          sim)
         start = time.perf_counter()
         traj = sim.run(t_end, RATE_HZ)
         best = min(best, time.perf_counter() - start)
         phi, nfev = traj.phi, sim.stats.nfev
         if model.nb:                                 # a free base: its angle psi too
             phi = np.column_stack([phi, traj.y[:, model.base_index + 2]])
+    if watch is not None:
+        watch.done += 1
     return phi, best, nfev
 
 
-def advise(scene, tolerance: float, t_end: float = 1.0, repeats: int = 3) -> dict:
-    """The recommendation and every trial as a dict (see the module docstring).
-    Raises IntegrationError if the reference cannot be computed."""
+def advise(scene, tolerance: float, t_end: float = 1.0, repeats: int = 3,
+           watch: Watch | None = None) -> dict:
+    """The recommendation and every trial as a dict (see the module docstring); ``watch``
+    (:class:`Watch`) is told what runs. Raises IntegrationError if the reference cannot be
+    computed."""
     from ..core.integrators import IntegrationError
 
-    ref_loose, _, _ = _run(scene, "full", ADVISE_CHECK_RTOL, t_end)
-    ref, _, _ = _run(scene, "full", ADVISE_REFERENCE_RTOL, t_end)
+    ref_loose, _, _ = _run(scene, "full", ADVISE_CHECK_RTOL, t_end, watch=watch,
+                           label=f"the full-model reference's check (rtol {ADVISE_CHECK_RTOL:g})")
+    ref, _, _ = _run(scene, "full", ADVISE_REFERENCE_RTOL, t_end, watch=watch,
+                     label=f"the full-model reference (rtol {ADVISE_REFERENCE_RTOL:g})")
     ref_check = float(np.max(np.abs(ref - ref_loose)))
     trials = []
     full_default_wall = None
     for model_name, rtol in CANDIDATES:
         row = {"model": model_name, "integrator": "dop853-jit", "rtol": rtol}
         try:
-            phi, wall, nfev = _run(scene, model_name, rtol, t_end, repeats)
+            phi, wall, nfev = _run(scene, model_name, rtol, t_end, repeats, watch,
+                                   f"candidate {model_name} rtol {rtol:g}")
         except IntegrationError as exc:
+            if watch is not None:
+                watch.done += 1
             row.update(error=str(exc), max_phi_error=None, wall_s=None, nfev=None, ok=False)
             trials.append(row)
             continue
@@ -140,12 +169,50 @@ def format_text(res: dict) -> str:
     return "\n".join(lines)
 
 
+PROGRESS_FIRST_S = 2.0
+"""[s] of wall time before the first progress line (a short advise prints none)."""
+PROGRESS_EVERY_S = 10.0
+"""[s] of wall time between the next ones."""
+
+
+def _progress(watch: Watch, t_end: float):
+    """The progress lines of an advise (:class:`~rod_sim.app.progress.Progress`): the run
+    under way, its simulated time and steps, the runs done, and the wall time left for this
+    run at the pace of the last interval."""
+    from rod_sim.app.progress import Pace, Progress, duration
+
+    paces: dict[int, Pace] = {}
+
+    def line(elapsed: float) -> str:
+        sim = watch.sim
+        head = f"rod-sim advise: {watch.done} of {watch.total} runs done after {elapsed:.0f} s"
+        if sim is None:
+            return f"{head}; {watch.label}"
+        t, steps = sim.t, sim.stats.steps
+        h = getattr(sim.carry, "h", 0.0)
+        pace = paces.get(id(sim))
+        if pace is None:            # a run first seen now: its pace from the next line on
+            paces.clear()
+            paces[id(sim)] = Pace(t_end, t, steps)
+            left = math.inf
+        else:
+            left = pace.left(t, steps, h)
+        more = f"~{duration(left)} more for it at this pace" if math.isfinite(left) else \
+            "no estimate yet"
+        return (f"{head}; now {watch.label}: t = {t:.6g} of {t_end:g} s, {steps} steps"
+                + (f" of ~{h:.2g} s" if h > 0 else "") + f" ({more})")
+
+    return Progress(line, PROGRESS_FIRST_S, PROGRESS_EVERY_S, "rod-sim-advise-progress")
+
+
 def run(args) -> int:
     from rod_sim.app.common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, load_scene
 
     if args.t_end > 100.0:
         raise UsageError("--t-end: a trial longer than 100 s is not a short trial")
     scene = load_scene(args.scene)
-    res = advise(scene, args.tolerance, args.t_end, args.repeats)
+    watch = Watch()
+    with _progress(watch, args.t_end):
+        res = advise(scene, args.tolerance, args.t_end, args.repeats, watch)
     print(json.dumps(res, indent=1) if args.json else format_text(res))
     return EXIT_OK if res["recommendation"] is not None else EXIT_CHECK_FAILED
