@@ -78,7 +78,9 @@ def run(args) -> int:
         times = args.times
     else:
         t_last = max([e["t"] for e in latches], default=t[-1])
-        times = list(np.linspace(0.0, t_last, 8)) + [float(t[-1])]
+        times = list(np.linspace(0.0, t_last, 8))
+        if float(t[-1]) > t_last:       # the end, when it is not the last of those already
+            times.append(float(t[-1]))
     base = _base_series(args.log, scene, t) if scene.is_spacecraft else None
     if base is None:
         fig, (ax, ax2) = plt.subplots(2, 1, figsize=(8, 8),
@@ -92,7 +94,8 @@ def run(args) -> int:
         color = cmap(j / max(len(times) - 1, 1))
         if base is None:
             xy = node_positions(np.asarray(scene.length), phi[i])
-            ax.plot(xy[:, 0], xy[:, 1], "-o", ms=3, color=color, label=f"t = {t[i]:.2f} s")
+            ax.plot(xy[:, 0], xy[:, 1], _chain_style(scene.n), ms=3, color=color,
+                    label=f"t = {t[i]:.2f} s")
         else:
             _draw_spacecraft(ax, scene, phi[i], base[i], color, f"t = {t[i]:.2f} s")
     if base is None:
@@ -110,7 +113,11 @@ def run(args) -> int:
 
         theta = hinge_angles(np.asarray(scene.chain_root), phi, base[:, 2])
         labels = [f"{c.name or 'chain'} {h}" for c in scene.chains for h in range(c.count)]
-    for h in range(scene.n):
+    shown = hinges_shown(theta)
+    if len(shown) < scene.n:            # the others as the band they span, unlabelled
+        ax2.fill_between(t, theta.min(axis=1), theta.max(axis=1), color="0.85", lw=0,
+                         label=f"all {scene.n} hinges (min .. max)")
+    for h in shown:
         ax2.plot(t, theta[:, h], label=labels[h])
     for e in latches:
         ax2.axvline(e["t"], color="k", lw=0.6, ls=":")
@@ -118,7 +125,9 @@ def run(args) -> int:
                      xytext=(2, 5), textcoords="offset points")
     ax2.set_xlabel("t [s]")
     ax2.set_ylabel("hinge angle [rad]")
-    ax2.legend(fontsize=7, ncol=scene.n if base is None else min(scene.n, 5))
+    ax2.legend(fontsize=7, ncol=min(len(shown) + (len(shown) < scene.n), 5),
+               title=None if len(shown) == scene.n else
+               f"the {len(shown)} hinges of the largest range", title_fontsize=7)
     if base is not None:
         ax3.plot(t, base[:, 2], "k-")
         ax3.set_xlabel("t [s]")
@@ -132,6 +141,30 @@ def run(args) -> int:
     done(png)
     print(f"{png}: {len(times)} snapshots, {len(latches)} latch events")
     return 0
+
+
+HINGES_SHOWN = 10
+"""Hinge angles drawn one by one (with a legend entry) at most; a longer chain's others are
+drawn as the band from the smallest to the largest hinge angle at each time."""
+NODE_MARKERS_UP_TO = 50
+"""Rods per chain up to which the snapshots mark every node."""
+
+
+def hinges_shown(theta: np.ndarray) -> list[int]:
+    """The hinges (0-based, ascending) drawn one by one from the angles ``theta`` (N, n)
+    [rad]: all of them up to :data:`HINGES_SHOWN`, else those of the largest range
+    (max - min over the log; ties go to the lower hinge)."""
+    n = theta.shape[1]
+    if n <= HINGES_SHOWN:
+        return list(range(n))
+    span = np.nan_to_num(np.ptp(theta, axis=0), nan=np.inf)
+    return sorted(int(h) for h in np.argsort(-span, kind="stable")[:HINGES_SHOWN])
+
+
+def _chain_style(rods: int) -> str:
+    """Line style of a snapshot: the nodes marked on a chain of at most
+    :data:`NODE_MARKERS_UP_TO` rods (a longer one's markers hide its shape)."""
+    return "-o" if rods <= NODE_MARKERS_UP_TO else "-"
 
 
 def _base_series(log: str, scene, t: np.ndarray) -> np.ndarray:
@@ -158,8 +191,8 @@ def _draw_spacecraft(ax, scene, phi: np.ndarray, base: np.ndarray, color, label:
     nodes = chain_node_positions(np.asarray(scene.length, float), phi, seg, attach, x, y, psi)
     for c in range(len(scene.chains)):
         a, b = int(seg[c]) + c, int(seg[c + 1]) + c + 1
-        ax.plot(nodes[a:b, 0], nodes[a:b, 1], "-o", ms=3, color=color,
-                label=label if c == 0 else None)
+        ax.plot(nodes[a:b, 0], nodes[a:b, 1], _chain_style(scene.chains[c].count), ms=3,
+                color=color, label=label if c == 0 else None)
     half = 0.5 * base_box(scene)
     rot = np.array([[math.cos(psi), -math.sin(psi)], [math.sin(psi), math.cos(psi)]])
     corners = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1], [-1, -1]]) * half \
