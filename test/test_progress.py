@@ -213,3 +213,29 @@ def test_an_advise_says_which_run_is_under_way(capsys, monkeypatch):
     done = [int(re.match(r"rod-sim advise: (\d+) of 12", ln).group(1)) for ln in lines]
     assert done == sorted(done) and max(done) <= 12
     assert all(0.0 <= float(re.match(pattern, ln).group(4)) <= 0.05 for ln in described_lines)
+
+
+def test_a_long_chains_plot_draws_its_worst_rods(tmp_path, capsys, monkeypatch):
+    """n = 32: the plot draws the 12 rods of the largest phi error (per the JSON report),
+    each solid (log) and dashed (reference), instead of 32 of each in a 32-entry legend."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.figure
+
+    out = tmp_path / "run.mcap"
+    assert cli.main(["simulate", str(CHAIN32), "--t-end", "0.2", "--out", str(out)]) == 0
+    capsys.readouterr()
+    saved = []
+    savefig = matplotlib.figure.Figure.savefig
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig",
+                        lambda fig, *a, **k: (saved.append(fig), savefig(fig, *a, **k))[1])
+    assert cli.main(["compare", str(out), "--json", "--plot", str(tmp_path / "c.png")]) == 0
+    report = json.loads(capsys.readouterr().out)
+    per_rod = {row["rod"]: row["phi"] for row in report["per_rod"]}
+    worst = sorted(sorted(per_rod, key=lambda k: -per_rod[k])[:12])
+    ax = saved[0].axes[0]
+    labels = [ln.get_label() for ln in ax.get_lines() if not ln.get_label().startswith("_")]
+    assert labels == [f"rod {k}" for k in worst]
+    assert len(ax.get_lines()) == 24 and "the 12 of 32 rods of the largest phi error" in \
+        ax.get_title()

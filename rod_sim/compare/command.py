@@ -142,16 +142,20 @@ TABLE_ROWS = 20
 phi error (every rod is in the JSON report)."""
 
 
-def rows_shown(phi_max, n: int) -> list[int]:
-    """The rods (1-based, ascending) the table lists: all of them up to :data:`TABLE_ROWS`,
-    else the :data:`TABLE_ROWS` of the largest ``phi_max`` (n,) [rad] (a NaN counts as the
+PLOT_RODS = 12
+"""Rods the plot draws at most (the rods of the largest phi error)."""
+
+
+def rows_shown(phi_max, n: int, most: int = TABLE_ROWS) -> list[int]:
+    """The rods (1-based, ascending) the table (or the plot) shows: all of them up to
+    ``most``, else the ``most`` of the largest ``phi_max`` (n,) [rad] (a NaN counts as the
     largest; ties go to the lower rod)."""
-    if n <= TABLE_ROWS:
+    if n <= most:
         return list(range(1, n + 1))
     import numpy as np
 
     key = np.nan_to_num(np.asarray(phi_max, dtype=float), nan=np.inf)
-    worst = np.argsort(-key, kind="stable")[:TABLE_ROWS]
+    worst = np.argsort(-key, kind="stable")[:most]
     return sorted(int(k) + 1 for k in worst)
 
 
@@ -259,11 +263,14 @@ def write_plot(report, path: Path, title: str) -> None:
     t, err, gain = rows[:, 0], rows[:, 1], rows[:, -1]
     phi_log, phi_ref = rows[:, 2:2 + n], rows[:, 2 + n:2 + 2 * n]
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
-    for k in range(report.n):
-        line, = ax1.plot(t, phi_log[:, k], lw=1.2, label=f"rod {k + 1}")
-        ax1.plot(t, phi_ref[:, k], "--", lw=1.0, color=line.get_color())
+    shown = rows_shown(report.quantities["phi"].col_max, n, PLOT_RODS)
+    for k in shown:
+        line, = ax1.plot(t, phi_log[:, k - 1], lw=1.2, label=f"rod {k}")
+        ax1.plot(t, phi_ref[:, k - 1], "--", lw=1.0, color=line.get_color())
     ax1.set_ylabel("phi [rad]")
-    ax1.set_title(f"{title}\nsolid: log, dashed: full model (reference)")
+    ax1.set_title(f"{title}\nsolid: log, dashed: full model (reference)"
+                  + ("" if len(shown) == n else
+                     f"; the {len(shown)} of {n} rods of the largest phi error"))
     ax1.legend(fontsize=7, ncol=4)
     ax2.semilogy(t, np.where(err > 0, err, np.nan), label="max over rods |phi error|")
     ax2.axhline(report.tolerance, color="r", ls=":", label=f"tolerance {report.tolerance:g} rad")
