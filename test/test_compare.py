@@ -622,3 +622,36 @@ def test_validity_warnings_name_slopes_beyond_small_bending_and_fast_loads():
     soft = paper.with_changes(bending_stiffness=np.full(8, 10.0))   # first mode ~0.8 Hz
     assert any("bending mode" in m for m in validity_messages(soft, "reduced", small))
     assert validity_messages(soft, "full", small) == []
+
+
+def test_the_plot_series_of_a_long_chain_stays_within_its_budget(tmp_path):
+    """The plot's decimated series kept phi of every rod at up to 8000 samples: ~150 MB for a
+    1200-rod log, ~1.3 GB for 10 000 rods, even without --plot. Now it keeps the angles only
+    for a plot, and within 64 MiB (fewer samples for a longer chain)."""
+    import tracemalloc
+
+    from rod_sim.compare.comparison import plot_points
+    from rod_sim.compare.stats import Decimated
+
+    n = 5000
+    series = Decimated(plot_points(n))
+    phi = np.zeros(n)
+    tracemalloc.start()
+    for k in range(20_000):
+        series.add(k * 1e-3, 1e-6, phi, phi, 1.0)
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    assert peak <= 66 * 2**20 and series.rows.shape[1] == 3 + 2 * n
+    assert 250 <= series.rows.shape[0] <= 2 * 4000
+
+
+def test_without_a_plot_compare_keeps_no_angles_for_it(tmp_path):
+    scene = Path(__file__).resolve().parents[1] / "config" / "bench" / "chain_n32.yaml"
+    out = tmp_path / "run.mcap"
+    assert rod_sim("simulate", scene, "--t-end", "0.1", "--out", out) == 0
+    widths = []
+    for plot in (True, False):
+        with read_log(out) as log:
+            report = compare_log(log, load_scene(scene), plot=plot)
+        widths.append(report.series.rows.shape)
+    assert widths == [(11, 3 + 2 * 32), (11, 3)]

@@ -363,7 +363,8 @@ def run(args) -> int:
             tolerance = DEFAULT_TOLERANCE if args.tolerance is None else args.tolerance
             end_s = log.end_ns / 1e9 if log.metadata and log.end_ns is not None else None
             report = compare_log(log, scene, tolerance, rate_hz=_rate(meta),
-                                 progress=lambda reached: _progress(reached, end_s))
+                                 progress=lambda reached: _progress(reached, end_s),
+                                 plot=plot is not None)
     except LogFormatError as exc:
         raise UsageError(str(exc)) from None
     except CompareInputError as exc:

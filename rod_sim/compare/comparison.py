@@ -74,7 +74,19 @@ WINDOW_SAMPLES = 2000
 WINDOW_S = 1.0
 """[s] longest log time of one window (also the twin run's renormalisation interval)."""
 PLOT_POINTS = 4000
-"""Samples kept for the plot (decimated evenly, the error panel keeps each bucket's maximum)."""
+"""Samples kept for the plot (decimated evenly, the error panel keeps each bucket's maximum),
+at most; fewer for a long chain (:data:`PLOT_BYTES`)."""
+PLOT_BYTES = 64 << 20
+"""[bytes] the plot's series may take at most (phi of the log and of the reference, every
+rod, at up to 2 x the points kept, and half of that again while it is thinned out): a long
+chain keeps fewer points (at least :data:`PLOT_POINTS_MIN`)."""
+PLOT_POINTS_MIN = 250
+
+
+def plot_points(n: int) -> int:
+    """Samples the plot keeps for a chain of ``n`` rods (:data:`PLOT_POINTS`, fewer within
+    :data:`PLOT_BYTES`)."""
+    return max(PLOT_POINTS_MIN, min(PLOT_POINTS, PLOT_BYTES // (3 * 8 * (3 + 2 * n))))
 
 
 @dataclass
@@ -190,7 +202,8 @@ class _Comparison:
     messages of the current window and the parts of the pipeline they are fed to."""
 
     def __init__(self, log: "LogStream", scene: Scene, tolerance: float, rtol: float,
-                 check_rtol: float | None, rate_hz: float | None, keep: bool):
+                 check_rtol: float | None, rate_hz: float | None, keep: bool,
+                 plot: bool = True):
         self.log, self.scene, self.tol = log, scene, tolerance
         self.n = n = scene.n
         self.model = reference_model(scene)
@@ -213,7 +226,7 @@ class _Comparison:
                   "beta": QuantityStats("beta", rods, keep)}
         self.within = WithinHorizon()
         self.beyond = BeyondHorizon(n)
-        self.series = Decimated(PLOT_POINTS)
+        self.series = Decimated(plot_points(n) if plot else PLOT_POINTS, angles=plot)
         # messages of the window being filled: (t_ns, values...)
         self.states: list[tuple[int, np.ndarray, np.ndarray]] = []
         self.bending: list[tuple[int, np.ndarray, np.ndarray]] = []
@@ -405,7 +418,7 @@ def compare_log(log: "LogStream", scene: Scene, tolerance: float = DEFAULT_TOLER
                 rtol: float = COMPARE_REFERENCE_RTOL,
                 check_rtol: float | None = COMPARE_CHECK_RTOL,
                 rate_hz: float | None = None, keep_samples: bool = False,
-                progress=None) -> Report:
+                progress=None, plot: bool = True) -> Report:
     """Compare a log opened by :func:`rod_sim.io.log_source.read_log` with the full model of
     ``scene``, window by window (memory independent of the log's length; ``keep_samples``
     also keeps every sample's errors, for tests). ``progress``: None, or a function that takes
@@ -415,7 +428,8 @@ def compare_log(log: "LogStream", scene: Scene, tolerance: float = DEFAULT_TOLER
     be compared honestly, LogFormatError for a log that turns out unreadable."""
     if not (math.isfinite(tolerance) and tolerance > 0):
         raise CompareInputError(f"--tolerance must be > 0 (got {tolerance!r})")
-    run = _Comparison(log, scene, float(tolerance), rtol, check_rtol, rate_hz, keep_samples)
+    run = _Comparison(log, scene, float(tolerance), rtol, check_rtol, rate_hz, keep_samples,
+                      plot)
     with (contextlib.nullcontext() if progress is None else progress(run.reached)):
         for group in log.groups():
             run.add(group)

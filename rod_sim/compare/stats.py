@@ -120,8 +120,10 @@ class Decimated:
     over the samples it stands for, phi of the log and of the reference (n,) [rad] each, and
     the gain."""
 
-    def __init__(self, points: int):
+    def __init__(self, points: int, angles: bool = True):
         self.points = points
+        self.angles = angles
+        """False: no phi kept (rows of t, peak, gain only)."""
         self.stride = 1
         self._seen = 0
         self._rows = 0
@@ -132,12 +134,13 @@ class Decimated:
             gain: float) -> None:
         self._peak = max(self._peak, peak)
         if self._seen % self.stride == 0:
+            n = phi_log.size if self.angles else 0
             if self._data is None:
-                self._data = np.empty((2 * self.points, 3 + 2 * phi_log.size))
-            n = phi_log.size
+                self._data = np.empty((2 * self.points, 3 + 2 * n))
             row = self._data[self._rows]
             row[0], row[1], row[-1] = t, self._peak, gain
-            row[2:2 + n], row[2 + n:2 + 2 * n] = phi_log, phi_ref
+            if n:
+                row[2:2 + n], row[2 + n:2 + 2 * n] = phi_log, phi_ref
             self._rows += 1
             self._peak = -np.inf
             if self._rows == self._data.shape[0]:
@@ -150,7 +153,8 @@ class Decimated:
 
     @property
     def rows(self) -> np.ndarray:
-        """(kept samples, 3 + 2n): t, peak, phi_log (n), phi_ref (n), gain."""
+        """(kept samples, 3 + 2n): t, peak, phi_log (n), phi_ref (n), gain (n = 0 without
+        ``angles``)."""
         return self._data[:self._rows] if self._data is not None else np.empty((0, 3))
 
 
