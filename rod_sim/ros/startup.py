@@ -9,11 +9,7 @@ signal handler that interrupts the start-up (:class:`rod_sim.ros.process.StopReq
 to run between them."""
 from __future__ import annotations
 
-import sys
-import threading
-import time
-
-from rod_sim.app.signals import write_line
+from rod_sim.app import progress
 
 NOTICE_AFTER_S = 2.0
 """[s] of start-up after which the first progress line is printed."""
@@ -47,41 +43,29 @@ def started() -> None:
         _on_started()
 
 
-class Progress:
-    """Context manager around a start-up: a daemon thread prints what it is doing after
-    :data:`NOTICE_AFTER_S` and every :data:`NOTICE_EVERY_S` after that, until the block
-    ends. ``prog`` names the process; ``what`` (e.g. 'scene big, n = 100000') is printed with
-    the first line."""
+class Progress(progress.Progress):
+    """Context manager around a start-up (:class:`rod_sim.app.progress.Progress`): a daemon
+    thread prints what it is doing after :data:`NOTICE_AFTER_S` and every
+    :data:`NOTICE_EVERY_S` after that, until the block ends. ``prog`` names the process;
+    ``what`` (e.g. 'scene big, n = 100000') is printed with the first line."""
 
     def __init__(self, prog: str, what=lambda: "", stream=None):
         self.prog = prog
         self.what = what
-        self.stream = stream
         self.lines = 0
-        self._done = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="rod-sim-startup", daemon=True)
+        super().__init__(self._line, NOTICE_AFTER_S, NOTICE_EVERY_S, "rod-sim-startup", stream)
 
     def __enter__(self) -> "Progress":
         phase("creating the node")
-        self._started = time.monotonic()
-        self._thread.start()
-        return self
+        return super().__enter__()
 
-    def __exit__(self, *exc) -> None:
-        self._done.set()
-
-    def _run(self) -> None:
-        wait = NOTICE_AFTER_S
-        while not self._done.wait(wait):
-            elapsed = time.monotonic() - self._started
-            extra = ""
-            if not self.lines:
-                try:
-                    extra = self.what() or ""
-                except Exception:  # noqa: BLE001 -- a description is never worth a failure
-                    extra = ""
-            text = f"{self.prog}: starting: {_phase} ({elapsed:.0f} s so far"
-            text += f"; {extra})" if extra else ")"
-            write_line(text, self.stream or sys.stderr)
-            self.lines += 1
-            wait = NOTICE_EVERY_S
+    def _line(self, elapsed: float) -> str:
+        extra = ""
+        if not self.lines:
+            try:
+                extra = self.what() or ""
+            except Exception:  # noqa: BLE001 -- a description is never worth a failure
+                extra = ""
+        self.lines += 1
+        text = f"{self.prog}: starting: {_phase} ({elapsed:.0f} s so far"
+        return text + (f"; {extra})" if extra else ")")
