@@ -107,7 +107,7 @@ def advise(scene, tolerance: float, t_end: float = 1.0, repeats: int = 3,
         row = {"model": model_name, "integrator": "dop853-jit", "rtol": rtol}
         try:
             phi, wall, nfev = _run(scene, model_name, rtol, t_end, repeats, watch,
-                                   f"candidate {model_name} rtol {rtol:g}")
+                                   f"candidate {model_name} rtol {rtol:.0e}")
         except IntegrationError as exc:
             if watch is not None:
                 watch.done += 1
