@@ -1,9 +1,9 @@
 """A long command says what it is doing: :class:`Progress` prints a progress line on stderr
 from a daemon thread, the first after ``first_s`` seconds of wall time, then every ``every_s``,
 until its ``with`` block ends; :class:`Pace` estimates the wall time left from how fast a
-simulated time advanced over the last interval. ``rod-sim simulate`` and ``rod-sim compare`` use
-them (their integrators return after bounded work, so the thread gets to run during a long
-step).
+simulated time advanced over the last interval. ``rod-sim simulate``, ``compare`` and ``advise``
+and the node's start-up (:mod:`rod_sim.ros.startup`) use them (their integrators return after
+bounded work, so the thread gets to run during a long step).
 """
 from __future__ import annotations
 

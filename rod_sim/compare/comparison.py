@@ -81,6 +81,7 @@ PLOT_BYTES = 64 << 20
 rod, at up to 2 x the points kept, and half of that again while it is thinned out): a long
 chain keeps fewer points (at least :data:`PLOT_POINTS_MIN`)."""
 PLOT_POINTS_MIN = 250
+"""Samples the plot keeps at least, however long the chain."""
 
 
 def plot_points(n: int) -> int:

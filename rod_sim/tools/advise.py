@@ -61,6 +61,11 @@ class Watch:
     def running(self, label: str, sim) -> None:
         self.label, self.sim = label, sim
 
+    def finished(self) -> None:
+        """A run ended (or failed)."""
+        self.done += 1
+        self.label, self.sim = "setting up the next run", None
+
 
 def _run(scene, model_name: str, rtol: float, t_end: float, repeats: int = 1,
          watch: Watch | None = None, label: str = ""):
@@ -85,7 +90,7 @@ def _run(scene, model_name: str, rtol: float, t_end: float, repeats: int = 1,
         if model.nb:                                 # a free base: its angle psi too
             phi = np.column_stack([phi, traj.y[:, model.base_index + 2]])
     if watch is not None:
-        watch.done += 1
+        watch.finished()
     return phi, best, nfev
 
 
@@ -110,7 +115,7 @@ def advise(scene, tolerance: float, t_end: float = 1.0, repeats: int = 3,
                                    f"candidate {model_name} rtol {rtol:.0e}")
         except IntegrationError as exc:
             if watch is not None:
-                watch.done += 1
+                watch.finished()
             row.update(error=str(exc), max_phi_error=None, wall_s=None, nfev=None, ok=False)
             trials.append(row)
             continue
