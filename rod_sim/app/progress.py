@@ -77,3 +77,35 @@ def duration(seconds: float) -> str:
     if seconds < 7200:
         return f"{seconds / 60:.0f} min"
     return f"{seconds / 3600:.3g} h"
+
+
+CHECK_FIRST_S = 2.0
+"""[s] a log's integrity pass runs before :func:`log_check_progress` says so."""
+CHECK_EVERY_S = 10.0
+"""[s] between its next lines."""
+CHECK_POLL_S = 1.0
+"""[s] between looks at :data:`rod_sim.io.log_reader.CHECKING`."""
+
+
+def log_check_progress(prog: str) -> Progress:
+    """A :class:`Progress` for a command that opens logs (``prog``: e.g. 'rod-sim compare'):
+    once opening a file has taken :data:`CHECK_FIRST_S` (the integrity pass reads and checks
+    every record: ~80 s for a 1.2 GB log), a line says which and how far it is, then every
+    :data:`CHECK_EVERY_S`; nothing while no file is being opened."""
+    from rod_sim.io.log_reader import CHECKING
+
+    last = {"since": None, "at": 0.0}
+
+    def line(elapsed: float) -> str | None:
+        path, since = CHECKING.path, CHECKING.since
+        now = time.monotonic()
+        if not path or now - since < CHECK_FIRST_S:
+            return None
+        if last["since"] == since and now - last["at"] < CHECK_EVERY_S:
+            return None
+        last["since"], last["at"] = since, now
+        return (f"{prog}: checking {path} (every record and its CRC): "
+                f"{CHECKING.done / 1e6:.0f} of {CHECKING.size / 1e6:.0f} MB after "
+                f"{now - since:.0f} s")
+
+    return Progress(line, CHECK_POLL_S, CHECK_POLL_S, "rod-sim-log-check-progress")

@@ -11,6 +11,7 @@ import io
 import os
 import struct
 import sys
+import time
 import zlib
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
@@ -43,6 +44,20 @@ def _drop_print(*args, **kwargs) -> None:
 
 if _msg_parser is not None:
     _msg_parser.print = _drop_print
+
+
+class Checking:
+    """The file a :class:`LogReader` is checking now (its integrity pass over every record,
+    when it opens), for a command's progress line from another thread: ``path`` ('' when
+    none), ``done`` and ``size`` [bytes] of its data section, ``since`` (time.monotonic()
+    when the pass began). One per process (:data:`CHECKING`); plain attributes, read without
+    a lock (a progress line may be one record behind)."""
+
+    def __init__(self):
+        self.path, self.done, self.size, self.since = "", 0, 0, 0.0
+
+
+CHECKING = Checking()
 
 
 _RECORD_READERS = {
@@ -162,7 +177,12 @@ class LogReader:
             self._footer_at = self._footer_offset()
             self._data_limit = self._footer_at if self._footer_at is not None else self._size
             self._summary = self._read_summary()
-            self._check_data_section()
+            CHECKING.done, CHECKING.size = 0, self._data_limit
+            CHECKING.since, CHECKING.path = time.monotonic(), str(self.path)
+            try:
+                self._check_data_section()
+            finally:
+                CHECKING.path = ""
             if self._data_crc_mismatch is not None:
                 self._explain_data_crc()
             if self._bad_records:
@@ -286,7 +306,7 @@ class LogReader:
             body = self._read_at(pos + 9, length)
             crc = zlib.crc32(body, zlib.crc32(head, crc))
             yield pos, opcode, body
-            pos = end
+            pos = CHECKING.done = end
         if complete_file:
             raise self._corrupt(pos, "no DataEnd record where the data section ends (a record "
                                      "length damaged?)")

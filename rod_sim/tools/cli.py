@@ -63,8 +63,18 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+READS_LOGS = ("compare", "replay", "deployment-figure", "repair")
+"""Commands that open logs: a long integrity pass of one is said on stderr
+(:func:`rod_sim.app.progress.log_check_progress`)."""
+
+
 def run(args: argparse.Namespace) -> int:
     """Run a parsed command; library errors propagate (``main`` reports them)."""
+    if args.command in READS_LOGS:
+        from rod_sim.app.progress import log_check_progress
+
+        with log_check_progress(f"rod-sim {args.command}"):
+            return command_module(args.command).run(args)
     return command_module(args.command).run(args)
 
 
