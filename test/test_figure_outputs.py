@@ -177,3 +177,25 @@ def test_a_long_chains_figure_stays_readable(tmp_path, capsys, monkeypatch):
     assert len(legend.get_texts()) == 11 and "the 10 hinges of the largest range" in \
         legend.get_title().get_text()
     assert "all 32 hinges (min .. max)" in [t.get_text() for t in legend.get_texts()]
+
+
+def test_the_figure_checks_its_log_once(log, tmp_path, monkeypatch):
+    """deployment-figure opens its log four times (scene, states, events, base); the
+    integrity pass (every record and CRC) ran each time. Inside the command it runs once;
+    outside such a command every open checks the file again."""
+    from rod_sim.io import log_reader
+
+    calls = []
+    check = log_reader.LogReader._check_data_section
+
+    def counted(self):
+        calls.append(self.path)
+        return check(self)
+
+    monkeypatch.setattr(log_reader.LogReader, "_check_data_section", counted)
+    assert figure(log, tmp_path / "a.png") == 0
+    assert calls == [log]
+    calls.clear()
+    for _ in range(2):
+        log_reader.LogReader(log).close()
+    assert calls == [log, log]

@@ -6,6 +6,7 @@ what is read. Opening a log (a file or a rosbag2 bag) goes through :mod:`rod_sim
 """
 from __future__ import annotations
 
+import contextlib
 import heapq
 import io
 import os
@@ -32,6 +33,7 @@ except ImportError:         # pragma: no cover - another mcap_ros2 layout: its p
     _msg_parser = None
 
 from rod_sim.io.crc_locate import locate_single_bit
+from rod_sim.io.fast_decode import fast_decoder
 from rod_sim.io.log_format import MAGIC, METADATA_NAME, LogFormatError
 
 
@@ -58,6 +60,39 @@ class Checking:
 
 
 CHECKING = Checking()
+
+
+PASSED_FILES = 8
+"""Files whose clean integrity pass is kept inside :func:`passes_reused` at most."""
+_PASSED: dict[tuple, dict] = {}
+_REUSE = False
+
+
+@contextlib.contextmanager
+def passes_reused():
+    """Inside this block a file whose integrity pass found nothing wrong is not checked again
+    when it is opened again (unchanged: same device, inode, size and modification time): for
+    a command that opens one log several times while it runs (``deployment-figure``: scene,
+    states, events, base; each pass reads and checks every record, ~2 s for 260 MB). Outside
+    it every open checks the file."""
+    global _REUSE
+    _REUSE = True
+    try:
+        yield
+    finally:
+        _REUSE = False
+        _PASSED.clear()
+_PASS_RESULTS = ("_schemas", "_channels", "_metadata", "_spans", "_bad_chunks", "_bad_records",
+                 "_chunk_headers", "_first_chunk", "_data_crc_mismatch", "_readable_end",
+                 "truncated")
+"""What the pass sets (read-only afterwards)."""
+
+
+def _file_key(file, data_limit: int) -> tuple:
+    """The identity of an open file's content as far as the pass goes: device, inode, size,
+    modification time [ns] and where its data section ends."""
+    st = os.fstat(file.fileno())
+    return st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, data_limit
 
 
 _RECORD_READERS = {
@@ -177,12 +212,20 @@ class LogReader:
             self._footer_at = self._footer_offset()
             self._data_limit = self._footer_at if self._footer_at is not None else self._size
             self._summary = self._read_summary()
-            CHECKING.done, CHECKING.size = 0, self._data_limit
-            CHECKING.since, CHECKING.path = time.monotonic(), str(self.path)
-            try:
-                self._check_data_section()
-            finally:
-                CHECKING.path = ""
+            key = _file_key(self._file, self._data_limit) if _REUSE else None
+            passed = _PASSED.get(key) if key is not None else None
+            if passed is not None:        # this very file already passed in this process
+                for name, value in passed.items():
+                    setattr(self, name, value)
+            else:
+                CHECKING.done, CHECKING.size = 0, self._data_limit
+                CHECKING.since, CHECKING.path = time.monotonic(), str(self.path)
+                try:
+                    self._check_data_section()
+                finally:
+                    CHECKING.path = ""
+                if key is not None:
+                    self._remember_pass(key)
             if self._data_crc_mismatch is not None:
                 self._explain_data_crc()
             if self._bad_records:
@@ -332,6 +375,16 @@ class LogReader:
             text = " ".join(str(exc).split())[:200]
             raise self._corrupt(pos, f"unreadable record (opcode {opcode:#x}: "
                                      f"{type(exc).__name__}: {text})") from None
+
+    def _remember_pass(self, key) -> None:
+        """Keep what the integrity pass found when it found nothing wrong (a whole file,
+        every CRC right): another reader of the same file in this process takes it over."""
+        if self.truncated or self.warnings or self._bad_chunks or self._bad_records or \
+                self._data_crc_mismatch is not None or self._patches:
+            return
+        if len(_PASSED) >= PASSED_FILES:
+            _PASSED.pop(next(iter(_PASSED)))
+        _PASSED[key] = {name: getattr(self, name) for name in _PASS_RESULTS}
 
     def _check_data_section(self) -> None:
         self._schemas: dict[int, Schema] = {}
@@ -517,11 +570,14 @@ class LogReader:
         for channel, record in self._ordered(wanted):
             decoder = decoders.get(channel.id)
             if decoder is None:
-                decoder = factory.decoder_for(channel.message_encoding,
-                                              schemas.get(channel.schema_id))
+                schema = schemas.get(channel.schema_id)
+                decoder = factory.decoder_for(channel.message_encoding, schema)
                 if decoder is None:
                     raise LogFormatError(f"{self.path}: cannot decode {channel.topic} "
                                          f"({channel.message_encoding})")
+                if channel.message_encoding == "cdr" and schema is not None:
+                    decoder = fast_decoder(schema.name, schema.data.decode("utf-8", "replace"),
+                                           decoder)
                 decoders[channel.id] = decoder
             yield channel.topic, record.log_time, decoder(record.data)
 

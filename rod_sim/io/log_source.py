@@ -100,6 +100,8 @@ class LogStream:
     n: int | None = None
     rod_names: list[str] | None = None
     """The ``rod_states`` names (``rod_k``, or ``<chain>/rod_k`` with ``chains:``)."""
+    _bending_names: list[str] | None = field(default=None, repr=False)
+    """The ``bending`` names those imply (alpha_k then beta_k), made once."""
     truncated: bool = False
     notes: list[str] = field(default_factory=list)
     counts: dict[str, int] = field(default_factory=lambda: {t: 0 for t in TOPICS})
@@ -268,15 +270,18 @@ class LogStream:
             raise LogFormatError(f"{topic} at t = {t} s comes before the first {STATE_TOPIC}")
         n = self.n
         if topic == BENDING_TOPIC:
-            want = [_renamed(r, "alpha_") for r in self.rod_names] + \
-                [_renamed(r, "beta_") for r in self.rod_names]
+            if self._bending_names is None:
+                self._bending_names = [_renamed(r, "alpha_") for r in self.rod_names] + \
+                    [_renamed(r, "beta_") for r in self.rod_names]
             pos = np.asarray(msg.position, dtype=float)
-            if list(msg.name) != want or pos.size != 2 * n:
+            if list(msg.name) != self._bending_names or pos.size != 2 * n:
                 raise LogFormatError(f"{BENDING_TOPIC} at t = {t} s does not hold "
                                      f"alpha_1..alpha_{n}, beta_1..beta_{n} (the rods' names)")
             return pos[:n], pos[n:]
         if topic == POSES_TOPIC:
-            xy = np.array([[p.position.x, p.position.y] for p in msg.poses], dtype=float)
+            fast = getattr(msg, "positions", None)        # rod_sim.io.fast_decode's PoseArray
+            xy = (np.array(fast[:, :2]) if fast is not None else
+                  np.array([[p.position.x, p.position.y] for p in msg.poses], dtype=float))
             if xy.ndim != 2 or xy.shape[0] < n + 1:
                 raise LogFormatError(f"{POSES_TOPIC} at t = {t} s has {xy.shape[0]} poses "
                                      f"(expected at least {n + 1}: nodes 0..{n})")

@@ -145,6 +145,26 @@ def _walk(ops: list, data: bytes, off: int, u32) -> int:
     return off
 
 
+def definitions(type_name: str, schema: str) -> dict | None:
+    """The message definitions of ``type_name`` and every type it uses, parsed by mcap_ros2
+    from ``schema`` (a log's ros2msg text, dependencies concatenated), by full and short name
+    (``std_msgs/msg/Header`` and ``std_msgs/Header``), as its decoder looks them up; None
+    without mcap_ros2 or for a schema it cannot parse."""
+    try:
+        from mcap_ros2._dynamic import TimeDefinition, _for_each_msgdef
+
+        msgdefs = {"builtin_interfaces/Time": TimeDefinition,
+                   "builtin_interfaces/Duration": TimeDefinition}
+
+        def keep(name, short, msgdef):
+            msgdefs[name] = msgdefs[short] = msgdef
+
+        _for_each_msgdef(type_name, schema, keep)
+    except Exception:  # noqa: BLE001 -- no mcap_ros2, or a schema it cannot parse
+        return None
+    return msgdefs
+
+
 class PayloadCheck:
     """The check of payloads of ROS 2 type ``type_name`` (``pkg/msg/Name``) whose definition
     is ``schema`` (a log's ros2msg schema text, dependencies concatenated). Without a schema
@@ -152,22 +172,8 @@ class PayloadCheck:
 
     def __init__(self, type_name: str, schema: str):
         self.type_name = type_name
-        self._msgdefs = {}
-        self.complete = False
-        try:
-            from mcap_ros2._dynamic import TimeDefinition, _for_each_msgdef
-
-            msgdefs = {"builtin_interfaces/Time": TimeDefinition,
-                       "builtin_interfaces/Duration": TimeDefinition}
-
-            def keep(name, short, msgdef):
-                msgdefs[name] = msgdefs[short] = msgdef
-
-            _for_each_msgdef(type_name, schema, keep)
-            self.complete = type_name in msgdefs
-            self._msgdefs = msgdefs
-        except Exception:  # noqa: BLE001 -- no mcap_ros2, or a schema it cannot parse
-            pass
+        self._msgdefs = definitions(type_name, schema) or {}
+        self.complete = type_name in self._msgdefs
         self._ops = None
         """The walk's plan of the type (None: decode each payload instead)."""
         if self.complete:

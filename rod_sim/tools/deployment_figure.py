@@ -55,6 +55,13 @@ def _log_scene(path: str):
 
 
 def run(args) -> int:
+    from ..io.log_reader import passes_reused
+
+    with passes_reused():               # the log is opened four times: checked once
+        return _draw(args)
+
+
+def _draw(args) -> int:
     from ..io.hinge_events import read_hinge_events
     from ..io.series import read_rod_states
 
