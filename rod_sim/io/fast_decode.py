@@ -186,6 +186,12 @@ class _Poses:
     def __iter__(self):
         return (self[k] for k in range(len(self)))
 
+    def __repr__(self) -> str:                  # the values, as a list's repr would show them
+        return repr(list(self))
+
+    def __eq__(self, other) -> bool:
+        return list(self) == list(other) if hasattr(other, "__len__") else NotImplemented
+
 
 def pose_array_decoder(fallback: Callable[[bytes], object], signed: bool
                        ) -> Callable[[bytes], object]:
