@@ -82,6 +82,8 @@ def passes_reused():
     finally:
         _REUSE = False
         _PASSED.clear()
+
+
 _PASS_RESULTS = ("_schemas", "_channels", "_metadata", "_spans", "_bad_chunks", "_bad_records",
                  "_chunk_headers", "_first_chunk", "_data_crc_mismatch", "_readable_end",
                  "truncated")
