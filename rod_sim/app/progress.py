@@ -70,6 +70,22 @@ class Pace:
         return math.inf
 
 
+def run_state(sim) -> tuple[float, int, float]:
+    """(simulated time [s], accepted steps, current step size [s], 0 before the first) of a
+    :class:`~rod_sim.core.simulator.Simulator`: what :meth:`Pace.left` takes."""
+    return sim.t, sim.stats.steps, getattr(sim.carry, "h", 0.0)
+
+
+def steps_text(steps: int, h: float) -> str:
+    """'1234 steps of ~0.00037 s' (the step size when known)."""
+    return f"{steps} steps" + (f" of ~{h:.2g} s" if h > 0 else "")
+
+
+def left_text(seconds: float, tail: str = "more at this pace") -> str:
+    """'~8 s more at this pace' (``tail`` after the time), or 'no estimate yet' for inf."""
+    return f"~{duration(seconds)} {tail}" if math.isfinite(seconds) else "no estimate yet"
+
+
 def duration(seconds: float) -> str:
     """``seconds`` in words for a progress line: 42 s, 7 min, 1.5 h."""
     if seconds < 120:

@@ -319,27 +319,23 @@ def _progress(runs, end_s: float | None):
     the simulated time [s] all of them have reached, and the reference's Simulator) out of
     the log's ``end_s`` [s] (None: not known, e.g. a truncated log), and the wall time left
     (:class:`~rod_sim.app.progress.Pace`)."""
-    from rod_sim.app.progress import Pace, Progress, duration
+    from rod_sim.app.progress import Pace, Progress, left_text, run_state, steps_text
     from .runs import COMPARE_CHECK_RTOL, COMPARE_REFERENCE_RTOL
 
     t, ref = runs()
-    pace = Pace(end_s if end_s is not None else math.inf, t, ref.stats.steps)
+    pace = Pace(end_s if end_s is not None else math.inf, t, run_state(ref)[1])
     which = (f"reference rtol {COMPARE_REFERENCE_RTOL:g}, check {COMPARE_CHECK_RTOL:g}, "
              "chaos twin")
 
     def line(elapsed: float) -> str:
         t, ref = runs()
-        h = getattr(ref.carry, "h", 0.0)
-        steps = (f"; the reference at {ref.stats.steps} steps" +
-                 (f" of ~{h:.2g} s" if h > 0 else ""))
+        _, steps, h = run_state(ref)
+        where = f"; the reference at {steps_text(steps, h)}"
         if end_s is None:
             return (f"rod-sim compare: full-model re-runs at t = {t:.6g} s of the log after "
-                    f"{elapsed:.0f} s ({which}{steps})")
-        left = pace.left(t, ref.stats.steps, h)
-        more = f"~{duration(left)} more at this pace" if math.isfinite(left) else \
-            "no estimate yet"
+                    f"{elapsed:.0f} s ({which}{where})")
         return (f"rod-sim compare: full-model re-runs at t = {t:.6g} of {end_s:g} s after "
-                f"{elapsed:.0f} s ({which}{steps}; {more})")
+                f"{elapsed:.0f} s ({which}{where}; {left_text(pace.left(t, steps, h))})")
 
     return Progress(line, PROGRESS_FIRST_S, PROGRESS_EVERY_S, "rod-sim-compare-progress")
 

@@ -184,28 +184,23 @@ def _progress(watch: Watch, t_end: float):
     """The progress lines of an advise (:class:`~rod_sim.app.progress.Progress`): the run
     under way, its simulated time and steps, the runs done, and the wall time left for this
     run at the pace of the last interval."""
-    from rod_sim.app.progress import Pace, Progress, duration
+    from rod_sim.app.progress import Pace, Progress, left_text, run_state, steps_text
 
-    paces: dict[int, Pace] = {}
+    seen = [None, None]             # the run last described and its Pace
 
     def line(elapsed: float) -> str:
         sim = watch.sim
         head = f"rod-sim advise: {watch.done} of {watch.total} runs done after {elapsed:.0f} s"
         if sim is None:
             return f"{head}; {watch.label}"
-        t, steps = sim.t, sim.stats.steps
-        h = getattr(sim.carry, "h", 0.0)
-        pace = paces.get(id(sim))
-        if pace is None:            # a run first seen now: its pace from the next line on
-            paces.clear()
-            paces[id(sim)] = Pace(t_end, t, steps)
+        t, steps, h = run_state(sim)
+        if seen[0] is not sim:      # a run first seen now: its pace from the next line on
+            seen[:] = sim, Pace(t_end, t, steps)
             left = math.inf
         else:
-            left = pace.left(t, steps, h)
-        more = f"~{duration(left)} more for it at this pace" if math.isfinite(left) else \
-            "no estimate yet"
-        return (f"{head}; now {watch.label}: t = {t:.6g} of {t_end:g} s, {steps} steps"
-                + (f" of ~{h:.2g} s" if h > 0 else "") + f" ({more})")
+            left = seen[1].left(t, steps, h)
+        return (f"{head}; now {watch.label}: t = {t:.6g} of {t_end:g} s, "
+                f"{steps_text(steps, h)} ({left_text(left, 'more for it at this pace')})")
 
     return Progress(line, PROGRESS_FIRST_S, PROGRESS_EVERY_S, "rod-sim-advise-progress")
 

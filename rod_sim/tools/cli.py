@@ -15,6 +15,7 @@ and turns library errors into one-line messages on stderr.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import signal
 import sys
@@ -70,12 +71,11 @@ READS_LOGS = ("compare", "replay", "deployment-figure", "repair")
 
 def run(args: argparse.Namespace) -> int:
     """Run a parsed command; library errors propagate (``main`` reports them)."""
-    if args.command in READS_LOGS:
-        from rod_sim.app.progress import log_check_progress
+    from rod_sim.app.progress import log_check_progress
 
-        with log_check_progress(f"rod-sim {args.command}"):
-            return command_module(args.command).run(args)
-    return command_module(args.command).run(args)
+    with (log_check_progress(f"rod-sim {args.command}") if args.command in READS_LOGS
+          else contextlib.nullcontext()):
+        return command_module(args.command).run(args)
 
 
 def _error(command: str, err, status: int) -> int:

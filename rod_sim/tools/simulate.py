@@ -18,7 +18,7 @@ from rod_sim.app import limits
 from rod_sim.app.common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, new_output_path
 from rod_sim.app.common import port_number
 from rod_sim.app.common import positive_float as _positive_float
-from rod_sim.app.progress import Pace, Progress, duration
+from rod_sim.app.progress import Pace, Progress, left_text, run_state, steps_text
 from rod_sim.app.signals import done, signals_deferred
 
 HELP = "offline run of a scene, written as an MCAP log"
@@ -342,19 +342,15 @@ class _RunLine:
 
     def __init__(self, sim, t_end: float):
         self.sim, self.t_end = sim, t_end
-        self.pace = Pace(t_end, sim.t, sim.stats.steps)
+        self.pace = Pace(t_end, *run_state(sim)[:2])
 
     def __call__(self, elapsed: float) -> str:
         sim = self.sim
-        t, steps = sim.t, sim.stats.steps
-        h = getattr(sim.carry, "h", 0.0)
+        t, steps, h = run_state(sim)
         left = self.pace.left(t, steps, h)
-        pace = f"~{duration(left)} more at this pace" if math.isfinite(left) else \
-            "no estimate yet"
-        step = f" of ~{h:.2g} s" if h > 0 else ""
         return (f"rod-sim simulate: t = {t:.6g} of {self.t_end:g} s after {elapsed:.0f} s "
-                f"({sim.integrator.describe()}: {steps} steps{step}, {sim.stats.nfev} rhs "
-                f"evaluations; {pace})")
+                f"({sim.integrator.describe()}: {steps_text(steps, h)}, {sim.stats.nfev} rhs "
+                f"evaluations; {left_text(left)})")
 
 
 def _salvage(path: Path) -> str:
