@@ -21,9 +21,8 @@ from typing import Callable
 
 import numpy as np
 
-from rod_sim.io.payload_check import definitions
+from rod_sim.io.payload_check import _U32, _Bad, _read_u32, definitions
 
-_U32 = (struct.Struct(">I"), struct.Struct("<I"))
 _F64 = (np.dtype(">f8"), np.dtype("<f8"))
 
 _HEADER = ["uint32", "string"]
@@ -56,16 +55,9 @@ def field_types(name: str, msgdefs: dict, seen: tuple = ()) -> list[str]:
     return out
 
 
-class _Short(Exception):
-    """The payload ends before what its type needs: mcap_ros2's decoder decides."""
-
-
 def _string(data: bytes, off: int, u32) -> tuple[str, int]:
-    off += -(off - 4) % 4
-    if off + 4 > len(data):
-        raise _Short
-    length = u32.unpack_from(data, off)[0]
-    off += 4
+    """(the string at ``off``, the offset after it), read as mcap_ros2 reads it."""
+    length, off = _read_u32(data, off, u32)
     text = data[off:off + length - 1].decode("utf-8") if length > 1 else ""
     return text, off + length
 
@@ -77,7 +69,7 @@ def _header(data: bytes, u32, sec_format):
     """(Header, offset after it): stamp sec (``sec_format``: int32 or uint32, as the schema
     defines it) and nanosec, frame_id."""
     if len(data) < 12:
-        raise _Short
+        raise _Bad
     sec, nanosec = sec_format.unpack_from(data, 4)[0], u32.unpack_from(data, 8)[0]
     frame_id, off = _string(data, 12, u32)
     stamp = SimpleNamespace(sec=sec, nanosec=nanosec)
@@ -86,15 +78,12 @@ def _header(data: bytes, u32, sec_format):
 
 def _floats(data: bytes, off: int, u32, dtype, per: int = 1) -> tuple[np.ndarray, int]:
     """A sequence of float64 (``per`` of them an element) at ``off``: (values, offset after)."""
-    off += -(off - 4) % 4
-    if off + 4 > len(data):
-        raise _Short
-    count = u32.unpack_from(data, off)[0] * per
-    off += 4
+    count, off = _read_u32(data, off, u32)
+    count *= per
     if count:
         off += -(off - 4) % 8
         if off + 8 * count > len(data):
-            raise _Short
+            raise _Bad
     values = np.frombuffer(data, dtype=dtype, count=count, offset=off if count else 0)
     return values.astype(np.float64), off + 8 * count        # native and writable: a copy
 
@@ -107,18 +96,14 @@ class _Names:
         self.block, self.names = b"", []
 
     def read(self, data: bytes, off: int, u32) -> tuple[list[str], int]:
-        off += -(off - 4) % 4
-        if off + 4 > len(data):
-            raise _Short
-        count = u32.unpack_from(data, off)[0]
-        start = off
-        off += 4
+        start = off + (-(off - 4) % 4)
+        count, off = _read_u32(data, off, u32)
         names = []
         for _ in range(count):
             name, off = _string(data, off, u32)
             names.append(name)
             if off > len(data):
-                raise _Short
+                raise _Bad
         self.block, self.names = data[start:off], names
         return list(names), off
 
@@ -139,9 +124,9 @@ def _with_fallback(read, fallback: Callable[[bytes], object]) -> Callable[[bytes
         data = bytes(data)
         try:
             if len(data) < 4:
-                raise _Short
+                raise _Bad
             return read(data, data[1] & 1)
-        except (_Short, UnicodeDecodeError, struct.error):
+        except (_Bad, UnicodeDecodeError, struct.error):
             return fallback(data)
     return decode
 
@@ -215,23 +200,15 @@ def multi_array_decoder(fallback: Callable[[bytes], object], signed: bool
 
     def read(data: bytes, little: int):
         u32 = _U32[little]
-        if len(data) < 8:
-            raise _Short
-        count = u32.unpack_from(data, 4)[0]
-        off, dims = 8, []
+        count, off = _read_u32(data, 4, u32)
+        dims = []
         for _ in range(count):
             label, off = _string(data, off, u32)
-            off += -(off - 4) % 4
-            if off + 8 > len(data):
-                raise _Short
-            dims.append(SimpleNamespace(label=label, size=u32.unpack_from(data, off)[0],
-                                        stride=u32.unpack_from(data, off + 4)[0]))
-            off += 8
-        off += -(off - 4) % 4
-        if off + 4 > len(data):
-            raise _Short
-        data_offset = u32.unpack_from(data, off)[0]
-        values = _floats(data, off + 4, u32, _F64[little])[0]
+            size, off = _read_u32(data, off, u32)
+            stride, off = _read_u32(data, off, u32)
+            dims.append(SimpleNamespace(label=label, size=size, stride=stride))
+        data_offset, off = _read_u32(data, off, u32)
+        values = _floats(data, off, u32, _F64[little])[0]
         return SimpleNamespace(layout=SimpleNamespace(dim=dims, data_offset=data_offset),
                                data=values)
     return _with_fallback(read, fallback)

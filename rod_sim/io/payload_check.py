@@ -89,8 +89,9 @@ def _plan(name: str, msgdefs: dict, seen: tuple = ()) -> list:
     return ops
 
 
-def _length(data: bytes, off: int, u32) -> tuple[int, int]:
-    """(a u32 length read at ``off`` aligned to 4, the offset after it)."""
+def _read_u32(data: bytes, off: int, u32) -> tuple[int, int]:
+    """(the uint32 at ``off`` aligned to 4 (``u32``: its byte order), the offset after it);
+    _Bad where it does not fit (a sequence's or string's length, mostly)."""
     off += -(off - 4) % 4
     if off + 4 > len(data):
         raise _Bad
@@ -115,10 +116,10 @@ def _walk(ops: list, data: bytes, off: int, u32) -> int:
         else:
             count = op[-1]
             if count is None:                           # a sequence: its u32 length first
-                count, off = _length(data, off, u32)
+                count, off = _read_u32(data, off, u32)
             if kind == _STRING or kind == _STRINGS:
                 for _ in range(count):
-                    length, off = _length(data, off, u32)
+                    length, off = _read_u32(data, off, u32)
                     if length > 1:
                         try:
                             data[off:off + length - 1].decode("utf-8")
