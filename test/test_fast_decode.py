@@ -13,9 +13,8 @@ from pathlib import Path
 import pytest
 from mcap_ros2.decoder import DecoderFactory
 
+from log_samples import logged_payloads
 from rod_sim.io.fast_decode import fast_decoder
-from rod_sim.io.log_reader import LogReader
-from rod_sim.tools import cli
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = {"plain": ROOT / "config" / "paper_example.yaml",
@@ -44,19 +43,8 @@ def plain(value):
 def channels(request, tmp_path_factory):
     """{topic: (schema, [payloads])} of the fast types of a 0.3 s log."""
     out = tmp_path_factory.mktemp("fast") / "run.mcap"
-    assert cli.main(["simulate", str(SCENES[request.param]), "--t-end", "0.3",
-                     "--out", str(out)]) == 0
-    reader = LogReader(out)
-    schemas, chans, _ = reader.definitions()
-    by_topic = {c.topic: c for c in chans.values()}
-    found = {}
-    for topic, _, data in reader.raw_messages():
-        channel = by_topic[topic]
-        schema = schemas[channel.schema_id]
-        if schema.name in FAST_TYPES:
-            found.setdefault(topic, (schema, []))[1].append(bytes(data))
-    reader.close()
-    return found
+    found = logged_payloads(SCENES[request.param], out, 0.3)
+    return {topic: entry for topic, entry in found.items() if entry[0].name in FAST_TYPES}
 
 
 def oracle(schema):

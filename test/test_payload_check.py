@@ -13,9 +13,8 @@ import pytest
 from mcap_ros2._cdr import CdrReader
 from mcap_ros2._dynamic import TimeDefinition, _for_each_msgdef, _read_complex_type
 
-from rod_sim.io.log_reader import LogReader
+from log_samples import logged_payloads
 from rod_sim.io.payload_check import MAX_TRAILING, PayloadCheck
-from rod_sim.tools import cli
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = {"plain": ROOT / "config" / "paper_example.yaml",
@@ -46,18 +45,9 @@ def decodes(type_name: str, schema: str, data: bytes) -> bool:
 def samples(request, tmp_path_factory):
     """(type name, schema, payload) of the first messages of every topic of a 0.2 s log."""
     out = tmp_path_factory.mktemp("payload") / "run.mcap"
-    assert cli.main(["simulate", str(SCENES[request.param]), "--t-end", "0.2",
-                     "--out", str(out)]) == 0
-    reader = LogReader(out)
-    channels = reader.channels()
-    per_topic: dict[str, list] = {}
-    for topic, _, data in reader.raw_messages():
-        kept = per_topic.setdefault(topic, [])
-        if len(kept) < 3:
-            kept.append(bytes(data))
-    reader.close()
-    return [(channels[t].type_name, channels[t].schema, d)
-            for t, ds in sorted(per_topic.items()) for d in ds]
+    found = logged_payloads(SCENES[request.param], out, 0.2, keep=3)
+    return [(schema.name, schema.data.decode(), d)
+            for _, (schema, ds) in sorted(found.items()) for d in ds]
 
 
 def damaged(data: bytes, rng: random.Random) -> list[bytes]:
