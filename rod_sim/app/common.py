@@ -98,6 +98,17 @@ def watch_compiles(prefix: str = "rod-sim"):
     return _watch(lambda line: write_line(f"{prefix}: {line}", sys.stderr))
 
 
+def largest(values, k: int) -> list[int]:
+    """The indices (0-based, ascending) of the ``k`` largest of ``values`` (every index when
+    there are at most ``k``); a NaN counts as the largest, ties go to the lower index. What a
+    report or a figure of a long chain shows of it (the rods of the largest error, the hinges
+    of the largest range)."""
+    import numpy as np
+
+    key = np.nan_to_num(np.asarray(values, dtype=float), nan=np.inf)
+    return sorted(int(i) for i in np.argsort(-key, kind="stable")[:k])
+
+
 def importable(module: str) -> bool:
     """True when ``module`` can be imported (optional peers and extras)."""
     import importlib

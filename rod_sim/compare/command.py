@@ -18,7 +18,7 @@ from pathlib import Path
 
 from rod_sim.io.quote import quote
 
-from rod_sim.app.common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, positive_float
+from rod_sim.app.common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, largest, positive_float
 from .verdict import Cause, Verdict
 
 HELP = "check a log against a converged re-run of the full model (predictability horizon)"
@@ -152,11 +152,7 @@ def rows_shown(phi_max, n: int, most: int = TABLE_ROWS) -> list[int]:
     largest; ties go to the lower rod)."""
     if n <= most:
         return list(range(1, n + 1))
-    import numpy as np
-
-    key = np.nan_to_num(np.asarray(phi_max, dtype=float), nan=np.inf)
-    worst = np.argsort(-key, kind="stable")[:most]
-    return sorted(int(k) + 1 for k in worst)
+    return [k + 1 for k in largest(phi_max, most)]
 
 
 def format_report(report, info: dict) -> str:

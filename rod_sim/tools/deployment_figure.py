@@ -15,7 +15,7 @@ import sys
 import numpy as np
 
 from ..core.quote import quote
-from rod_sim.app.common import UsageError, new_output_path
+from rod_sim.app.common import UsageError, largest, new_output_path
 from rod_sim.app.signals import done
 
 HELP = "draw snapshots of a logged chain (e.g. the deployment scene) with its latch events"
@@ -161,11 +161,7 @@ def hinges_shown(theta: np.ndarray) -> list[int]:
     """The hinges (0-based, ascending) drawn one by one from the angles ``theta`` (N, n)
     [rad]: all of them up to :data:`HINGES_SHOWN`, else those of the largest range
     (max - min over the log; ties go to the lower hinge)."""
-    n = theta.shape[1]
-    if n <= HINGES_SHOWN:
-        return list(range(n))
-    span = np.nan_to_num(np.ptp(theta, axis=0), nan=np.inf)
-    return sorted(int(h) for h in np.argsort(-span, kind="stable")[:HINGES_SHOWN])
+    return largest(np.ptp(theta, axis=0), HINGES_SHOWN)
 
 
 def _chain_style(rods: int) -> str:
