@@ -1,17 +1,17 @@
 """Decoders for the heavy message types of a log that read arrays with numpy instead of building
 a Python object per element: ``sensor_msgs/msg/JointState`` (``rod_states``, ``bending``,
 ``joint_states``: n names and 2-3 arrays of n floats), ``geometry_msgs/msg/PoseArray``
-(``node_poses``: n + 1 poses) and ``std_msgs/msg/Float64MultiArray`` (the applied inputs). mcap_ros2's decoder took ~22 ms a time step of a 1200-rod log
-(a float, a string, a Pose, a Point, a Quaternion object each), so that reading the log took
-longer than comparing it.
+(``node_poses``: n + 1 poses) and ``std_msgs/msg/Float64MultiArray`` (the applied inputs).
+mcap_ros2's decoder took ~22 ms a time step of a 1200-rod log (a float, a string, a Pose, a
+Point, a Quaternion object each), so that reading the log took longer than comparing it.
 
 Each decoder reads what mcap_ros2's decoder reads (the standard definitions only: a schema that
 differs gets mcap_ros2's decoder), and hands any payload it cannot read to that decoder, so a
 corrupt one fails the same way. The messages have the same attributes as mcap_ros2's
 (``header.stamp.sec``, ``name``, ``position``, ``poses[k].position.x`` ...); the float arrays
-are numpy arrays (float64) rather than lists, and a PoseArray also has ``positions`` (k, 3) [m] and ``orientations`` (k, 4) (x, y, z,
-w). Tested against mcap_ros2 on every message of plain and spacecraft logs
-(test/test_fast_decode.py).
+are numpy arrays (float64) rather than lists, and a PoseArray also has ``positions`` (k, 3)
+[m] and ``orientations`` (k, 4) (x, y, z, w). Tested against mcap_ros2 on every message of a
+plain, a spacecraft and a multi-chain log (test/test_fast_decode.py).
 """
 from __future__ import annotations
 
