@@ -88,9 +88,9 @@ def test_simulate_evaluates_each_quantity_once_per_sample(scene_name, model_name
         assert counts["momentum"] == ([here] if scene.is_spacecraft else []), per
         assert counts["energies"] == [here] and here in counts["nodes"], per
         # the powers once per state: the sample's own and y +- h f of the balance's rate
-        # (one chain on a fixed base without stops and slope rates: both of those in one
+        # (a fixed or free base without stops and slope rates: both of those in one
         # call, at the sample's state)
-        if sim.model.plain_balance:
+        if sim.model.paired_balance:
             assert counts["moved_pair"] == [here], per
             assert per["powers"] == 1 and counts["powers"][0] == here, per
         else:

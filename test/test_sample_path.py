@@ -225,7 +225,7 @@ def test_the_balance_rate_pair_is_the_moved_states_values(model_name, scripted):
     if not scripted:
         scene = scene.with_changes(loads=())
     model = make_model(model_name, scene)
-    assert model.plain_balance and bool(model.scripted_loads) == scripted
+    assert model.paired_balance and bool(model.scripted_loads) == scripted
     rng = np.random.default_rng(7)
     for k in range(4):
         y = model.initial_state() + rng.normal(scale=0.3, size=model.state_size)
@@ -244,13 +244,49 @@ def test_the_balance_rate_pair_is_the_moved_states_values(model_name, scripted):
             assert model.loads_at(t + RATE_STEP, held)[scene.n - 1, 0] != held[scene.n - 1, 0]
 
 
+@pytest.mark.parametrize("base", ("free", "fixed"))
+@pytest.mark.parametrize("model_name", ("reduced", "rigid"))
+def test_the_balance_rate_pair_on_chains_of_a_base(base, model_name):
+    """Two chains on a free base with a reaction wheel, and on a fixed base: the one-call
+    pair is the moved States' net powers to rounding and the net power's definition from the
+    independent Lagrangian (test/lagrangian_base.py: the generalized forces of the held
+    loads, base and wheel rows included, minus the hinge dampers', on q')."""
+    from sc_common import Layout, chain_dict, free_base, oracle_from_dict, scene_dict
+
+    from rod_sim.core.scene import Scene
+    from rod_sim.core.validity import RATE_STEP, _net_power
+
+    rng = np.random.default_rng(23)
+    d = scene_dict([chain_dict("a", 3, rng), chain_dict("b", 2, rng)],
+                   free_base() if base == "free" else None, None)
+    model = make_model(model_name, Scene.from_dict(d))
+    assert model.paired_balance
+    lag = oracle_from_dict(d)
+    lay = Layout(model_name, lag.N, base == "free", base == "free")
+    for k in range(4):
+        y = model.initial_state() + rng.normal(scale=0.5, size=model.state_size)
+        held = rng.normal(scale=3.0, size=(lag.N + 2, 3))
+        t = 0.001 * k
+        s = model.state(t, y, held)
+        hf = RATE_STEP * s.f
+        pair = s.moved_net_powers(t + RATE_STEP, t - RATE_STEP, hf)
+        moved = (s.moved(t + RATE_STEP, y + hf).value(_net_power),
+                 s.moved(t - RATE_STEP, y - hf).value(_net_power))
+        assert pair == pytest.approx(moved, rel=1e-13, abs=1e-13)
+        for got, ym in zip(pair, (y + hf, y - hf)):
+            q, qd = lay.to_oracle(ym)
+            want = float((lag.load_force(q, held) - lag.dissipation_force(q, qd)) @ qd)
+            assert got == pytest.approx(want, rel=1e-11, abs=1e-11)
+
+
 @pytest.mark.parametrize("scene_name, model_name", [("deployment.yaml", "reduced"),
                                                     ("two_wing_deployment.yaml", "reduced"),
+                                                    ("spin_up_beam.yaml", "rigid"),
                                                     ("paper_example.yaml", "full")])
 def test_other_layouts_move_their_states_one_by_one(scene_name, model_name):
-    """Stops, a free base or slope rates in the state: no one-call pair (None)."""
+    """Stops, a prescribed base or slope rates in the state: no one-call pair (None)."""
     model = make_model(model_name, load_scene(REPO / "config" / scene_name))
-    assert not model.plain_balance
+    assert not model.paired_balance
     y = model.initial_state()
     s = model.state(0.0, y)
     assert s.moved_net_powers(1e-7, -1e-7, 1e-7 * s.f) is None

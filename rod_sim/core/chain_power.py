@@ -2,8 +2,8 @@
 
 :class:`~rod_sim.core.state.State` evaluates these laws for one state, and a balance sample's
 central difference evaluates them for its two moved states in one call
-(:func:`plain_net_power_pair`): both through the helpers below, so that each law is written
-once. Sums run from rod 0 to rod n - 1.
+(:func:`net_power_pair`): both through the helpers below, so that each law is written once.
+Sums run from rod 0 to rod n - 1.
 """
 from __future__ import annotations
 
@@ -85,21 +85,53 @@ def plain_powers(neg_l, l, nu, sin_phi, cos_phi, dphi, ddelta, f, out):
     out[0], out[1] = _plain_powers(neg_l, l, nu, sin_phi, cos_phi, dphi, ddelta, f)
 
 
+@njit(inline="always")
+def _base_load_power(f, n, cos_psi, sin_psi, cx, cy, vx, vy, wz, w):
+    """The power [W] of a free base's loads and wheel motor: row n of ``f`` (Fx, Fy [N] at
+    the base's centre of mass, moment [N m]) on the centre's velocity and the base's rate
+    ``wz`` [rad/s], and the wheel motor (row n + 1, column 2 [N m]) on the wheel's relative
+    rate ``w`` [rad/s]; (cx, cy) [m] the centre in the base frame, (vx, vy) [m/s] the frame
+    origin's velocity, psi its angle."""
+    rc0 = cos_psi * cx - sin_psi * cy
+    rc1 = sin_psi * cx + cos_psi * cy
+    vc0 = vx - wz * rc1
+    vc1 = vy + wz * rc0
+    return f[n, 0] * vc0 + f[n, 1] * vc1 + f[n, 2] * wz + f[n + 1, 2] * w
+
+
 @njit
-def plain_net_power_pair(y, hf, n, dof, neg_l, l, nu, table, rows, t_up, t_down, out):
-    """The net power (load power minus damper power) [W] of one chain on a fixed base whose
-    model carries no slope rates (reduced, rigid) at (t_up, y + hf) and
-    (t_down, y - hf), into ``out`` (2,): a balance sample's central difference in one call.
-    ``y``, ``hf`` (state_size,): the state [phi, ..., phi', ...] with phi' at ``dof``; the
-    loads at each time are ``rows`` (n + 2, 3), the held inputs, plus the scripted loads of
-    ``table`` (:func:`~rod_sim.core.kernels.load_forces`, the one scripted-load law)."""
+def base_load_power(f, n, cos_psi, sin_psi, cx, cy, vx, vy, wz, w):
+    """:func:`_base_load_power` from Python (one state's powers)."""
+    return _base_load_power(f, n, cos_psi, sin_psi, cx, cy, vx, vy, wz, w)
+
+
+@njit
+def net_power_pair(y, hf, n, dof, seg, neg_l, l, nu, table, rows, t_up, t_down, base, free,
+                   nb, attach_x, attach_y, cx, cy, out):
+    """The net power (load power minus damper power) [W] at (t_up, y + hf) and
+    (t_down, y - hf), into ``out`` (2,): a balance sample's central difference in one call,
+    for a model whose state carries no slope rates (reduced, rigid), without stops, on a
+    fixed or free base (not a prescribed one), any number of chains.
+
+    ``y``, ``hf`` (state_size,): the state [q, q'] with phi' at ``dof``; chain c holds rods
+    ``seg[c]`` .. ``seg[c + 1] - 1`` and is attached at (attach_x[c], attach_y[c]) [m] of the
+    base frame; ``base`` (3,): the fixed base's pose (x, y [m], psi [rad]); ``free``: the
+    base's pose and twist are y's coordinates n .. n + nb - 1 and their rates (``nb`` of
+    them: x, y, psi and, with a wheel (nb = 4), its angle); (cx, cy) [m]: its centre of mass in
+    its frame.
+    The loads at each time are ``rows`` (n + 2, 3), the held inputs, plus the scripted loads
+    of ``table`` (:func:`~rod_sim.core.kernels.load_forces`, the one scripted-load law). The
+    laws are :class:`~rod_sim.core.state.State`'s: each rod's end node moves at its chain's
+    attach point's velocity plus the prefix sum of l_j phi_j' (-sin phi_j, cos phi_j)
+    (``origin + cumsum``, as :func:`~rod_sim.core.kinematics.chain_nodes`), each chain's
+    first hinge turns against the base's rate, then :func:`chain_powers` and a free base's
+    :func:`_base_load_power`."""
     yr = np.empty(y.shape[0])
-    s = np.empty(n)
-    c = np.empty(n)
     zeros = np.zeros(n)
-    none = np.empty(0, dtype=np.int64)
+    first = seg[:-1].astype(np.int64)
     ddelta = np.empty(n)
     f = np.empty((n + 2, 3))
+    bi = n                  # x_B in q: after the chains' angles (one coordinate per rod)
     for r in range(2):
         if r == 0:
             for i in range(y.shape[0]):
@@ -109,11 +141,31 @@ def plain_net_power_pair(y, hf, n, dof, neg_l, l, nu, table, rows, t_up, t_down,
             for i in range(y.shape[0]):
                 yr[i] = y[i] - hf[i]
             t = t_down
-        for i in range(n):
-            s[i] = np.sin(yr[i])
-            c[i] = np.cos(yr[i])
+        if free:
+            psi = yr[bi + 2]
+            vx, vy, wz = yr[dof + bi], yr[dof + bi + 1], yr[dof + bi + 2]
+            w = yr[dof + bi + 3] if nb > 3 else 0.0
+        else:
+            psi = base[2]
+            vx = vy = wz = w = 0.0
+        cb, sb = np.cos(psi), np.sin(psi)
         dphi = yr[dof:dof + n]
-        deflection_rates(dphi, zeros, zeros, none, 0.0, ddelta)
+        deflection_rates(dphi, zeros, zeros, first, wz, ddelta)
         load_forces(t, table, rows, t, f)
-        load, damper = _plain_powers(neg_l, l, nu, s, c, dphi, ddelta, f)
+        load = 0.0
+        damper = 0.0
+        for c in range(seg.shape[0] - 1):
+            ax, ay = attach_x[c], attach_y[c]
+            v0x = vx - wz * (sb * ax + cb * ay)
+            v0y = vy + wz * (cb * ax - sb * ay)
+            sx = 0.0
+            sy = 0.0
+            for i in range(seg[c], seg[c + 1]):
+                sx += neg_l[i] * np.sin(yr[i]) * dphi[i]
+                sy += l[i] * np.cos(yr[i]) * dphi[i]
+                a, b = _power_terms(f, i, v0x + sx, v0y + sy, ddelta[i], nu)
+                load += a
+                damper += b
+        if free:
+            load += _base_load_power(f, n, cb, sb, cx, cy, vx, vy, wz, w)
         out[r] = load - damper

@@ -127,15 +127,15 @@ def base_table(scene) -> tuple[np.ndarray, np.ndarray]:
 
 
 class RodConstants(NamedTuple):
-    """Per-rod factors of the momentum, gravity and bending-energy laws (each (n,), or
-    (n, 1) for ``*_col``), computed once per model by the laws' own expressions: ``ml`` = m
-    l, ``C`` = m l^2 / 12, ``l3_k`` = m l^3 / k (``l3_70`` = 2 m l^3 / 140), ``half_ml_l``
-    = m l^2 / 2, ``EI2_l`` = 2 EI / l, ``mass`` the chains' mass [kg], ``zeros``."""
+    """Per-rod factors of the momentum, gravity and bending-energy laws (each (n,)), computed
+    once per model by the laws' own expressions: ``ml`` = m l, ``half_l`` = l / 2, ``mu``
+    the end node's mass, ``C`` = m l^2 / 12, ``l3_k`` = m l^3 / k (``l3_70`` = 2 m l^3 /
+    140), ``half_ml_l`` = m l^2 / 2, ``EI2_l`` = 2 EI / l, ``mass`` the chains' mass [kg],
+    ``zeros``."""
 
     ml: np.ndarray
-    ml_col: np.ndarray
-    mu_col: np.ndarray
-    half_l_col: np.ndarray
+    half_l: np.ndarray
+    mu: np.ndarray
     C: np.ndarray
     l3_3: np.ndarray
     l3_20: np.ndarray
@@ -151,9 +151,10 @@ class RodConstants(NamedTuple):
     def of(cls, p: ChainParams) -> "RodConstants":
         ml = p.m * p.l
         l3 = p.m * p.l**3
-        return cls(ml, ml[:, None], p.mu[:, None], 0.5 * p.l[:, None], p.m * p.l**2 / 12.0,
-                   l3 / 3.0, l3 / 20.0, l3 / 30.0, l3 / 105.0, 2.0 * l3 / 140.0,
-                   0.5 * ml * p.l, 2.0 * p.EI / p.l, float(np.sum(ml + p.mu)), np.zeros(p.n))
+        return cls(ml, 0.5 * p.l, np.ascontiguousarray(p.mu, dtype=float),
+                   p.m * p.l**2 / 12.0, l3 / 3.0, l3 / 20.0, l3 / 30.0, l3 / 105.0,
+                   2.0 * l3 / 140.0, 0.5 * ml * p.l, 2.0 * p.EI / p.l, float(np.sum(ml + p.mu)),
+                   np.zeros(p.n))
 
 
 @dataclass(frozen=True, eq=False)
@@ -344,10 +345,11 @@ class ChainModel:
         self._before = np.maximum(np.arange(self.n) - 1, 0)     # rod k - 1 (0 for rod 0)
         one_fixed = self.base_mode == k.MODE_FIXED and len(self.seg) == 2
         self._plain_powers = self._plain_rates = one_fixed
-        self.plain_balance = one_fixed and not self.has_stops and self.dof_per_rod != 3
+        self.paired_balance = (self.base_mode != k.MODE_PRESCRIBED and not self.has_stops
+                               and self.dof_per_rod != 3)
         """Whether a balance sample evaluates its two moved states in one call
-        (:meth:`~rod_sim.core.state.State.moved_net_powers`): one chain on a fixed base, no
-        stop, no slope rates in the state."""
+        (:meth:`~rod_sim.core.state.State.moved_net_powers`): a fixed or free base (any
+        number of chains), no stop, no slope rates in the state."""
         self._plain_angles = one_fixed and b[k.B_PSI] == 0.0
         self._plain_nodes = one_fixed and not b[k.B_X:k.B_PSI + 1].any() \
             and not self.chain.attach.any()

@@ -17,7 +17,7 @@ from typing import Callable
 
 import numpy as np
 
-from . import chain_power, hinges, kernels
+from . import chain_momentum, chain_power, hinges, kernels
 from .kinematics import chain_node_positions, chain_nodes, node_positions, pairs
 from .snapshot import Snapshot
 
@@ -357,18 +357,12 @@ class State:
         if b[kernels.B_GRAVITY] == 0.0:
             return 0.0
         g = np.array([b[kernels.B_GX], b[kernels.B_GY]])
-        p = m.params
-        alpha, beta = (np.zeros(m.n), np.zeros(m.n)) if bending is None else bending
-        nodes = self.nodes
-        starts = nodes[m.rod_starts]
-        e, ep = self.axes
         k = m.rod_constants
-        # a rod: mass m l at its chord's midpoint plus int m eta ds = C (alpha - beta) along
-        # e_perp
-        first_moment = (k.ml_col * (starts + k.half_l_col * e)
-                        + (k.C * (alpha - beta))[:, None] * ep)
-        tips = nodes[m.rod_starts + 1]
-        total = first_moment.sum(axis=0) + (k.mu_col * tips).sum(axis=0)
+        # a rod's int m eta ds = C (alpha - beta) along e_perp
+        eta1 = k.zeros if bending is None else k.C * (bending[0] - bending[1])
+        total = np.empty(2)
+        chain_momentum.chain_first_moment(self.nodes, m.rod_starts, self.cos_phi, self.sin_phi,
+                                          k.ml, k.half_l, k.mu, eta1, total)
         energy = -float(np.dot(g, total))
         if m.nb:
             energy -= float(b[kernels.B_MASS] * np.dot(g, self.base_com))
@@ -416,16 +410,8 @@ class State:
         from .models import Momentum
 
         m = self.model
-        p = m.params
         k = m.rod_constants
         dphi = self.phi_rate
-        nodes, vel = self.nodes, self.velocities
-        i0 = m.rod_starts
-        r0, v0 = nodes[i0], vel[i0]
-        r1, v1 = nodes[i0 + 1], vel[i0 + 1]
-        e, ep = self.axes
-        # rod k: r(s) = r0 + s e + eta e_perp, v(s) = v0 + (s phi' + eta') e_perp - eta phi' e;
-        # the integrals of m over s in closed form (sigma, tau of eq. (1))
         if m.dof_per_rod == 3:
             alpha, beta = self.bending
             dalpha, dbeta = self.bending_rates
@@ -435,14 +421,14 @@ class State:
             Iee = k.l3_105 * (alpha**2 + beta**2) - k.l3_70 * alpha * beta    # int m eta^2
         else:       # straight chords: the same terms, each +0.0
             eta1 = deta1 = Isd = Iee = k.zeros
-        lin_rods = (k.ml_col * v0 + (k.half_ml_l * dphi + deta1)[:, None] * ep
-                    - (eta1 * dphi)[:, None] * e)
-        H = float((cross(r0, lin_rods) + k.half_ml_l * cross(e, v0) + eta1 * cross(ep, v0)
-                   + k.l3_3 * dphi + Isd + Iee * dphi).sum() + (p.mu * cross(r1, v1)).sum())
-        P = lin_rods.sum(axis=0) + (k.mu_col * v1).sum(axis=0)
+        sums = np.empty(5)
+        chain_momentum.chain_momentum(self.nodes, self.velocities, m.rod_starts, self.cos_phi,
+                                      self.sin_phi, dphi, k.ml, k.half_ml_l, k.half_l, k.l3_3,
+                                      k.mu, eta1, deta1, Isd, Iee, sums)
+        P = sums[:2]
+        H = float(sums[2])
+        com_sum = sums[3:]
         mass = k.mass
-        com_sum = ((k.ml_col * (r0 + k.half_l_col * e) + eta1[:, None] * ep).sum(axis=0)
-                   + (k.mu_col * r1).sum(axis=0))
         if m.nb:
             b = m.chain.base
             st = self.base
@@ -485,17 +471,22 @@ class State:
         """The net power [W] (:func:`~rod_sim.core.validity.net_power`) at (t_up, y + hf) and
         (t_down, y - hf) with this State's held inputs and latches (the central difference of
         a balance sample) in one compiled call
-        (:func:`~rod_sim.core.chain_power.plain_net_power_pair`, the laws of :meth:`moved`
-        States; its sines and cosines are numba's, so the values agree with theirs to
-        rounding) when the model allows it (:attr:`ChainModel.plain_balance`: one chain on a
-        fixed base, no stop, no slope rates in the state); else None (move the States)."""
+        (:func:`~rod_sim.core.chain_power.net_power_pair`, the laws of :meth:`moved` States;
+        its sines and cosines are numba's and its sums run rod by rod, so the values agree with
+        theirs to rounding) when the model allows it (:attr:`ChainModel.paired_balance`: a
+        fixed or free base, no stop, no slope rates in the state); else None (move the
+        States)."""
         m = self.model
-        if not m.plain_balance:
+        if not m.paired_balance:
             return None
         out = np.empty(2)
-        chain_power.plain_net_power_pair(self.y, hf, m.n, m.dof, m.neg_l, m.params.l,
-                                         m.params.nu, m.loads, self.held_rows, t_up, t_down,
-                                         out)
+        b = m.chain.base
+        ax, ay = m.attach_columns
+        cx, cy = m.base_com_offset
+        chain_power.net_power_pair(self.y, hf, m.n, m.dof, m.seg, m.neg_l, m.params.l,
+                                   m.params.nu, m.loads, self.held_rows, t_up, t_down,
+                                   b[kernels.B_X:kernels.B_PSI + 1], bool(m.nb), m.nb, ax, ay,
+                                   cx, cy, out)
         return float(out[0]), float(out[1])
 
     @cached
@@ -526,11 +517,8 @@ class State:
             st = self.base
             c, s = self.base_trig
             cx, cy = m.base_com_offset
-            rc = (c * cx - s * cy, s * cx + c * cy)
-            vc = (st.x_rate - st.psi_rate * rc[1], st.y_rate + st.psi_rate * rc[0])
-            fx, fy, mz = loads[n].tolist()
-            load_power += float(fx * vc[0] + fy * vc[1] + mz * st.psi_rate
-                                + loads[n + 1, 2] * st.wheel_rate)
+            load_power += chain_power.base_load_power(loads, n, c, s, cx, cy, st.x_rate,
+                                                      st.y_rate, st.psi_rate, st.wheel_rate)
         return load_power, self.damper_power
 
     # ----- what is published -----
