@@ -32,25 +32,27 @@ TICK_S = 8.0
 """[s] between progress lines (the issue asks for one at least every 10 s)."""
 
 COMPILE_CPU_S = {
-    "dop853_full": 60.0, "dop853_reduced": 60.0, "dop853_rigid": 60.0,
-    "radau_full": 240.0, "radau_reduced": 95.0, "radau_rigid": 95.0,
-    "fixed_full": 65.0, "fixed_reduced": 65.0, "fixed_rigid": 65.0,
+    "dop853_full": 80.0, "dop853_reduced": 80.0, "dop853_rigid": 80.0,
+    "radau_full": 140.0, "radau_reduced": 135.0, "radau_rigid": 135.0,
+    "fixed_full": 66.0, "fixed_reduced": 66.0, "fixed_rigid": 66.0,
     "full_rhs": 66.0, "reduced_rhs": 66.0, "rigid_rhs": 66.0,
     "mass_times": 2.0, "load_forces": 1.0, "solve_with": 70.0,
 }
 """Process CPU seconds to compile each compiled entry point from a cold cache, its model's
-kernel included, on the 2-core development machine (numba 0.68, NUMBA_OPT 3; docs/benchmarks.md,
-"Compile time"): a kernel alone ~66 s (measured: scipy's Radau compiling it again for a
-strided state), dop853 drivers ~60 s (the driver alone in a fresh process: reduced 42 s, full
-44 s, since the backward sweep has one call site in chain_solve; 76-80 s with three; the node's
-helpers add ~14 s), radau-jit after its kernel 43-189 s (measured before the kernels'
-speed-up), fixed-step after it 7-8 s (15 s with the kernel loaded from the cache: rk4 on the
-paper example, reduced, at load 8, 97 s wall); the helpers a node's checks call ~1 s
-(mass_times: 1 s CPU, 3 s wall at load 7); the velocity projection of a scene with locked
-hinges or latches (solve_with) ~70 s (~450 s wall at load 9)."""
+kernel included, on the 2-core development machine (numba 0.68, NUMBA_OPT 3). Measured
+2026-11-27 on an idle machine, each entry point alone in a copy of the warm cache without its
+files (`rod-sim simulate config/paper_example.yaml`, the model and integrator named): the
+reduced dop853-jit driver with its kernel 79 s; with the kernel already cached (its
+:data:`KERNEL_CPU_S` less) dop853-jit 29-31 s (reduced), 32 s (full), 27 s (rigid), the
+fixed-step drivers 16 s (reduced), radau-jit 84 s (reduced) and 91 s (full); the figures
+here are those plus :data:`KERNEL_CPU_S`. Earlier, not measured again: a kernel alone ~66 s
+(scipy's Radau compiling it again for a strided state); the helpers a node's checks call
+~1 s (mass_times: 1 s CPU, 3 s wall at load 7); the velocity projection of a scene with
+locked hinges or latches (solve_with) ~70 s (~450 s wall at load 9)."""
 KERNEL_CPU_S = 50.0
 """CPU seconds of an entry point's estimate that a later entry point of the same model in
-the same process does not pay again (typing the model's kernel)."""
+the same process does not pay again (typing the model's kernel; measured: the reduced
+dop853-jit driver 79 s cold, 29 s with its kernel cached)."""
 UNKNOWN_CPU_S = 5.0
 """[s] CPU assumed for a function not in the table."""
 
