@@ -212,6 +212,21 @@ def _power_by_hand(scene, loads: np.ndarray, y: np.ndarray) -> float:
                  - np.sum(scene.hinge_damping * rate**2))
 
 
+def _pair_matches_the_moved_states(model, t: float, y, held):
+    """The one-call pair (State.moved_net_powers) at (t, y, held), checked against two moved
+    States' net powers to rounding (numba's sines and cosines are not numpy's, bit for bit);
+    returns it and the two moved states y +- h f."""
+    from rod_sim.core.validity import RATE_STEP, _net_power
+
+    s = model.state(t, y, held)
+    hf = RATE_STEP * s.f
+    pair = s.moved_net_powers(t + RATE_STEP, t - RATE_STEP, hf)
+    moved = (s.moved(t + RATE_STEP, y + hf).value(_net_power),
+             s.moved(t - RATE_STEP, y - hf).value(_net_power))
+    assert pair == pytest.approx(moved, rel=1e-13, abs=1e-13)
+    return pair, (y + hf, y - hf)
+
+
 @pytest.mark.parametrize("model_name", ("reduced", "rigid"))
 @pytest.mark.parametrize("scripted", (True, False))
 def test_the_balance_rate_pair_is_the_moved_states_values(model_name, scripted):
@@ -219,7 +234,7 @@ def test_the_balance_rate_pair_is_the_moved_states_values(model_name, scripted):
     (State.moved_net_powers) for one chain on a fixed base without stops: the values of two
     moved States and the net power's definition at y +- h f, to rounding (numba's sines and
     cosines are not numpy's, bit for bit)."""
-    from rod_sim.core.validity import RATE_STEP, _net_power
+    from rod_sim.core.validity import RATE_STEP
 
     scene = load_scene(REPO / "config" / "paper_example.yaml")
     if not scripted:
@@ -231,13 +246,8 @@ def test_the_balance_rate_pair_is_the_moved_states_values(model_name, scripted):
         y = model.initial_state() + rng.normal(scale=0.3, size=model.state_size)
         held = _held(scene.n, k)
         t = 0.0005 * k          # the paper's tip pulse acts from t = 0
-        s = model.state(t, y, held)
-        hf = RATE_STEP * s.f
-        pair = s.moved_net_powers(t + RATE_STEP, t - RATE_STEP, hf)
-        moved = (s.moved(t + RATE_STEP, y + hf).value(_net_power),
-                 s.moved(t - RATE_STEP, y - hf).value(_net_power))
-        assert pair == pytest.approx(moved, rel=1e-13, abs=1e-13)
-        for got, tm, ym in zip(pair, (t + RATE_STEP, t - RATE_STEP), (y + hf, y - hf)):
+        pair, moved_y = _pair_matches_the_moved_states(model, t, y, held)
+        for got, tm, ym in zip(pair, (t + RATE_STEP, t - RATE_STEP), moved_y):
             want = _power_by_hand(scene, model.loads_at(tm, held), ym)
             assert got == pytest.approx(want, rel=1e-12, abs=1e-12)
         if scripted:
@@ -254,7 +264,6 @@ def test_the_balance_rate_pair_on_chains_of_a_base(base, model_name):
     from sc_common import Layout, chain_dict, free_base, oracle_from_dict, scene_dict
 
     from rod_sim.core.scene import Scene
-    from rod_sim.core.validity import RATE_STEP, _net_power
 
     rng = np.random.default_rng(23)
     d = scene_dict([chain_dict("a", 3, rng), chain_dict("b", 2, rng)],
@@ -267,13 +276,8 @@ def test_the_balance_rate_pair_on_chains_of_a_base(base, model_name):
         y = model.initial_state() + rng.normal(scale=0.5, size=model.state_size)
         held = rng.normal(scale=3.0, size=(lag.N + 2, 3))
         t = 0.001 * k
-        s = model.state(t, y, held)
-        hf = RATE_STEP * s.f
-        pair = s.moved_net_powers(t + RATE_STEP, t - RATE_STEP, hf)
-        moved = (s.moved(t + RATE_STEP, y + hf).value(_net_power),
-                 s.moved(t - RATE_STEP, y - hf).value(_net_power))
-        assert pair == pytest.approx(moved, rel=1e-13, abs=1e-13)
-        for got, ym in zip(pair, (y + hf, y - hf)):
+        pair, moved_y = _pair_matches_the_moved_states(model, t, y, held)
+        for got, ym in zip(pair, moved_y):
             q, qd = lay.to_oracle(ym)
             want = float((lag.load_force(q, held) - lag.dissipation_force(q, qd)) @ qd)
             assert got == pytest.approx(want, rel=1e-11, abs=1e-11)
