@@ -60,20 +60,21 @@ def chain_powers(vx, vy, ddelta, nu, f, out):
 
 
 @njit(inline="always")
-def _plain_powers(neg_l, l, nu, sin_phi, cos_phi, dphi, ddelta, f):
-    """(load power, damper power) [W] of one chain on a fixed base (anywhere, turned any way):
-    the end node velocities are the prefix sums of l_j phi_j' (-sin phi_j, cos phi_j), with the
-    products of the general layout's node velocities (``neg_l`` = -l)."""
-    load = 0.0
-    damper = 0.0
-    vx = 0.0
-    vy = 0.0
-    for i in range(dphi.shape[0]):
-        vx += neg_l[i] * sin_phi[i] * dphi[i]
-        vy += l[i] * cos_phi[i] * dphi[i]
-        a, b = _power_terms(f, i, vx, vy, ddelta[i], nu)
-        load += a
-        damper += b
+def _span_powers(neg_l, l, nu, sin_phi, cos_phi, dphi, ddelta, f, a, b, v0x, v0y, load,
+                 damper):
+    """(load, damper) [W] plus the load and damper powers of rods a .. b - 1 of one chain
+    whose node 0 moves at (v0x, v0y) [m/s]: each end node moves at that velocity plus the
+    prefix sum of l_j phi_j' (-sin phi_j, cos phi_j) from rod a (``origin + cumsum``, as
+    :func:`~rod_sim.core.kinematics.chain_nodes`; ``neg_l`` = -l); the sums run rod by rod
+    on from the ``load`` and ``damper`` given."""
+    sx = 0.0
+    sy = 0.0
+    for i in range(a, b):
+        sx += neg_l[i] * sin_phi[i] * dphi[i]
+        sy += l[i] * cos_phi[i] * dphi[i]
+        p, d = _power_terms(f, i, v0x + sx, v0y + sy, ddelta[i], nu)
+        load += p
+        damper += d
     return load, damper
 
 
@@ -82,7 +83,8 @@ def plain_powers(neg_l, l, nu, sin_phi, cos_phi, dphi, ddelta, f, out):
     """:func:`chain_powers` of one chain on a fixed base (the paper's layout)
     from its rods' sin phi, cos phi, phi' [rad/s] and hinge rates (n,) each, into ``out``
     (2,); ``l`` (n,) [m], ``neg_l`` = -l."""
-    out[0], out[1] = _plain_powers(neg_l, l, nu, sin_phi, cos_phi, dphi, ddelta, f)
+    out[0], out[1] = _span_powers(neg_l, l, nu, sin_phi, cos_phi, dphi, ddelta, f, 0,
+                                  dphi.shape[0], 0.0, 0.0, 0.0, 0.0)
 
 
 @njit(inline="always")
@@ -124,9 +126,11 @@ def net_power_pair(y, hf, n, dof, seg, neg_l, l, nu, table, rows, t_up, t_down, 
     laws are :class:`~rod_sim.core.state.State`'s: each rod's end node moves at its chain's
     attach point's velocity plus the prefix sum of l_j phi_j' (-sin phi_j, cos phi_j)
     (``origin + cumsum``, as :func:`~rod_sim.core.kinematics.chain_nodes`), each chain's
-    first hinge turns against the base's rate, then :func:`chain_powers` and a free base's
-    :func:`_base_load_power`."""
+    first hinge turns against the base's rate, then :func:`_span_powers` chain by chain and a
+    free base's :func:`_base_load_power`."""
     yr = np.empty(y.shape[0])
+    s = np.empty(n)
+    c = np.empty(n)
     zeros = np.zeros(n)
     first = seg[:-1].astype(np.int64)
     ddelta = np.empty(n)
@@ -149,23 +153,19 @@ def net_power_pair(y, hf, n, dof, seg, neg_l, l, nu, table, rows, t_up, t_down, 
             psi = base[2]
             vx = vy = wz = w = 0.0
         cb, sb = np.cos(psi), np.sin(psi)
+        for i in range(n):
+            s[i] = np.sin(yr[i])
+            c[i] = np.cos(yr[i])
         dphi = yr[dof:dof + n]
         deflection_rates(dphi, zeros, zeros, first, wz, ddelta)
         load_forces(t, table, rows, t, f)
         load = 0.0
         damper = 0.0
-        for c in range(seg.shape[0] - 1):
-            ax, ay = attach_x[c], attach_y[c]
-            v0x = vx - wz * (sb * ax + cb * ay)
-            v0y = vy + wz * (cb * ax - sb * ay)
-            sx = 0.0
-            sy = 0.0
-            for i in range(seg[c], seg[c + 1]):
-                sx += neg_l[i] * np.sin(yr[i]) * dphi[i]
-                sy += l[i] * np.cos(yr[i]) * dphi[i]
-                a, b = _power_terms(f, i, v0x + sx, v0y + sy, ddelta[i], nu)
-                load += a
-                damper += b
+        for j in range(seg.shape[0] - 1):
+            ax, ay = attach_x[j], attach_y[j]
+            load, damper = _span_powers(neg_l, l, nu, s, c, dphi, ddelta, f, seg[j],
+                                        seg[j + 1], vx - wz * (sb * ax + cb * ay),
+                                        vy + wz * (cb * ax - sb * ay), load, damper)
         if free:
             load += _base_load_power(f, n, cb, sb, cx, cy, vx, vy, wz, w)
         out[r] = load - damper
