@@ -18,7 +18,7 @@ What is checked (the model's contract, from the brief and SPEC section 8):
   accelerations, alpha, beta from ``model.bending`` (the paper's reduction (11)-(15)), every
   row including the alpha/beta rows (which become the quasi-static bending equations);
 * prescribed base (spin_up psi(t)): the chain rows, the base's motion entering as known
-  accelerations;
+  accelerations; the chains' reaction on it (``base_reaction``) is the oracle's support force;
 * the oracle itself: its fixed-base limit is ``lagrangian.py``'s chain, its quadrature is
   exact, gravity is the gradient of its potential, and its own trajectories conserve
   momentum (P - M g t, H about the centre of mass) -- so the comparisons can be trusted;
@@ -405,6 +405,47 @@ def test_prescribed_base_chain_rows(name, ns, seed, translate):
             qdd0[lag.i_base] = 0
             r = lag.residual(q, qd, qdd0, held + scripted, zbi)[lay.idx]
             assert np.max(np.abs(r)) > 1e-6 * residual_scale(lag, q, qd, qdd, held + scripted)
+
+
+@needs_spacecraft()
+@pytest.mark.parametrize("name", ["full", "rigid", "reduced"])
+@pytest.mark.parametrize("ns,seed,translate", [((2,), 311, False), ((1, 3), 312, True),
+                                               ((3, 1, 2), 313, True)])
+def test_base_reaction_is_the_support_force_of_the_oracle(name, ns, seed, translate):
+    """What the prescribed base gives each chain (rod_sim.core.momentum.base_reaction: the
+    force F_c at the chain's node 0 r0_c, the moment M_c the chain puts on the base through
+    its hinge 0), summed on the massless base, is the support's generalized force: the
+    oracle's residual in the base rows, x_B, y_B: sum F_c, psi: sum (r0_c - r_B) x F_c - M_c
+    (the chains' accelerations from the model, the base's from its motion; gravity, nodal
+    loads and hinge motors on)."""
+    from rod_sim.core.momentum import base_reaction
+
+    d, rng, scripted = prescribed_scene(ns, seed, translate)
+    model = make(name, d)
+    lag = oracle_from_dict(d)
+    lay = Layout(name, lag.N, False, False)
+    N = lag.N
+    attach = np.array([c["attach"] for c in d["chains"]])
+    for t in (0.7, 1.9):
+        bq, bqd, bqdd = prescribed_base(t, translate)
+        q, qd = random_state(lay, rng, bending=0.05 if name == "full" else 0.0)
+        q, qd = lay.to_oracle(lay.from_oracle(q, qd), bq, bqd)
+        held = random_held(N, rng, free=False)
+        y = lay.from_oracle(q, qd)
+        qdd = lay.qdd_to_oracle(model.rhs(t, y, held), bqdd)
+        zbi = name != "rigid"
+        if name == "reduced":
+            q[N:2 * N], q[2 * N:3 * N] = model.bending(t, y, held)
+        force, moment = base_reaction(model, t, y, held)
+        assert force.shape == (len(ns), 2) and moment.shape == (len(ns),)
+        c, s = np.cos(bq[2]), np.sin(bq[2])
+        arm = np.c_[c * attach[:, 0] - s * attach[:, 1], s * attach[:, 0] + c * attach[:, 1]]
+        got = np.r_[force.sum(axis=0),
+                    np.sum(arm[:, 0] * force[:, 1] - arm[:, 1] * force[:, 0]) - moment.sum()]
+        want = lag.residual(q, qd, qdd, held + scripted, zero_bending_inertia=zbi)[lag.i_base]
+        scale = residual_scale(lag, q, qd, qdd, held + scripted, zbi)
+        assert np.max(np.abs(got - want)) < 1e-9 * scale, (got, want, scale)
+        assert np.max(np.abs(want)) > 1e-3 * scale      # the support carries something
 
 
 # ----------------------------------------------------------------------------- the check can fail

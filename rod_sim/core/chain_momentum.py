@@ -73,3 +73,59 @@ def chain_momentum(nodes, vel, starts, cos_phi, sin_phi, dphi, ml, half_ml_l, ha
     out[2] = h
     out[3] = sx
     out[4] = sy
+
+
+@njit
+def chain_base_reaction(nodes, acc, starts, roots, chain_of_rod, cos_phi, sin_phi, dphi, ddphi,
+                        dgam, dgam_rate, alpha, beta, ddal, ddbe, half_l, ml, C, l3_3, l3_20,
+                        l3_30, half_ml_l, mu, loads, gx, gy, full, bent, force, moment):
+    """Into ``force`` (nc, 2) [N] and ``moment`` (nc,) [N m]: what each chain needs from its
+    base (:func:`~rod_sim.core.momentum.base_reaction`): the force at its node 0 is the rate
+    of the chain's momentum less its loads and weight; the moment is the moment about node 0
+    of the loads and weight less the rate of the moment of momentum about node 0.
+
+    ``nodes``, ``acc`` (n + nc, 2): node positions [m] and accelerations [m/s^2]; ``starts``
+    (n,) int: each rod's start node row; ``roots`` (nc,) int: each chain's node 0 row;
+    ``chain_of_rod`` (n,) int; ``cos_phi``, ``sin_phi``, ``dphi`` [rad/s], ``ddphi``
+    [rad/s^2] (n,); ``dgam`` = alpha'' - beta'' and ``dgam_rate`` = alpha' - beta' (n,) (zeros
+    but in the full model); the end slopes ``alpha``, ``beta`` [rad] and the full model's
+    ``ddal``, ``ddbe`` [rad/s^2] (n,); per rod (n,) the
+    :class:`~rod_sim.core.models.RodConstants` ``half_l``, ``ml``, ``C``, ``l3_3``, ``l3_20``,
+    ``l3_30``, ``half_ml_l``, ``mu``; ``loads`` (n + 2, 3) (nodal X, Y [N] in rows 0..n-1);
+    gravity (``gx``, ``gy``) [m/s^2]; ``full``: the full model's bending inertia terms;
+    ``bent``: gravity acts on the bent rods (int m eta ds = C (alpha - beta) along e_perp: the
+    full and the reduced model, whose slopes are quasi-static), else on the chords. Rods are
+    summed in order, each chain from 0."""
+    force[:, :] = 0.0
+    moment[:] = 0.0
+    for k in range(dphi.shape[0]):
+        i = starts[k]
+        c = chain_of_rod[k]
+        o = roots[c]
+        ex, ey = cos_phi[k], sin_phi[k]
+        px, py = -ey, ex                            # e_perp
+        w2 = dphi[k] * dphi[k]
+        dd = ddphi[k]
+        a0x, a0y = acc[i, 0], acc[i, 1]
+        a1x, a1y = acc[i + 1, 0], acc[i + 1, 1]
+        d0x, d0y = nodes[i, 0] - nodes[o, 0], nodes[i, 1] - nodes[o, 1]
+        d1x, d1y = nodes[i + 1, 0] - nodes[o, 0], nodes[i + 1, 1] - nodes[o, 1]
+        hm = half_ml_l[k]
+        cd = C[k] * dgam[k]
+        cr = 2.0 * C[k] * dphi[k] * dgam_rate[k]
+        # int m a ds over the rod: its start node's acceleration plus the chord's turning
+        fx = ml[k] * a0x + (hm * (dd * px - w2 * ex) + cd * px - cr * ex)
+        fy = ml[k] * a0y + (hm * (dd * py - w2 * ey) + cd * py - cr * ey)
+        rate = (d0x * fy - d0y * fx) + hm * (ex * a0y - ey * a0x) + l3_3[k] * dd
+        if full:
+            rate = rate + l3_30[k] * ddal[k] - l3_20[k] * ddbe[k]
+        rate = rate + mu[k] * (d1x * a1y - d1y * a1x)
+        wx, wy = d0x + half_l[k] * ex, d0y + half_l[k] * ey       # chord midpoint
+        grav = ml[k] * (wx * gy - wy * gx) + mu[k] * (d1x * gy - d1y * gx)
+        if bent:
+            grav = grav + (C[k] * (alpha[k] - beta[k])) * (px * gy - py * gx)
+        lx, ly = loads[k, 0], loads[k, 1]
+        mass = ml[k] + mu[k]
+        force[c, 0] += fx + mu[k] * a1x - lx - mass * gx
+        force[c, 1] += fy + mu[k] * a1y - ly - mass * gy
+        moment[c] += (d1x * ly - d1y * lx) + grav - rate

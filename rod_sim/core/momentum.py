@@ -1,8 +1,10 @@
 """Momentum as a checked quantity: the rates the model's equations give the momentum of the
 whole system (chains, a free base, its wheel) and the ledger that integrates them.
 
-Pure numpy, O(n). For a free base the momentum changes only by the applied loads and
-gravity (:func:`momentum_rates`); docs/spacecraft.md derives which model conserves what:
+O(n): numpy, and the base's reaction one compiled pass over the rods
+(:func:`~rod_sim.core.chain_momentum.chain_base_reaction`). For a free base the momentum
+changes only by the applied loads and gravity (:func:`momentum_rates`); docs/spacecraft.md
+derives which model conserves what:
 
 - rigid and reduced models: their inertia is the rigid chords' (the reduced model drops the
   bending inertia), and the sum of their equations along a rigid translation or rotation of
@@ -29,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import kernels
+from . import chain_momentum, kernels
 from .kinematics import chain_nodes, pairs
 from .state import cross as _cross
 
@@ -228,63 +230,41 @@ def base_reaction(model, t: float, y, held=None, mode=None, state=None
     paper's accelerations: rigid chords, plus the bending inertia and Coriolis terms of the
     full model) less its applied loads and weight; the moment is the moment about node 0 of
     the chain's loads and weight less the rate of its moment of momentum about node 0 (the sum
-    of the chain's phi rows, in which every other hinge's moment cancels)."""
+    of the chain's phi rows, in which every other hinge's moment cancels). Gravity acts on the
+    bent rods of the full model and, through its quasi-static slopes, of the reduced model (as
+    in their equations), on the chords of the rigid model. One compiled pass over the rods
+    (:func:`~rod_sim.core.chain_momentum.chain_base_reaction`)."""
     return _state(model, t, y, held, mode, state).value(_base_reaction)
 
 
 def _base_reaction(s) -> tuple[np.ndarray, np.ndarray]:
     model, y = s.model, s.y
-    p = model.params
-    n = model.n
-    ddphi, dgam, base_acc = s.value(_accelerations)
-    phi, dphi = s.phi, s.phi_rate
+    n, d = model.n, model.dof
+    k = model.rod_constants
+    ddphi, dgam, _ = s.value(_accelerations)
     full = model.dof_per_rod == 3
-    if full:
-        dgam_rate = y[model.dof + n:model.dof + 2 * n] - y[model.dof + 2 * n:model.dof + 3 * n]
-        alpha, beta = y[n:2 * n], y[2 * n:3 * n]
-    else:
-        dgam_rate = np.zeros(n)
-        alpha = beta = np.zeros(n)
-    e, ep = s.axes
-    ml = p.m * p.l
-    C = p.m * p.l**2 / 12.0
-    l3 = p.m * p.l**3
-    i0 = model.rod_starts
-    nodes = s.nodes
-    acc = s.value(_node_accelerations)
-    r0, a0 = nodes[i0], acc[i0]
-    r1, a1 = nodes[i0 + 1], acc[i0 + 1]
-    # int m a_lin ds over rod j and its tip mass
-    rel = (0.5 * ml * p.l)[:, None] * (ddphi[:, None] * ep - (dphi**2)[:, None] * e) \
-        + (C * dgam)[:, None] * ep - (2.0 * C * dphi * dgam_rate)[:, None] * e
-    rod_force = ml[:, None] * a0 + rel
-    loads = s.loads[:n, :2]
     b = model.chain.base
-    g = np.array([b[kernels.B_GX], b[kernels.B_GY]]) if b[kernels.B_GRAVITY] != 0.0 \
-        else np.zeros(2)
-    nc = len(model.seg) - 1
-    force = np.zeros((nc, 2))
-    moment = np.zeros(nc)
-    chain_of_rod = model.table.chain
-    root = nodes[model.table.roots]
-    d0 = r0 - root[chain_of_rod]            # rod j's first node from its chain's node 0
-    d1 = r1 - root[chain_of_rod]
-    # moment of momentum rate about node 0: int m (d0 + s e) x a_lin + mu (d1 x a1)
-    mom_rate = _cross(d0, rod_force) + 0.5 * ml * p.l * _cross(e, a0) + l3 / 3.0 * ddphi
+    gravity = b[kernels.B_GRAVITY] != 0.0
+    gx, gy = (float(b[kernels.B_GX]), float(b[kernels.B_GY])) if gravity else (0.0, 0.0)
     if full:
+        dgam_rate = y[d + n:d + 2 * n] - y[d + 2 * n:d + 3 * n]
+        alpha, beta = y[n:2 * n], y[2 * n:3 * n]
         dy = s.f
-        ddal = dy[model.dof + n:model.dof + 2 * n]
-        ddbe = dy[model.dof + 2 * n:model.dof + 3 * n]
-        mom_rate = mom_rate + l3 / 30.0 * ddal - l3 / 20.0 * ddbe
-    mom_rate = mom_rate + p.mu * _cross(d1, a1)
-    weight_arm = d0 + 0.5 * p.l[:, None] * e          # chord midpoint from node 0
-    grav_moment = ml * _cross(weight_arm, g) + p.mu * _cross(d1, g)
-    if full:
-        grav_moment = grav_moment + (C * (alpha - beta)) * _cross(ep, g)
-    load_moment = _cross(d1, loads)
-    total = rod_force + p.mu[:, None] * a1 - loads - (ml + p.mu)[:, None] * g
-    np.add.at(force, chain_of_rod, total)
-    np.add.at(moment, chain_of_rod, load_moment + grav_moment - mom_rate)
+        ddal, ddbe = dy[d + n:d + 2 * n], dy[d + 2 * n:d + 3 * n]
+    else:
+        dgam_rate = ddal = ddbe = k.zeros
+        # gravity acts on the reduced model's bent rods (its quasi-static slopes), as in its
+        # equations; its inertia is the chords'
+        alpha, beta = s.bending if gravity and model.name == "reduced" else (k.zeros, k.zeros)
+    bent = bool(full or (gravity and model.name == "reduced"))
+    table = model.table
+    force = np.empty((len(table.roots), 2))
+    moment = np.empty(len(table.roots))
+    chain_momentum.chain_base_reaction(
+        s.nodes, s.value(_node_accelerations), model.rod_starts, table.roots, table.chain,
+        s.cos_phi, s.sin_phi, s.phi_rate, ddphi, dgam, dgam_rate, alpha, beta, ddal, ddbe,
+        k.half_l, k.ml, k.C, k.l3_3, k.l3_20, k.l3_30, k.half_ml_l, k.mu, s.loads, gx, gy,
+        full, bent, force, moment)
     return force, moment
 
 
