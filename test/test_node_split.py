@@ -30,7 +30,8 @@ from rod_sim.ros.commands import FORCES, TORQUES, WRENCH
 from rod_sim.ros.control import RunControl, answering, executor_turn
 from rod_sim.ros.inputs import Inputs
 from rod_sim.ros.monitor import NodeMonitor
-from rod_sim.ros.outputs import (OUTPUTS, STATE_TOPICS, Outputs, SimClock, create_clock, divider,
+from rod_sim.io.topics import divider
+from rod_sim.ros.outputs import (OUTPUTS, STATE_TOPICS, Outputs, SimClock, create_clock,
                                  rate_dividers, resolved_names)
 from rod_sim.ros.pacing import Pacing
 from rod_sim.ros.period import PeriodRunner

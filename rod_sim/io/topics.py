@@ -50,6 +50,19 @@ SNAPSHOT_TOPICS = DEFAULT_TOPICS + ("clock",)
 BASE_TOPICS = ("base_odometry",)
 """Topics a snapshot determines on a moving (free or prescribed) base only."""
 
+MARKERS_RATE_HZ = 50.0
+"""[Hz of simulated time] default rate of ``markers`` (display only) in the node
+(``markers_rate_hz``) and in ``rod-sim simulate``'s log (``--markers-rate``)."""
+MAX_MARKERS_RATE_HZ = 10000.0
+"""[Hz] the largest rate either accepts."""
+
+
+def divider(rate_hz: float, topic_rate_hz: float) -> int:
+    """Samples (control periods) per message of a topic at ``topic_rate_hz`` when the states
+    come at ``rate_hz``: k = max(1, round(rate_hz / topic_rate_hz)), counted from t = 0 (0:
+    every sample)."""
+    return max(1, round(rate_hz / topic_rate_hz)) if topic_rate_hz > 0 else 1
+
 FORCE_LAYOUT_LABELS = ("node", "xy")
 """``applied_forces``/``nodal_forces`` layout: a row-major (n, 2) array, dim[0] 'node'
 (size n, stride 2n), dim[1] 'xy' (size 2, stride 2): data[2(k-1) + j] is X_k (j=0), Y_k (j=1)."""

@@ -102,16 +102,11 @@ def has_hinge_events(scene: Scene) -> bool:
             or given(scene.stop_lower, np.isfinite) or given(scene.stop_upper, np.isfinite))
 
 
-def divider(rate_hz: float, topic_rate_hz: float) -> int:
-    """Control periods per message of a topic at ``topic_rate_hz`` (0: every period)."""
-    return max(1, round(rate_hz / topic_rate_hz)) if topic_rate_hz > 0 else 1
-
-
 def rate_dividers(settings) -> dict[str, int]:
-    """Relative name -> :func:`divider` of each output with a rate parameter, from the
-    node's ``settings`` (:class:`~rod_sim.ros.parameters.NodeSettings`: ``rate_hz`` and the
-    topic's rate [Hz], e.g. ``markers_rate_hz``)."""
-    return {o.name: divider(settings.rate_hz, getattr(settings, o.rate_parameter))
+    """Relative name -> :func:`~rod_sim.io.topics.divider` of each output with a rate
+    parameter, from the node's ``settings`` (:class:`~rod_sim.ros.parameters.NodeSettings`:
+    ``rate_hz`` and the topic's rate [Hz], e.g. ``markers_rate_hz``)."""
+    return {o.name: topics.divider(settings.rate_hz, getattr(settings, o.rate_parameter))
             for o in OUTPUTS if o.rate_parameter}
 
 

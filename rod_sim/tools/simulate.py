@@ -16,10 +16,12 @@ from ..core.names import INTEGRATOR_NAMES as INTEGRATORS
 from ..core.names import MODEL_NAMES
 from rod_sim.app import limits
 from rod_sim.app.common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, new_output_path
-from rod_sim.app.common import port_number
+from rod_sim.app.common import non_negative_float, port_number
 from rod_sim.app.common import positive_float as _positive_float
 from rod_sim.app.progress import Pace, Progress, left_text, run_state, steps_text
 from rod_sim.app.signals import done, signals_deferred
+from rod_sim.io import topics
+from rod_sim.io.topics import MARKERS_RATE_HZ, MAX_MARKERS_RATE_HZ
 
 HELP = "offline run of a scene, written as an MCAP log"
 DESCRIPTION = ("Offline run of a scene (no ROS graph); writes the log of docs/interface.md "
@@ -53,6 +55,11 @@ def configure(parser) -> None:
                              "(default 1e-3)")
     parser.add_argument("--frame-id", default="world",
                         help="frame of the logged headers, poses and markers (default world)")
+    parser.add_argument("--markers-rate", type=non_negative_float, default=MARKERS_RATE_HZ,
+                        metavar="HZ", help="rate of /markers in the log [Hz of simulated time] "
+                        "(display only: with every k-th sample, k = max(1, round(rate / "
+                        "markers-rate)), from t = 0, as the node's markers_rate_hz); 0 = every "
+                        f"sample; at most {MAX_MARKERS_RATE_HZ:g} (default {MARKERS_RATE_HZ:g})")
     parser.add_argument("--live-view", type=port_number, default=0, metavar="PORT",
                         help="show the run live: a Foxglove WebSocket server on "
                              "127.0.0.1:PORT (foxglove-sdk; connect the Foxglove app or "
@@ -75,6 +82,9 @@ def run(args) -> int:
 
     if not args.frame_id:                   # as the node's frame_id parameter
         raise UsageError("--frame-id: must not be empty")
+    if args.markers_rate > MAX_MARKERS_RATE_HZ:     # as the node's markers_rate_hz
+        raise UsageError(f"--markers-rate: {args.markers_rate:g} Hz is more than "
+                         f"{MAX_MARKERS_RATE_HZ:g}")
     scene = load_scene(args.scene)
     limits.check_rtol(args.rtol)
     limits.check_sampling(args.t_end, args.rate, scene.n)
@@ -102,7 +112,8 @@ def run(args) -> int:
         log.write(SCENE_TOPIC, "std_msgs/msg/String", 0, {"data": metadata["scene"]})
     except OSError as err:
         raise UsageError(f"--out: cannot write {out}: {err.strerror or err}") from None
-    logged = _LoggedRun(sim, scene, log, args.frame_id)
+    logged = _LoggedRun(sim, scene, log, args.frame_id,
+                        markers_every=topics.divider(args.rate, args.markers_rate))
     if args.live_view:
         from ..io.live_view import LiveView, LiveViewError
 
@@ -151,10 +162,13 @@ class _LoggedRun:
     CHUNK_SECONDS = 0.5          # simulated seconds integrated per call at most
     PROGRESS_EVERY_S = 10.0      # [s] of wall time between progress lines of a slow run
 
-    def __init__(self, sim, scene, log, frame_id: str):
+    def __init__(self, sim, scene, log, frame_id: str, markers_every: int = 1):
         from ..core.validity import EnergyBalance, ValidityMonitor
 
         self.sim, self.scene, self.log, self.frame_id = sim, scene, log, frame_id
+        self.markers_every = markers_every
+        """``markers`` with every k-th logged sample, from t = 0
+        (:func:`~rod_sim.io.topics.divider`)."""
         self.validity = ValidityMonitor(sim.model)
         self.balance = None             # the energy balance (the node judges the same one)
         self._last = None               # BalanceSample of the previous sample
@@ -173,7 +187,9 @@ class _LoggedRun:
         self.spacecraft = SpacecraftLedger(sim.model) if sim.model.is_spacecraft else None
         """The momentum ledger of a spacecraft scene (its values go to ``/diagnostics``)."""
         self.topics = topics.DEFAULT_TOPICS + (topics.BASE_TOPICS if scene.moving_base else ())
-        """The state topics of each sample (``base_odometry`` on a moving base)."""
+        """The state topics of a sample (``base_odometry`` on a moving base)."""
+        self.topics_between = tuple(name for name in self.topics if name != "markers")
+        """Those of a sample off the markers' divider."""
 
     def _write(self, t: float, y, mode=None, logged: bool = True) -> None:
         """The sample (t, y, mode) into the ledgers and, if ``logged``, the log (a sample at
@@ -197,7 +213,8 @@ class _LoggedRun:
         from ..io import encoders, topics
 
         t_ns = topics.time_ns(snap.t)
-        encoded = encoders.snapshot_bytes(snap, self.scene, self.frame_id, self.topics)
+        names = self.topics if self.samples % self.markers_every == 0 else self.topics_between
+        encoded = encoders.snapshot_bytes(snap, self.scene, self.frame_id, names)
         diagnostics = self._diagnostics(t, snap)
         with signals_deferred():            # every record of a sample whole, or none
             for name, data in encoded.items():
@@ -255,6 +272,10 @@ class _LoggedRun:
         if wait > 0:
             time.sleep(wait)
         if self.live.wanted():
+            if "markers" not in encoded:        # off the markers' divider: for the view only
+                from ..io import encoders
+                encoded = {**encoded, **encoders.snapshot_bytes(snap, self.scene, self.frame_id,
+                                                                ("markers",))}
             b = self.balance
             self.live.send(t_ns, encoded, snap.nodes, snap.phi, {
                 "energy": self._last.energy,
