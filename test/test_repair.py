@@ -106,7 +106,8 @@ def test_repair_bad_input(tmp_path, capsys):
 
 def test_repair_refuses_a_corrupt_log(tmp_path, capsys):
     log = tmp_path / "cut.mcap"
-    assert rod_sim("simulate", PAPER, "--model", "reduced", "--t-end", "1", "--out", log) == 0
+    assert rod_sim("simulate", PAPER, "--model", "reduced", "--t-end", "1", "--markers-rate",
+                   "0", "--out", log) == 0          # the layout the offsets below were made for
     data = bytearray(log.read_bytes())
     cut = data[:int(len(data) * 0.8)]
     cut[2000] ^= 0x08
@@ -121,6 +122,29 @@ def test_repair_refuses_a_corrupt_log(tmp_path, capsys):
         " byte" in error and "held the definition of channel" in error
     assert not (tmp_path / "r.mcap").exists()
 
+
+
+def test_repair_refuses_a_log_whose_only_complete_chunk_is_damaged(tmp_path, capsys):
+    """Cut after its first chunk, that chunk's data flipped: no message is intact, so there is
+    nothing to repair: exit 2, one line, nothing written (not an empty "repaired" log)."""
+    import struct
+
+    log = tmp_path / "one.mcap"
+    assert rod_sim("simulate", PAPER, "--t-end", "1", "--out", log) == 0
+    data = bytearray(log.read_bytes())
+    off = 8                                     # after the magic: (opcode, u64 length, body)
+    while data[off] != 0x06:                    # the first chunk record
+        off += 9 + struct.unpack_from("<Q", data, off + 1)[0]
+    end = off + 9 + struct.unpack_from("<Q", data, off + 1)[0]
+    cut = data[:end + 100]                      # the chunk whole, the next record cut short
+    cut[(off + end) // 2] ^= 0x08               # inside its compressed records
+    log.write_bytes(bytes(cut))
+    capsys.readouterr()
+    assert rod_sim("repair", log, "--out", tmp_path / "r.mcap") == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert lines[0].startswith("rod-sim: warning:") and "is damaged" in lines[0]
+    assert lines[-1].startswith("rod-sim repair: error:") and "no intact message" in lines[-1]
+    assert not (tmp_path / "r.mcap").exists()
 
 @pytest.mark.slow
 @pytest.mark.ros

@@ -182,7 +182,7 @@ def test_a_signal_in_the_middle_of_a_log_write_waits_for_its_end(tmp_path, monke
     log = tmp_path / "sig.mcap"
     try:
         code = cli.main(["simulate", str(PAPER), "--t-end", "20", "--rate", "1000",
-                         "--out", str(log)])
+                         "--markers-rate", "0", "--out", str(log)])    # every topic each sample
     finally:
         for s in (signal.SIGTERM, signal.SIGINT):
             signal.signal(s, getattr(cli, "_restore_" + s.name))

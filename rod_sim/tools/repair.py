@@ -54,6 +54,10 @@ def run(args) -> int:
         result = repair_log(log, out)
     except OSError as exc:
         raise UsageError(f"cannot write {out}: {exc.strerror or exc} (nothing written)") from None
+    if damaged and result.messages == 0:        # nothing intact to keep: not a repair
+        out.unlink(missing_ok=True)
+        raise UsageError(f"{log}: corrupt log: no intact message to keep (the warnings above "
+                         "name the damaged chunks); nothing written")
     done(out)
     span = ("no messages" if result.first_ns is None else
             f"log time {result.first_ns / 1e9:.9g}..{result.last_ns / 1e9:.9g} s")
