@@ -21,6 +21,8 @@ MAX_OUTPUT_BYTES = 4 * 1024 ** 3    # estimated (uncompressed) size of a simulat
 # (chain at rest) smaller.
 LOG_BYTES_PER_SAMPLE = (700, 704)   # (fixed, per rod)
 MAX_FIXED_STEPS = 1e8               # --t-end / --step of a fixed-step integrator
+MARKERS_RATE_HZ = 50.0              # [Hz] default --markers-rate and node markers_rate_hz
+MAX_MARKERS_RATE_HZ = 1e4           # --markers-rate, the same range as the node's parameter
 
 
 def check_rtol(rtol: float | None) -> None:

@@ -246,6 +246,9 @@ def _base_reaction(s) -> tuple[np.ndarray, np.ndarray]:
     b = model.chain.base
     gravity = b[kernels.B_GRAVITY] != 0.0
     gx, gy = (float(b[kernels.B_GX]), float(b[kernels.B_GY])) if gravity else (0.0, 0.0)
+    # gravity acts on the bent rods of the full model and of the reduced model (its
+    # quasi-static slopes), as in their equations; the reduced model's inertia is the chords'
+    bent = bool(full or (gravity and model.name == "reduced"))
     if full:
         dgam_rate = y[d + n:d + 2 * n] - y[d + 2 * n:d + 3 * n]
         alpha, beta = y[n:2 * n], y[2 * n:3 * n]
@@ -253,10 +256,7 @@ def _base_reaction(s) -> tuple[np.ndarray, np.ndarray]:
         ddal, ddbe = dy[d + n:d + 2 * n], dy[d + 2 * n:d + 3 * n]
     else:
         dgam_rate = ddal = ddbe = k.zeros
-        # gravity acts on the reduced model's bent rods (its quasi-static slopes), as in its
-        # equations; its inertia is the chords'
-        alpha, beta = s.bending if gravity and model.name == "reduced" else (k.zeros, k.zeros)
-    bent = bool(full or (gravity and model.name == "reduced"))
+        alpha, beta = s.bending if bent else (k.zeros, k.zeros)
     table = model.table
     force = np.empty((len(table.roots), 2))
     moment = np.empty(len(table.roots))

@@ -50,17 +50,11 @@ SNAPSHOT_TOPICS = DEFAULT_TOPICS + ("clock",)
 BASE_TOPICS = ("base_odometry",)
 """Topics a snapshot determines on a moving (free or prescribed) base only."""
 
-MARKERS_RATE_HZ = 50.0
-"""[Hz of simulated time] default rate of ``markers`` (display only) in the node
-(``markers_rate_hz``) and in ``rod-sim simulate``'s log (``--markers-rate``)."""
-MAX_MARKERS_RATE_HZ = 10000.0
-"""[Hz] the largest rate either accepts."""
-
-
 def divider(rate_hz: float, topic_rate_hz: float) -> int:
     """Samples (control periods) per message of a topic at ``topic_rate_hz`` when the states
     come at ``rate_hz``: k = max(1, round(rate_hz / topic_rate_hz)), counted from t = 0 (0:
-    every sample)."""
+    every sample): the node's ``markers_rate_hz`` and ``rod-sim simulate --markers-rate``
+    (default and range: :mod:`rod_sim.app.limits`)."""
     return max(1, round(rate_hz / topic_rate_hz)) if topic_rate_hz > 0 else 1
 
 FORCE_LAYOUT_LABELS = ("node", "xy")

@@ -14,7 +14,7 @@ from rclpy.exceptions import ParameterException
 
 from rod_sim.core.integrators import INTEGRATORS
 from rod_sim.core.models import MODELS
-from rod_sim.io import topics
+from rod_sim.app import limits
 from rod_sim.ros.errors import NodeConfigError, one_line
 from rod_sim.ros.qos import CLOCK_RELIABILITY
 
@@ -87,11 +87,11 @@ PARAMETERS = (
                   "simulation with 'work budget exceeded' (ERROR on diagnostics)",
                   range=(0.01, 3600.0)),
     ParameterSpec("frame_id", "world", "frame_id of the published headers", read_only=False),
-    ParameterSpec("markers_rate_hz", topics.MARKERS_RATE_HZ, "rate of the markers topic [Hz of "
+    ParameterSpec("markers_rate_hz", limits.MARKERS_RATE_HZ, "rate of the markers topic [Hz of "
                   "simulated time], for display (RViz, Foxglove): published and recorded with "
                   "the states of every k-th control period, k = max(1, round(rate_hz / "
                   "markers_rate_hz)), counted from t = 0; 0 = every control period",
-                  range=(0.0, topics.MAX_MARKERS_RATE_HZ)),
+                  range=(0.0, limits.MAX_MARKERS_RATE_HZ)),
     ParameterSpec("live_view_port", 0, "TCP port of the live view (a Foxglove WebSocket "
                   "server on 127.0.0.1, foxglove-sdk: 3-D scene, frame transforms, joint states, "
                   "plot series, pause/step/reset); 0 = off", range=(0, 65535)),

@@ -20,8 +20,6 @@ from rod_sim.app.common import non_negative_float, port_number
 from rod_sim.app.common import positive_float as _positive_float
 from rod_sim.app.progress import Pace, Progress, left_text, run_state, steps_text
 from rod_sim.app.signals import done, signals_deferred
-from rod_sim.io import topics
-from rod_sim.io.topics import MARKERS_RATE_HZ, MAX_MARKERS_RATE_HZ
 
 HELP = "offline run of a scene, written as an MCAP log"
 DESCRIPTION = ("Offline run of a scene (no ROS graph); writes the log of docs/interface.md "
@@ -55,11 +53,13 @@ def configure(parser) -> None:
                              "(default 1e-3)")
     parser.add_argument("--frame-id", default="world",
                         help="frame of the logged headers, poses and markers (default world)")
-    parser.add_argument("--markers-rate", type=non_negative_float, default=MARKERS_RATE_HZ,
+    parser.add_argument("--markers-rate", type=non_negative_float,
+                        default=limits.MARKERS_RATE_HZ,
                         metavar="HZ", help="rate of /markers in the log [Hz of simulated time] "
                         "(display only: with every k-th sample, k = max(1, round(rate / "
                         "markers-rate)), from t = 0, as the node's markers_rate_hz); 0 = every "
-                        f"sample; at most {MAX_MARKERS_RATE_HZ:g} (default {MARKERS_RATE_HZ:g})")
+                        f"sample; at most {limits.MAX_MARKERS_RATE_HZ:g} (default "
+                        f"{limits.MARKERS_RATE_HZ:g})")
     parser.add_argument("--live-view", type=port_number, default=0, metavar="PORT",
                         help="show the run live: a Foxglove WebSocket server on "
                              "127.0.0.1:PORT (foxglove-sdk; connect the Foxglove app or "
@@ -78,13 +78,14 @@ def run(args) -> int:
     from ..api import IntegrationError, Simulator, load_scene, make_integrator, make_model
     from ..io.log_source import SCENE_TOPIC
     from ..io.log_writer import LogWriter, offered_qos_yaml
+    from ..io.topics import divider
     from ..io.scene_yaml import scene_to_yaml
 
     if not args.frame_id:                   # as the node's frame_id parameter
         raise UsageError("--frame-id: must not be empty")
-    if args.markers_rate > MAX_MARKERS_RATE_HZ:     # as the node's markers_rate_hz
+    if args.markers_rate > limits.MAX_MARKERS_RATE_HZ:     # as the node's markers_rate_hz
         raise UsageError(f"--markers-rate: {args.markers_rate:g} Hz is more than "
-                         f"{MAX_MARKERS_RATE_HZ:g}")
+                         f"{limits.MAX_MARKERS_RATE_HZ:g}")
     scene = load_scene(args.scene)
     limits.check_rtol(args.rtol)
     limits.check_sampling(args.t_end, args.rate, scene.n)
@@ -113,7 +114,7 @@ def run(args) -> int:
     except OSError as err:
         raise UsageError(f"--out: cannot write {out}: {err.strerror or err}") from None
     logged = _LoggedRun(sim, scene, log, args.frame_id,
-                        markers_every=topics.divider(args.rate, args.markers_rate))
+                        markers_every=divider(args.rate, args.markers_rate))
     if args.live_view:
         from ..io.live_view import LiveView, LiveViewError
 
