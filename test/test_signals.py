@@ -205,9 +205,10 @@ def test_a_signal_in_the_middle_of_a_log_write_waits_for_its_end(tmp_path, monke
 def test_an_interruption_python_cannot_raise_is_not_reported_as_ignored():
     """A signal's KeyboardInterrupt raised inside a weakref callback of the import system
     (seen: "Exception ignored in: <function _get_module_lock.<locals>.cb ...>" with a
-    traceback before `rod-sim advise: interrupted`) is not reported: the command's one line
-    says it. Other unraisable exceptions, or one with no signal received, go to the hook
-    that was there before."""
+    traceback before `rod-sim advise: interrupted`) is not reported, nor is the fallout of the
+    interruption in a finaliser (CI: llvmlite's ObjectRef.__del__, AttributeError, after a
+    SIGTERM in simulate): the command's one line says it. With no signal received, every
+    unraisable exception goes to the hook that was there before."""
     import sys
     import types
 
@@ -227,17 +228,46 @@ def test_an_interruption_python_cannot_raise_is_not_reported_as_ignored():
                                          object=None)
 
         sys.unraisablehook(unraisable(KeyboardInterrupt()))   # no signal yet: reported
+        sys.unraisablehook(unraisable(AttributeError("before")))
         signals._received.append(signal.SIGINT)
         sys.unraisablehook(unraisable(KeyboardInterrupt()))
         sys.unraisablehook(unraisable(signals.Terminated()))
-        sys.unraisablehook(unraisable(ValueError("other")))
-        assert seen == ["KeyboardInterrupt", "ValueError"]
+        sys.unraisablehook(unraisable(AttributeError("fallout")))
+        assert seen == ["KeyboardInterrupt", "AttributeError"]
     finally:
         signals.reset()
         sys.unraisablehook = before
         signal.signal(signal.SIGINT, signal.default_int_handler)
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
+
+
+def test_a_node_stop_quiets_the_fallout_of_its_interruption():
+    """The node's stop request (rod_sim.ros.process.StopRequest) quiets unraisable exceptions
+    once a stop was requested, as a command does: its interruption and the fallout in a
+    finaliser of an object it cut in half; before the stop, they are reported."""
+    import sys
+    import types
+
+    from rod_sim.ros.process import StopRequest
+
+    before = sys.unraisablehook
+    seen = []
+    sys.unraisablehook = lambda u: seen.append(str(u.exc_value))
+
+    def unraisable(exc):
+        return types.SimpleNamespace(exc_type=type(exc), exc_value=exc, exc_traceback=None,
+                                     err_msg="Exception ignored in", object=None)
+    try:
+        with StopRequest() as stop:
+            sys.unraisablehook(unraisable(AttributeError("before")))
+            stop.event.set()
+            sys.unraisablehook(unraisable(AttributeError("fallout")))
+            sys.unraisablehook(unraisable(KeyboardInterrupt("stop")))
+        sys.unraisablehook(unraisable(AttributeError("after")))
+        assert seen == ["before", "after"]
+    finally:
+        sys.unraisablehook = before
 
 PRINTED_BY_C = """
 import ctypes, os, signal, sys, time

@@ -287,12 +287,17 @@ def signals_deferred():
 
 
 def quiet_unraisable(unraisable) -> None:
-    """``sys.unraisablehook`` of a command: the interruption of a received signal raised where
-    Python cannot propagate it (a weakref callback of the import system's module locks, a
-    finaliser) is not reported there as "Exception ignored in ..." with a traceback: the
-    command reports it once, as its one line (``rod_sim.tools.cli.main`` sees the received
-    signal). Anything else goes to the hook it replaced."""
-    if received() is not None and isinstance(unraisable.exc_value, KeyboardInterrupt):
+    """``sys.unraisablehook`` of a command: once a signal has been received, an exception that
+    Python cannot propagate (a finaliser's, a weakref callback's) is not reported as
+    "Exception ignored in ..." with a traceback: the command reports its end once, as its one
+    line (``rod_sim.tools.cli.main`` sees the received signal). Such exceptions are the
+    interruption itself, raised in a weakref callback of the import system's module locks, or
+    its fallout: an object whose construction or close the signal's exception cut in half
+    fails in its finaliser (CI: llvmlite's ``ObjectRef.__del__`` raised "AttributeError:
+    'GlobalContextRef' object has no attribute '_as_parameter_'" after a SIGTERM during
+    simulate's compile-cache load). Before any signal, everything goes to the hook it
+    replaced."""
+    if received() is not None:
         return
     _replaced_unraisablehook[0](unraisable)
 

@@ -98,8 +98,11 @@ class StopRequest:
             sys.unraisablehook = self._unraisablehook
 
     def _quiet_unraisable(self, unraisable) -> None:
-        if self.requested and isinstance(unraisable.exc_value, KeyboardInterrupt):
-            return                  # the stop is reported once, by its one line
+        if self.requested:
+            # the stop is reported once, by its one line: its interruption, and that
+            # interruption's fallout in a finaliser of an object it cut in half (as
+            # rod_sim.app.signals.quiet_unraisable)
+            return
         self._unraisablehook(unraisable)
 
     def _handle(self, signum, frame) -> None:
