@@ -83,9 +83,15 @@ class LayoutWriter:
             self.b += values.tobytes()
 
     def string_seq(self, names) -> None:
-        self.count(len(names))
-        for name in names:
-            self.string(name)
+        """A sequence of strings, each as :meth:`string` writes it, joined in one pass (a
+        1e6-rod chain has 1e6 joint names)."""
+        self.count(len(names))      # aligned to 4: so is each string's start (padded below)
+        if not len(names):
+            return
+        u32, pads = struct.Struct("<I").pack, (b"", b"\0\0\0", b"\0\0", b"\0")
+        data = [name.encode("utf-8") for name in names]
+        joined = b"".join([u32(len(d) + 1) + d + b"\0" + pads[(len(d) + 1) % 4] for d in data])
+        self.b += joined[:len(joined) - len(pads[(len(data[-1]) + 1) % 4])]  # no trailing pad
 
     def layout(self) -> "Layout":
         slots = {}

@@ -24,7 +24,7 @@ from typing import Callable
 import numpy as np
 
 from rod_sim.core.scene import Scene
-from rod_sim.core.snapshot import Snapshot
+from rod_sim.core.snapshot import ENERGY_TERMS, Snapshot
 from rod_sim.io import cdr, topics
 from rod_sim.io.cdr_layout import Layout, LayoutWriter, stamp_bytes
 
@@ -564,4 +564,24 @@ def snapshot_bytes(snapshot: Snapshot, scene: Scene, frame_id: str = "world",
         raise ValueError(f"cannot build topic(s) {', '.join(unknown)} from a snapshot "
                          f"(choose from {', '.join(topics.SNAPSHOT_TOPICS + topics.BASE_TOPICS)})")
     return {name: SNAPSHOT_ENCODERS[name](snapshot, scene, frame_id) for name in wanted}
+
+
+def zero_snapshot(scene: Scene) -> Snapshot:
+    """A snapshot of ``scene`` at t = 0 with every value zero, without a model: the shapes
+    (and so the byte sizes of the state topics' messages) of every sample of the scene."""
+    n, zeros = scene.n, np.zeros(scene.n)
+    extra = {}
+    if scene.is_spacecraft:
+        extra = dict(base=np.zeros(6), wheel_rate=0.0, momentum=np.zeros(6),
+                     energy_terms=dict.fromkeys(ENERGY_TERMS, 0.0))
+    return Snapshot(0.0, zeros, zeros, zeros, zeros, zeros, zeros, zeros,
+                    np.zeros((n + len(scene.chains), 2)), np.zeros((n, 2)), **extra)
+
+
+def sample_sizes(scene: Scene, frame_id: str = "world", names=None) -> dict[str, int]:
+    """Bytes of each of ``names`` (as :func:`snapshot_bytes`) in one sample of ``scene``:
+    the state topics' messages have one size for a scene and frame (their arrays' lengths
+    are the scene's), so a snapshot of zeros gives it. O(n)."""
+    encoded = snapshot_bytes(zero_snapshot(scene), scene, frame_id, names)
+    return {name: len(data) for name, data in encoded.items()}
 

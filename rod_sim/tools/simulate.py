@@ -74,6 +74,46 @@ def _sample_grid_ns(rate_hz: float, k: int) -> int:
     return int(round(k * (1e9 / rate_hz)))
 
 
+def sample_topics(scene) -> tuple[str, ...]:
+    """The state topics of a logged sample of ``scene`` (``base_odometry`` on a moving base)."""
+    from ..io import topics
+
+    return topics.DEFAULT_TOPICS + (topics.BASE_TOPICS if scene.moving_base else ())
+
+
+def log_sample_bytes(scene, frame_id: str) -> tuple[int, int]:
+    """(bytes of a logged sample's messages but the markers, bytes of its markers), each with
+    its MCAP record, uncompressed: the state topics' exact sizes and, on a spacecraft scene,
+    ``/diagnostics`` with every value at its longest (``%.17g`` of a float: 24 characters)."""
+    from ..io import encoders
+
+    sizes = encoders.sample_sizes(scene, frame_id, sample_topics(scene))
+    markers = sizes.pop("markers") + limits.LOG_RECORD_BYTES
+    rest = sum(sizes.values()) + limits.LOG_RECORD_BYTES * len(sizes)
+    if scene.is_spacecraft:
+        widest = dict.fromkeys(_diagnostic_texts(encoders.zero_snapshot(scene), 0.0, 0.0, None),
+                               "-1.2345678901234567e-308")
+        rest += len(_diagnostics_bytes(0.0, widest, scene)) + limits.LOG_RECORD_BYTES
+    return rest, markers
+
+
+def _diagnostic_texts(snap, energy: float, residual: float, ledger) -> dict[str, str]:
+    """The values of a spacecraft sample's ``/diagnostics`` (docs/interface.md section 3):
+    the node's energy keys and the spacecraft keys, the momentum ledger ``ledger`` as booked
+    up to the sample (None: zeros)."""
+    from ..core.ledger import diagnostic_strings, diagnostic_values
+
+    return {"energy_J": f"{energy:.17g}", "energy_balance_residual_J": f"{residual:.17g}",
+            **diagnostic_strings(diagnostic_values(snap, ledger))}
+
+
+def _diagnostics_bytes(t: float, values: dict[str, str], scene) -> bytes:
+    """A spacecraft sample's ``/diagnostics`` message with ``values`` as CDR bytes."""
+    from ..io import encoders, topics
+
+    return encoders.diagnostics(t, values, scene.name, name=topics.DIAGNOSTICS_STATUS_NAME)
+
+
 def run(args) -> int:
     from ..api import IntegrationError, Simulator, load_scene, make_integrator, make_model
     from ..io.log_source import SCENE_TOPIC
@@ -88,7 +128,10 @@ def run(args) -> int:
                          f"{limits.MAX_MARKERS_RATE_HZ:g}")
     scene = load_scene(args.scene)
     limits.check_rtol(args.rtol)
-    limits.check_sampling(args.t_end, args.rate, scene.n)
+    markers_every = divider(args.rate, args.markers_rate)
+    sample_bytes, markers_bytes = log_sample_bytes(scene, args.frame_id)
+    limits.check_sampling(args.t_end, args.rate, scene.n, sample_bytes=sample_bytes,
+                          markers_bytes=markers_bytes, markers_every=markers_every)
     integrator = make_integrator(args.integrator, rtol=args.rtol, atol=args.atol, step=args.step)
     if not integrator.adaptive and args.t_end / integrator.step > limits.MAX_FIXED_STEPS:
         raise UsageError(f"--step: {args.t_end:g} s in steps of {integrator.step:g} s is more "
@@ -114,7 +157,7 @@ def run(args) -> int:
     except OSError as err:
         raise UsageError(f"--out: cannot write {out}: {err.strerror or err}") from None
     logged = _LoggedRun(sim, scene, log, args.frame_id,
-                        markers_every=divider(args.rate, args.markers_rate))
+                        markers_every=markers_every)
     if args.live_view:
         from ..io.live_view import LiveView, LiveViewError
 
@@ -183,11 +226,10 @@ class _LoggedRun:
         self.rtf = 1.0
         self._live_start: float | None = None
         from ..core.ledger import SpacecraftLedger
-        from ..io import topics
 
         self.spacecraft = SpacecraftLedger(sim.model) if sim.model.is_spacecraft else None
         """The momentum ledger of a spacecraft scene (its values go to ``/diagnostics``)."""
-        self.topics = topics.DEFAULT_TOPICS + (topics.BASE_TOPICS if scene.moving_base else ())
+        self.topics = sample_topics(scene)
         """The state topics of a sample (``base_odometry`` on a moving base)."""
         self.topics_between = tuple(name for name in self.topics if name != "markers")
         """Those of a sample off the markers' divider."""
@@ -252,15 +294,10 @@ class _LoggedRun:
         3), the momentum ledger as booked up to this sample."""
         if self.spacecraft is None:
             return None
-        from ..core.ledger import diagnostic_strings, diagnostic_values
-        from ..io import encoders, topics
-
         b = self.balance
-        values = {"energy_J": f"{self._last.energy:.17g}",
-                  "energy_balance_residual_J": f"{b.residual if b is not None else 0.0:.17g}",
-                  **diagnostic_strings(diagnostic_values(snap, self.spacecraft))}
-        return encoders.diagnostics(t, values, self.scene.name,
-                                    name=topics.DIAGNOSTICS_STATUS_NAME)
+        values = _diagnostic_texts(snap, self._last.energy,
+                                   b.residual if b is not None else 0.0, self.spacecraft)
+        return _diagnostics_bytes(t, values, self.scene)
 
     def _show(self, t: float, t_ns: int, snap, encoded) -> None:
         """Pace the samples at ``rtf`` and show them in the live view."""
