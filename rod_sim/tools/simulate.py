@@ -114,7 +114,12 @@ def _diagnostics_bytes(t: float, values: dict[str, str], scene) -> bytes:
     return encoders.diagnostics(t, values, scene.name, name=topics.DIAGNOSTICS_STATUS_NAME)
 
 
-def run(args) -> int:
+def _start(args):
+    """Everything before the run's clock starts: the checks of the options and the scene,
+    the model, the compiled drivers (loaded, or compiled if not cached), the log and the live
+    view; each step named to the start-up's progress line (:func:`rod_sim.app.startup.phase`).
+    Returns (scene, model, integrator, simulator, log, the logged run, the log's path)."""
+    from rod_sim.app.startup import phase
     from ..api import IntegrationError, Simulator, load_scene, make_integrator, make_model
     from ..io.log_source import SCENE_TOPIC
     from ..io.log_writer import LogWriter, offered_qos_yaml
@@ -128,7 +133,9 @@ def run(args) -> int:
                          f"{limits.MAX_MARKERS_RATE_HZ:g}")
     scene = load_scene(args.scene)
     limits.check_rtol(args.rtol)
+    out = new_output_path(args.out)
     markers_every = divider(args.rate, args.markers_rate)
+    phase("sizing the log")
     sample_bytes, markers_bytes = log_sample_bytes(scene, args.frame_id)
     limits.check_sampling(args.t_end, args.rate, scene.n, sample_bytes=sample_bytes,
                           markers_bytes=markers_bytes, markers_every=markers_every)
@@ -136,8 +143,9 @@ def run(args) -> int:
     if not integrator.adaptive and args.t_end / integrator.step > limits.MAX_FIXED_STEPS:
         raise UsageError(f"--step: {args.t_end:g} s in steps of {integrator.step:g} s is more "
                          f"than {limits.MAX_FIXED_STEPS:g} steps")
+    phase("building the model")
     model = make_model(args.model, scene)          # refuses a chain too large for memory first
-    out = new_output_path(args.out)
+    phase("loading the compiled drivers (compiling them if not cached)")
     try:                # compile (or load) the kernels before the clock starts
         Simulator(model, make_integrator(args.integrator)).advance(1e-3)
     except IntegrationError:
@@ -146,6 +154,7 @@ def run(args) -> int:
     metadata = {"scene": scene_to_yaml(scene), "model": model.name,
                 "integrator": integrator.describe(), "version": __version__,
                 "rate_hz": repr(args.rate), "source": "rod-sim simulate"}
+    phase("opening the log")
     try:
         # compression, checksums and file writes in a process of their own (the node's log
         # writer): the samples' thread only encodes
@@ -161,6 +170,7 @@ def run(args) -> int:
     if args.live_view:
         from ..io.live_view import LiveView, LiveViewError
 
+        phase("opening the live view")
         try:
             logged.live = LiveView(args.live_view, frame_id=args.frame_id,
                                    name="rod-sim simulate")
@@ -171,6 +181,16 @@ def run(args) -> int:
         logged.rtf = args.real_time_factor
         print(f"rod-sim simulate: live view on ws://127.0.0.1:{logged.live.port}, "
               f"real time x{args.real_time_factor:g}", file=sys.stderr)
+    return scene, model, integrator, sim, log, logged, out
+
+
+def run(args) -> int:
+    from rod_sim.app.startup import Progress
+
+    with Progress("rod-sim simulate", first_phase="reading the scene"):
+        scene, model, integrator, sim, log, logged, out = _start(args)
+    from ..api import IntegrationError
+
     started = time.perf_counter()
     try:
         try:
