@@ -63,10 +63,11 @@ def test_sigterm_closes_the_simulate_log_with_its_summary(tmp_path):
 @pytest.mark.timing
 def test_sigterm_stops_compare_cleanly(tmp_path):
     """SIGTERM once compare says it is re-running the log (its first progress line, 2 s into
-    the comparison of a 10 s log, which takes ~20 s more): one line, 143."""
+    the comparison of a 60 s log, which takes ~10 s more on an idle machine; a 10 s log's
+    comparison came to take under 2 s, so CI saw no progress line): one line, 143."""
     log = tmp_path / "c.mcap"
     done = subprocess.run([sys.executable, "-m", "rod_sim.tools.cli", "simulate", str(PAPER),
-                           "--t-end", "10", "--out", str(log)],
+                           "--t-end", "60", "--out", str(log)],
                           capture_output=True, text=True, cwd=ROOT)
     assert done.returncode == 0, done.stderr
     proc = rod_sim_proc("compare", log)
