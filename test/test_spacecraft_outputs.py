@@ -8,6 +8,7 @@ motion to 1e-9 m."""
 from __future__ import annotations
 
 import io
+import json
 import math
 import subprocess
 import sys
@@ -333,3 +334,45 @@ def test_urdf_forward_kinematics_gives_node_poses_on_a_moving_base(tmp_path):
         logged = np.array([[p.position.x, p.position.y] for p in poses.poses])
         worst = max(worst, float(np.max(np.abs(fk - logged))))
     assert abs(q["base_x"] - 0.4) > 0.1 and worst < 1e-9, worst
+
+
+SPINNING_PAIR = """
+name: spinning_pair
+base:
+  mode: free
+  mass: 100.0
+  inertia: 50.0
+  initial: {psi_rate: 0.1}
+  {wheel}
+chains:
+  - name: east
+    attach: [1.0, 0.0]
+    rods: {count: 4, length: 0.5, mass_per_length: 0.2, bending_stiffness: 5.0}
+    nodes: {mass: 0.01}
+    hinges: {stiffness: 0.0, damping: 1.0e-4}
+    initial: {phi: 0.0, phi_rate: 0.1}
+  - name: west
+    attach: [-1.0, 0.0]
+    rods: {count: 4, length: 0.5, mass_per_length: 0.2, bending_stiffness: 5.0}
+    nodes: {mass: 0.01}
+    hinges: {stiffness: 0.0, damping: 1.0e-4}
+    initial: {phi: 3.141592653589793, phi_rate: 0.1}
+"""
+
+
+@pytest.mark.parametrize("wheel", ["", "wheel: {inertia: 0.05, rate: 2.0}"])
+def test_compare_reads_the_reference_rates_past_the_base_coordinates(tmp_path, wheel):
+    """A free base and two straight radial chains all turning at 0.1 rad/s: a relative
+    equilibrium of both models (the centrifugal load keeps the limp chains straight), so every
+    rod's rate is 0.1 rad/s in the log and in compare's full-model re-run. compare took the
+    re-run's rates from the state's columns 3n..4n, where a free base's coordinates (x_B, y_B,
+    psi[, theta_w]) come first: rods 1-3 were compared with the base's pose (errors 0.1
+    rad/s on tether_pair)."""
+    scene = tmp_path / "spinning_pair.yaml"
+    scene.write_text(SPINNING_PAIR.replace("{wheel}", wheel))
+    log = tmp_path / "spin.mcap"
+    assert cli("simulate", str(scene), "--t-end", "0.3", "--out", str(log)).returncode == 0
+    r = cli("compare", str(log), "--json")
+    report = json.loads(r.stdout)
+    assert report["max_abs_error"]["phi"] < 1e-7, report["max_abs_error"]
+    assert report["max_abs_error"]["phi_rate"] < 1e-6, report["max_abs_error"]

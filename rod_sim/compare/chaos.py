@@ -46,7 +46,7 @@ class ChaosTracker:
         self.horizon_cause: str | None = None   # "log_precision" or "reference_separation"
 
     def gains(self, y_twin: np.ndarray, phi_ref: np.ndarray) -> np.ndarray:
-        """The gain (N,) at the samples whose twin states are ``y_twin`` (N, 6n) and reference
+        """The gain (N,) at the samples whose twin states are ``y_twin`` (N, state size) and reference
         phi ``phi_ref`` (N, n) [rad] (running maximum, continued from the last window)."""
         sep = np.max(np.abs(y_twin[:, :self.n] - phi_ref), axis=1)
         with np.errstate(over="ignore"):     # beyond ~240 s of chaos the gain is inf: no
@@ -56,7 +56,7 @@ class ChaosTracker:
         return gain
 
     def renormalise(self, y_ref: np.ndarray) -> None:
-        """Scale the twin's separation from the reference state ``y_ref`` (6n,) back to
+        """Scale the twin's separation from the reference state ``y_ref`` (state size,) back to
         TWIN_DELTA (Benettin) and book the growth."""
         n = self.n
         d = self.twin.y - y_ref

@@ -301,7 +301,7 @@ class _Comparison:
             raise CompareInputError(f"the full-model re-run failed: {exc}") from None
         rows = np.searchsorted(t_out, t_st)
         ts = t_st / NS_PER_S
-        phi_ref, rate_ref = y[rows, :n], y[rows, 3 * n:4 * n]
+        phi_ref, rate_ref = self.model.phi(y[rows]), self.model.phi_rate(y[rows])
         phi_log = np.array([s[1] for s in states])
         err = np.abs(phi_log - phi_ref)
         self.q["phi"].add(ts, err, phi_ref)

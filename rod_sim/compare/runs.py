@@ -2,8 +2,10 @@
 logged held inputs, window by window (:class:`Run`), and the pair of re-runs at two tolerances
 whose difference estimates the reference's own error (:class:`References`).
 
-Units: states y (6n,) = [phi, alpha, beta, phi_rate, alpha_rate, beta_rate] [rad, rad/s],
-times [ns] where named ``*_ns`` or ``t_out``/``bounds``.
+Units: states y (6n + 2 nb,) = [phi, alpha, beta, base, phi_rate, alpha_rate, beta_rate,
+base_rate] [rad, m, rad/s, m/s] (the full model's layout; ``nb`` base coordinates x_B, y_B, psi
+[, theta_w] of a free base, none otherwise: take phi and its rates with the model's ``phi`` and
+``phi_rate``), times [ns] where named ``*_ns`` or ``t_out``/``bounds``.
 """
 from __future__ import annotations
 
@@ -28,7 +30,7 @@ def reference_model(scene: Scene) -> FullModel:
 class Run:
     """A full-model run from the scene's initial state, continued window by window through the
     one driver (a :class:`Simulator`: hinge features, latches and stop contacts included) with
-    the compiled DOP853 at ``rtol`` (atol = rtol * 1e-2). ``y`` (6n,) is the state at ``t_ns``;
+    the compiled DOP853 at ``rtol`` (atol = rtol * 1e-2). ``y`` (the full model's state, see above) is the state at ``t_ns``;
     setting ``y`` (the twin's renormalisation) keeps the mode and re-derives the contacts."""
 
     def __init__(self, model: FullModel, rtol: float, y0: np.ndarray):
@@ -51,7 +53,7 @@ class Run:
         return self.sim.t_ns
 
     def advance(self, t_out: np.ndarray, bounds: list[int], helds: list[np.ndarray]) -> np.ndarray:
-        """States (len(t_out), 6n) at the sorted times ``t_out`` [ns] (all >= ``t_ns``, the
+        """States (len(t_out), state size) at the sorted times ``t_out`` [ns] (all >= ``t_ns``, the
         last <= ``bounds[-1]``); the held input ``helds[i]`` (n, 3) = forces X, Y [N] and hinge
         torques T [N m] (or (n, 2): forces, zero torques; or (n + 2, 3) with the free base's
         rows of ``Simulator.set_held``) applies up to
@@ -95,7 +97,7 @@ class References:
         self.rate_change = 0.0
 
     def advance(self, t_out, bounds, helds) -> tuple[np.ndarray, np.ndarray | None]:
-        """States (len(t_out), 6n) of the reference and of the check run (None without one)
+        """States (len(t_out), state size) of the reference and of the check run (None without one)
         at ``t_out`` [ns] (see :meth:`Run.advance`). Raises IntegrationError."""
         y = self.ref.advance(t_out, bounds, helds)
         yc = self.check.advance(t_out, bounds, helds) if self.check else None
@@ -109,6 +111,7 @@ class References:
             return np.zeros(rows.size)
         ref_sep = np.max(np.abs(yc[rows, :n] - y[rows, :n]), axis=1)
         self.phi_change = max(self.phi_change, float(np.max(ref_sep)))
+        rates = self.ref.model.phi_rate
         self.rate_change = max(self.rate_change, float(np.max(
-            np.abs(yc[rows, 3 * n:4 * n] - y[rows, 3 * n:4 * n]))))
+            np.abs(rates(yc[rows]) - rates(y[rows])))))
         return ref_sep
