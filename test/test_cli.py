@@ -218,3 +218,18 @@ def test_number_options_are_refused_with_the_rule(argv, message, capsys):
         cli.main(argv)
     err = capsys.readouterr().err
     assert exc.value.code == 2 and message in err, err
+
+
+@pytest.mark.parametrize("argv, unknown", [
+    (["deployment-figure", "run.mcap", "--out", "fig.png"], "--out"),
+    (["table1", "--frob"], "--frob"),
+])
+def test_an_unknown_option_is_refused_with_the_subcommands_usage(capsys, argv, unknown):
+    """argparse reports an option the subcommand does not know with the top-level usage
+    (``rod-sim [-h] [--version] COMMAND ...``), which shows none of the command's options."""
+    with pytest.raises(SystemExit) as exc:
+        cli.main(argv)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"usage: rod-sim {argv[0]} "), err
+    assert f"rod-sim {argv[0]}: error: unrecognized arguments: {unknown}\n" in err, err

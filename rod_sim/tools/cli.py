@@ -54,14 +54,27 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
         prog="rod-sim", description="Plane chains of elastic rods with visco-elastic hinges.")
     parser.add_argument("--version", action="version", version=f"rod-sim {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    parser.subcommands = {}
+    """Each subcommand's parser by name (its usage goes with its errors)."""
     for name in COMMANDS:
         if only is not None and name != only:
             sub.add_parser(name)
             continue
         module = command_module(name)
-        module.configure(sub.add_parser(name, help=module.HELP,
-                                        description=getattr(module, "DESCRIPTION", module.HELP)))
+        parser.subcommands[name] = sub.add_parser(
+            name, help=module.HELP, description=getattr(module, "DESCRIPTION", module.HELP))
+        module.configure(parser.subcommands[name])
     return parser
+
+
+def parse(parser: argparse.ArgumentParser, argv: list[str]) -> argparse.Namespace:
+    """``argv`` parsed; arguments the subcommand does not know are an error with the
+    subcommand's usage (argparse gives them the top-level usage, which lists no option)."""
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:
+        parser.subcommands[args.command].error(
+            f"unrecognized arguments: {' '.join(unknown)}")
+    return args
 
 
 READS_LOGS = ("compare", "replay", "deployment-figure", "repair")
@@ -139,7 +152,7 @@ def _main(argv: list[str]) -> int:
         # its own parser (for --help and typos) and reports bad parameters with status 2.
         return command_module("node").forward(argv[1:])
     parser = build_parser(argv[0] if argv and argv[0] in COMMANDS else None)
-    args = parser.parse_args(argv)
+    args = parse(parser, argv)
     if args.command not in NEVER_COMPILES:
         from rod_sim.app.common import watch_compiles
 
