@@ -46,8 +46,9 @@ class ChaosTracker:
         self.horizon_cause: str | None = None   # "log_precision" or "reference_separation"
 
     def gains(self, y_twin: np.ndarray, phi_ref: np.ndarray) -> np.ndarray:
-        """The gain (N,) at the samples whose twin states are ``y_twin`` (N, state size) and reference
-        phi ``phi_ref`` (N, n) [rad] (running maximum, continued from the last window)."""
+        """The gain (N,) at the samples whose twin states are ``y_twin`` (N, state size) and
+        reference phi ``phi_ref`` (N, n) [rad] (running maximum, continued from the last
+        window)."""
         sep = np.max(np.abs(y_twin[:, :self.n] - phi_ref), axis=1)
         with np.errstate(over="ignore"):     # beyond ~240 s of chaos the gain is inf: no
             gain = np.maximum.accumulate(np.maximum(np.exp(self.log_gain) * sep / TWIN_DELTA,

@@ -30,8 +30,9 @@ def reference_model(scene: Scene) -> FullModel:
 class Run:
     """A full-model run from the scene's initial state, continued window by window through the
     one driver (a :class:`Simulator`: hinge features, latches and stop contacts included) with
-    the compiled DOP853 at ``rtol`` (atol = rtol * 1e-2). ``y`` (the full model's state, see above) is the state at ``t_ns``;
-    setting ``y`` (the twin's renormalisation) keeps the mode and re-derives the contacts."""
+    the compiled DOP853 at ``rtol`` (atol = rtol * 1e-2). ``y`` (the full model's state, see
+    above) is the state at ``t_ns``; setting ``y`` (the twin's renormalisation) keeps the mode
+    and re-derives the contacts."""
 
     def __init__(self, model: FullModel, rtol: float, y0: np.ndarray):
         self.model = model
@@ -53,8 +54,8 @@ class Run:
         return self.sim.t_ns
 
     def advance(self, t_out: np.ndarray, bounds: list[int], helds: list[np.ndarray]) -> np.ndarray:
-        """States (len(t_out), state size) at the sorted times ``t_out`` [ns] (all >= ``t_ns``, the
-        last <= ``bounds[-1]``); the held input ``helds[i]`` (n, 3) = forces X, Y [N] and hinge
+        """States (len(t_out), state size) at the sorted times ``t_out`` [ns] (all >= ``t_ns``,
+        the last <= ``bounds[-1]``); the held input ``helds[i]`` (n, 3) = forces X, Y [N] and hinge
         torques T [N m] (or (n, 2): forces, zero torques; or (n + 2, 3) with the free base's
         rows of ``Simulator.set_held``) applies up to
         ``bounds[i]`` [ns] (the integrator restarts there). Raises IntegrationError."""
@@ -97,8 +98,8 @@ class References:
         self.rate_change = 0.0
 
     def advance(self, t_out, bounds, helds) -> tuple[np.ndarray, np.ndarray | None]:
-        """States (len(t_out), state size) of the reference and of the check run (None without one)
-        at ``t_out`` [ns] (see :meth:`Run.advance`). Raises IntegrationError."""
+        """States (len(t_out), state size) of the reference and of the check run (None without
+        one) at ``t_out`` [ns] (see :meth:`Run.advance`). Raises IntegrationError."""
         y = self.ref.advance(t_out, bounds, helds)
         yc = self.check.advance(t_out, bounds, helds) if self.check else None
         return y, yc
