@@ -68,6 +68,19 @@ def test_figure_times_must_be_finite(log, tmp_path, capsys):
     assert not (tmp_path / "a.png").exists()
 
 
+@pytest.mark.parametrize("times, bad", [(["0.1", "99"], "99"), (["0.5", "0.2"], "0.5")])
+def test_figure_times_outside_the_log_are_refused(log, tmp_path, capsys, times, bad):
+    """A time is drawn at its nearest sample; one after the 0.3 s log by more than a sample's
+    spacing (10 ms) is not in it: exit 2, one line, no picture (it drew the last sample,
+    labelled with that sample's time)."""
+    png = tmp_path / "f.png"
+    assert figure(log, png, "--times", *times) == 2
+    line = error_line(capsys)
+    assert f"--times: {bad} s is outside the log (t = 0..0.3 s)" in line, line
+    assert not png.exists()
+    assert figure(log, png, "--times", "0.1", "0.305") == 0       # within a sample of the end
+
+
 def test_figure_of_a_log_without_a_scene(tmp_path, capsys):
     path = tmp_path / "noscene.mcap"
     with open(path, "wb") as fh:

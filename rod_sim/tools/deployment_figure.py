@@ -83,6 +83,13 @@ def _draw(args) -> int:
     latches = [e for e in events if e["event"] == "latch"]
     if args.times:
         times = args.times
+        # a time is drawn at its nearest sample: one past the log's ends by more than a
+        # sample's spacing is not in the log
+        spacing = float(np.max(np.diff(t))) if t.size > 1 else 0.0
+        outside = [x for x in times if x > t[-1] + spacing or x < t[0] - spacing]
+        if outside:
+            raise UsageError(f"--times: {outside[0]:g} s is outside the log "
+                             f"(t = {t[0]:g}..{t[-1]:g} s)")
     else:
         t_last = max([e["t"] for e in latches], default=t[-1])
         times = list(np.linspace(0.0, t_last, 8))
