@@ -634,13 +634,15 @@ def span_events(events, t_start: float, t_end: float) -> list:
     return [e for e in events if t_start <= e.t < t_end]
 
 
-def balance_run(model, t, y, held=None, modes=None, events=()):
+def balance_run(model, t, y, held=None, modes=None, events=(), on_state=None):
     """The energy balance over samples ``t`` (N,) [s], states ``y`` (N, state_size), held
     inputs ``held`` ((n, 2) or (n, 3), or per sample (N, n, 2|3); None: zeros), latches
     ``modes`` (N, n) fired at each sample and the run's hinge ``events``, booked as
     ``simulate`` books it: yields (i, the :class:`EnergyBalance` after sample i, the end slopes
     (alpha, beta) (n,) each [rad] at sample i in its mode) for every sample (i = 0: started).
-    The slopes are solved once per sample, for the balance and for the caller."""
+    The slopes are solved once per sample, for the balance and for the caller;
+    ``on_state(i, held_i, mode_i, state)`` (if given) gets each sample's
+    :class:`~rod_sim.core.state.State` to share (e.g. a momentum ledger)."""
     t = np.asarray(t, float)
     per_sample = held is not None and np.ndim(held) == 3
     balance = EnergyBalance.for_model(model)
@@ -651,6 +653,8 @@ def balance_run(model, t, y, held=None, modes=None, events=()):
         state = model.state(t[i], y[i], h, mode)      # one right-hand side for both
         slopes = state.bending
         sample = balance_sample(model, t[i], y[i], h, mode, state=state)
+        if on_state is not None:
+            on_state(i, h, mode, state)
         if prev is None:
             balance.start(sample.energy)
         else:

@@ -311,9 +311,13 @@ def execute(tasks: list[dict], workers: int | None = None, scheduler: str | None
 # ----- the command -----
 
 def result_columns(spec) -> list[str]:
-    from .worker import OUTPUTS
+    """The table's columns: the run, the swept parameters, the outputs (and, for a spacecraft
+    scene, the base's angle and the momentum balance)."""
+    from rod_sim.core.scene import Scene
+    from .worker import OUTPUTS, SPACECRAFT_OUTPUTS
 
-    return ["run", *(p.path for p in spec.parameters), *OUTPUTS]
+    extra = SPACECRAFT_OUTPUTS if Scene.from_dict(spec.base_scene).is_spacecraft else {}
+    return ["run", *(p.path for p in spec.parameters), *OUTPUTS, *extra]
 
 
 def metadata(spec) -> dict:

@@ -14,6 +14,7 @@ import numpy as np
 
 from rod_sim.api import IntegrationError, Simulator, make_integrator, make_model
 from rod_sim.core.scene import Scene
+from rod_sim.core.ledger import SpacecraftLedger
 from rod_sim.core.validity import balance_run
 
 # Result columns after the run index and the swept parameters, with units.
@@ -34,8 +35,19 @@ OUTPUTS = {
                        "books it (rod_sim.core.validity.EnergyBalance: loads, dampers, stop "
                        "contacts, latch impacts, the full model's unpaired term)",
 }
+SPACECRAFT_OUTPUTS = {
+    "base_psi_final": "the base frame's angle psi at t_end [rad]",
+    "momentum_residual": "|P(t_end) - P(0) - int (F + D_P) dt| [kg m/s]: the linear momentum "
+                         "balance of the run (F: loads, gravity and a fixed or prescribed "
+                         "base's support; D_P the full model's defect), as simulate books it "
+                         "(rod_sim.core.ledger.SpacecraftLedger)",
+    "angular_momentum_residual": "H_O(t_end) - H_O(0) - int (M_O + D_H) dt [kg m^2/s]: the "
+                                 "angular momentum balance about the origin of Oxy, likewise",
+}
+"""Result columns after :data:`OUTPUTS` for a spacecraft scene (``base:``, ``chains:`` or
+``gravity:``; a plain chain's table is what it always was)."""
 FLOAT_OUTPUTS = [k for k in OUTPUTS if k not in ("model", "status", "nfev")]
-METRICS = FLOAT_OUTPUTS[2:]              # the trajectory outputs (NaN for a failed run)
+METRICS = FLOAT_OUTPUTS[2:] + list(SPACECRAFT_OUTPUTS)  # of a trajectory (NaN: a failed run)
 
 _WARM: set = set()
 
@@ -66,9 +78,15 @@ def metrics(model, t: np.ndarray, y: np.ndarray, modes=None, events=()) -> dict:
         tip = np.stack([np.cos(phi) @ l, np.sin(phi) @ l], axis=1)[:, None]    # (N, 1, 2)
     alpha = np.empty_like(phi)
     beta = np.empty_like(phi)
-    for i, balance, (a, b) in balance_run(model, t, y, None, modes, events):
+    ledger = SpacecraftLedger(model) if scene.is_spacecraft else None
+
+    def book(i, held, mode, state):
+        ledger.add(float(t[i]), y[i], held, mode, state=state)
+
+    for i, balance, (a, b) in balance_run(model, t, y, None, modes, events,
+                                          on_state=None if ledger is None else book):
         alpha[i], beta[i] = a, b
-    return {
+    out = {
         "max_abs_phi": float(np.max(np.abs(phi))),
         "tip_phi_final": float(phi[-1, -1]),
         "max_tip_displacement": float(np.max(np.linalg.norm(tip - tip[0], axis=-1))),
@@ -77,6 +95,13 @@ def metrics(model, t: np.ndarray, y: np.ndarray, modes=None, events=()) -> dict:
         "energy_final": float(balance.energy),
         "energy_residual": float(balance.residual),
     }
+    if ledger is not None:
+        led = ledger.values()
+        out.update(base_psi_final=float(model.base_state(float(t[-1]), y[-1]).psi),
+                   momentum_residual=float(np.hypot(led["momentum_balance_residual_x"],
+                                                    led["momentum_balance_residual_y"])),
+                   angular_momentum_residual=led["angular_momentum_balance_residual"])
+    return out
 
 
 def _row(task: dict, status: str, wall: float, nfev: int, values: dict | None) -> dict:
@@ -85,7 +110,7 @@ def _row(task: dict, status: str, wall: float, nfev: int, values: dict | None) -
            "rtf": float(task["t_end"] / wall) if wall > 0 and status == "ok" else math.nan,
            "nfev": int(nfev)}
     for k in METRICS:
-        row[k] = math.nan if values is None else values[k]
+        row[k] = math.nan if values is None else values.get(k, math.nan)
     return row
 
 
