@@ -104,7 +104,8 @@ def check_scene(markers: bytes, poses: bytes) -> int:
         np.testing.assert_allclose(pts[-1], nodes[m.id], rtol=0, atol=1e-9)
         chord = nodes[m.id] - nodes[m.id - 1]
         # bent, not straight, but close to its chord (small bending)
-        off = np.cross(chord[:2], pts[:, :2] - nodes[m.id - 1][:2]) / np.linalg.norm(chord)
+        rel = pts[:, :2] - nodes[m.id - 1][:2]          # z of chord x rel (2-D cross)
+        off = (chord[0] * rel[:, 1] - chord[1] * rel[:, 0]) / np.linalg.norm(chord)
         assert np.max(np.abs(off)) < 0.1 * np.linalg.norm(chord)
     return n
 
