@@ -576,12 +576,3 @@ def zero_snapshot(scene: Scene) -> Snapshot:
                      energy_terms=dict.fromkeys(ENERGY_TERMS, 0.0))
     return Snapshot(0.0, zeros, zeros, zeros, zeros, zeros, zeros, zeros,
                     np.zeros((n + len(scene.chains), 2)), np.zeros((n, 2)), **extra)
-
-
-def sample_sizes(scene: Scene, frame_id: str = "world", names=None) -> dict[str, int]:
-    """Bytes of each of ``names`` (as :func:`snapshot_bytes`) in one sample of ``scene``:
-    the state topics' messages have one size for a scene and frame (their arrays' lengths
-    are the scene's), so a snapshot of zeros gives it. O(n)."""
-    encoded = snapshot_bytes(zero_snapshot(scene), scene, frame_id, names)
-    return {name: len(data) for name, data in encoded.items()}
-

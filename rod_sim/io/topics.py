@@ -50,12 +50,14 @@ SNAPSHOT_TOPICS = DEFAULT_TOPICS + ("clock",)
 BASE_TOPICS = ("base_odometry",)
 """Topics a snapshot determines on a moving (free or prescribed) base only."""
 
+
 def divider(rate_hz: float, topic_rate_hz: float) -> int:
     """Samples (control periods) per message of a topic at ``topic_rate_hz`` when the states
     come at ``rate_hz``: k = max(1, round(rate_hz / topic_rate_hz)), counted from t = 0 (0:
     every sample): the node's ``markers_rate_hz`` and ``rod-sim simulate --markers-rate``
     (default and range: :mod:`rod_sim.app.limits`)."""
     return max(1, round(rate_hz / topic_rate_hz)) if topic_rate_hz > 0 else 1
+
 
 FORCE_LAYOUT_LABELS = ("node", "xy")
 """``applied_forces``/``nodal_forces`` layout: a row-major (n, 2) array, dim[0] 'node'

@@ -87,11 +87,15 @@ def log_sample_bytes(scene, frame_id: str) -> tuple[int, int]:
     ``/diagnostics`` with every value at its longest (``%.17g`` of a float: 24 characters)."""
     from ..io import encoders
 
-    sizes = encoders.sample_sizes(scene, frame_id, sample_topics(scene))
+    # the state topics' messages have one size for a scene and frame (their arrays' lengths
+    # are the scene's): a snapshot of zeros gives it
+    snap = encoders.zero_snapshot(scene)
+    sizes = {name: len(data) for name, data in
+             encoders.snapshot_bytes(snap, scene, frame_id, sample_topics(scene)).items()}
     markers = sizes.pop("markers") + limits.LOG_RECORD_BYTES
     rest = sum(sizes.values()) + limits.LOG_RECORD_BYTES * len(sizes)
     if scene.is_spacecraft:
-        widest = dict.fromkeys(_diagnostic_texts(encoders.zero_snapshot(scene), 0.0, 0.0, None),
+        widest = dict.fromkeys(_diagnostic_texts(snap, 0.0, 0.0, None),
                                "-1.2345678901234567e-308")
         rest += len(_diagnostics_bytes(0.0, widest, scene)) + limits.LOG_RECORD_BYTES
     return rest, markers
