@@ -70,6 +70,38 @@ def test_pace_uses_the_simulated_time_then_the_steps(monkeypatch):
     assert math.isinf(pace.left(2.0, 450, 1e-3))             # wall 104: nothing moved
 
 
+def test_a_long_run_reports_the_time_its_integration_has_reached(monkeypatch):
+    """Inside one long ``Simulator.run`` (simulate integrates half a second of samples at a
+    time) the simulator's own time moves only at the end; the progress line's time is the
+    integration's, after each bounded call of the compiled integrator. It stood at 0 for the
+    first 80 s of a stiff 2 s run, and the pace then read ~30 s left of ~4 min."""
+    from rod_sim.api import Simulator, load_scene, make_integrator, make_model
+    from rod_sim.app import progress
+    from rod_sim.core import integrators
+
+    monkeypatch.setattr(integrators, "MIN_CALL_RHS", 1)
+    monkeypatch.setattr(integrators, "CALL_WORK", 16 * 50)    # ~50 rhs a call (state size 16)
+    sim = Simulator(make_model("reduced", load_scene(PAPER)), make_integrator())
+    cls = type(sim.integrator)
+    advance = cls.advance
+    calls = []          # (sim.t and the progress reading as a call begins, the call's end time)
+
+    def watched(self, carry, *args):
+        begun = (sim.t, progress.run_state(sim)[0])
+        out = advance(self, carry, *args)
+        calls.append((*begun, out.t))
+        return out
+
+    monkeypatch.setattr(cls, "advance", watched)
+    sim.run(0.5, 100.0)
+    assert len(calls) > 5
+    assert all(t_sim == 0.0 for t_sim, _, _ in calls)          # the simulator's time waits
+    # each call begins where the progress line says the integration is: the last call's end
+    assert [read for _, read, _ in calls[1:]] == [end for _, _, end in calls[:-1]]
+    assert 0.0 < calls[1][1] < calls[-1][1] < 0.5
+    assert progress.run_state(sim)[0] == 0.5
+
+
 def test_decoding_a_log_leaves_stderr_to_the_other_threads(tmp_path, monkeypatch):
     """Every message of the log is read with ``sys.stderr`` untouched."""
     from rod_sim.io import log_source

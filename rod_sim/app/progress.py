@@ -72,8 +72,11 @@ class Pace:
 
 def run_state(sim) -> tuple[float, int, float]:
     """(simulated time [s], accepted steps, current step size [s], 0 before the first) of a
-    :class:`~rod_sim.core.simulator.Simulator`: what :meth:`Pace.left` takes."""
-    return sim.t, sim.stats.steps, getattr(sim.carry, "h", 0.0)
+    :class:`~rod_sim.core.simulator.Simulator`: what :meth:`Pace.left` takes. The time is the
+    integration's (its last call's end), which runs ahead of ``sim.t`` inside one long
+    ``run`` or ``advance``."""
+    return (max(sim.t, getattr(sim.carry, "t", -math.inf)), sim.stats.steps,
+            getattr(sim.carry, "h", 0.0))
 
 
 def steps_text(steps: int, h: float) -> str:

@@ -19,6 +19,7 @@ and locates hinge events (latches, stop contact begin/end):
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -564,6 +565,7 @@ def drive(model, integrator: Integrator, y0, t0: float, t_out, held=None, mode=N
         modes[done:done + s.written] = mode
         done += s.written
         y, t = np.ascontiguousarray(s.y, dtype=float), s.t
+        carry.t = t
         if s.exhausted:
             steps = carry.stats.steps - steps0
             mean = (t - t0_call) / steps if steps else 0.0
