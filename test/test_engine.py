@@ -98,7 +98,7 @@ def test_advise_counts_a_free_bases_angle(capsys):
     assert res["recommendation"] is not None
     # here the rods' error is the larger; the angles advise compares end with the bus's psi
     from rod_sim.tools import advise
-    angles, _, _ = advise._run(sc, "rigid", 1e-4, 0.2)
+    angles = advise._run(sc, "rigid", 1e-4, 0.2).angles
     assert angles.shape == (21, sc.n + 1)
     assert np.array_equal(angles[:, :-1], runs["rigid"][0])
     assert np.array_equal(angles[:, -1], runs["rigid"][1])

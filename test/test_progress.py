@@ -13,6 +13,7 @@ import math
 import re
 import sys
 import threading
+import time
 from pathlib import Path
 
 import pytest
@@ -204,47 +205,51 @@ def test_a_long_chains_table_lists_its_worst_rods(tmp_path, capsys):
 def test_an_advise_says_which_run_is_under_way(capsys, monkeypatch):
     """advise runs 12 simulations (the reference, its check, 10 candidates) and said nothing
     for minutes on a long chain: its lines name the run under way, its time and steps and
-    the runs done (the first run waits until a line has described it)."""
+    the runs done (the first runs wait until a line has described them)."""
     from rod_sim.app import progress
     from rod_sim.tools import advise
 
     lines = []
-    described = threading.Event()
     write_line = progress.write_line
 
     def noted(text, stream):
         write_line(text, stream)
         lines.append(text)
-        if "; now " in text:
-            described.set()
 
     running = advise.Watch.running
 
-    def wait_once(self, label, sim):
+    def wait_described(self, label, sim):
+        # the stiffness probe and the reference's check wait until a line has described them
         running(self, label, sim)
-        if not described.is_set():
-            assert described.wait(60)
+        if "probe" in label or "check" in label:
+            deadline = time.monotonic() + 60
+            while not any(f"now {label}:" in ln for ln in lines):
+                assert time.monotonic() < deadline
+                time.sleep(0.002)
 
     monkeypatch.setattr(advise, "PROGRESS_FIRST_S", 0.0)
     monkeypatch.setattr(advise, "PROGRESS_EVERY_S", 0.01)
     monkeypatch.setattr(progress, "write_line", noted)
-    monkeypatch.setattr(advise.Watch, "running", wait_once)
+    monkeypatch.setattr(advise.Watch, "running", wait_described)
     assert cli.main(["advise", str(PAPER), "--tolerance", "0.01", "--t-end", "0.05",
                      "--repeats", "1"]) == 0
     res = capsys.readouterr()
     assert "recommended:" in res.out and "rod-sim advise" not in res.out
-    pattern = (r"rod-sim advise: (\d+) of 12 runs done after \d+ s; now (the full-model "
-               r"reference's check \(rtol 1e-10\)|the full-model reference \(rtol 1e-11\)|"
-               r"candidate (rigid|reduced|full) rtol 1e-\d+): t = ([0-9.e+-]+) of 0.05 s, "
-               r"\d+ steps( of ~[0-9.e+-]+ s)? \((no estimate yet|~\d+ (s|min) more for it at "
-               r"this pace)\)$")
+    pattern = (r"rod-sim advise: (?P<done>\d+) of 12 runs done after \d+ s; now (?P<run>a probe "
+               r"of the full model's stiffness \(dop853-jit, 1000 steps at most\)|the "
+               r"full-model reference's check \(dop853-jit rtol 1e-10\)|the full-model "
+               r"reference \(dop853-jit rtol 1e-11\)|candidate (rigid|reduced|full) dop853-jit "
+               r"rtol 1e-\d+): t = (?P<t>[0-9.e+-]+) of 0.05 s, \d+ steps( of ~[0-9.e+-]+ s)? "
+               r"\((no estimate yet|~\d+ (s|min) more for it at this pace)\)$")
     described_lines = [ln for ln in lines if "; now " in ln]
     assert described_lines and all(re.match(pattern, ln) for ln in described_lines), lines
     first = re.match(pattern, described_lines[0])
-    assert first.group(1) == "0" and "check" in first.group(2)
+    assert first.group("done") == "0" and "probe" in first.group("run")
+    check = next(re.match(pattern, ln) for ln in described_lines if "check" in ln)
+    assert check.group("done") == "0"
     done = [int(re.match(r"rod-sim advise: (\d+) of 12", ln).group(1)) for ln in lines]
     assert done == sorted(done) and max(done) <= 12
-    assert all(0.0 <= float(re.match(pattern, ln).group(4)) <= 0.05 for ln in described_lines)
+    assert all(0.0 <= float(re.match(pattern, ln).group("t")) <= 0.05 for ln in described_lines)
 
 
 def test_a_long_chains_plot_draws_its_worst_rods(tmp_path, capsys, monkeypatch):

@@ -61,6 +61,10 @@ C_DOP = np.ascontiguousarray(_dop.C)
 E3_DOP = np.ascontiguousarray(_dop.E3)
 E5_DOP = np.ascontiguousarray(_dop.E5)
 D_DOP = np.ascontiguousarray(_dop.D)
+STIFF_H_LAMBDA = 6.1
+"""Hairer's bound on DOP853's h |lambda| estimate (DOP853's stiffness detection, Hairer,
+Norsett & Wanner, Solving ODEs I, section II.10): an accepted step above it was as long as the
+method's stability allowed, not as its accuracy did."""
 
 
 @njit
@@ -310,7 +314,8 @@ def dop853_run(rhs, problem, span, control, output):
 
     ``breaks`` (sorted) are times where the forcing jumps: steps end exactly there.
     Writes y(t_out[i]) into Y_out[i]. ``stats`` = [rhs evaluations, accepted steps,
-    rejected steps] is accumulated. ``h_init`` <= 0 selects the first step automatically.
+    rejected steps, stability-limited accepted steps (:data:`STIFF_H_LAMBDA`)] is accumulated.
+    ``h_init`` <= 0 selects the first step automatically.
     After ``budget`` right-hand side evaluations (counted from the call's start) it returns
     STATUS_BUDGET after an accepted step: calling again from (y_end, t_end, h_next) continues
     the same integration. ``events``: see the module docstring. Returns (y_end, t_end,
@@ -405,6 +410,18 @@ def dop853_run(rhs, problem, span, control, output):
             # accepted
             stats[1] += 1
             n_steps += 1
+            # Hairer's stiffness test (DOP853): h |f(t+h, y_new) - f(t+h, y_12)| / |y_new -
+            # y_12| estimates h |lambda| along the step; above 6.1 stability limits the step.
+            # Norms weighted as the error's (each component over its tolerance), so that the
+            # estimate does not depend on the units of angles, rates and lengths
+            num = 0.0
+            den = 0.0
+            for i in range(n):
+                w = 1.0 / (atol + max(abs(y[i]), abs(y_new[i])) * rtol)
+                num += (w * (f_new[i] - K[N_STAGES - 1, i])) ** 2
+                den += (w * (y_new[i] - yy[i])) ** 2
+            if den > 0.0 and hs * hs * num > STIFF_H_LAMBDA ** 2 * den:
+                stats[3] += 1
             if err_norm == 0.0:
                 factor = max_factor
             else:

@@ -135,8 +135,10 @@ def _failure(model, status_text: str, t: float, y, held) -> IntegrationError:
 
 @dataclass
 class Stats:
-    """Work counters: right-hand side evaluations, accepted and rejected steps; implicit
-    integrators also count Jacobians, LU factorisations and Newton iterations."""
+    """Work counters: right-hand side evaluations, accepted and rejected steps; dop853-jit
+    also counts its stability-limited accepted steps (``stiff_steps``, Hairer's test,
+    :data:`rod_sim.core.erk.STIFF_H_LAMBDA`), implicit integrators their Jacobians, LU
+    factorisations and Newton iterations."""
 
     nfev: int = 0
     steps: int = 0
@@ -144,15 +146,25 @@ class Stats:
     njev: int = 0
     nlu: int = 0
     newton_iters: int = 0
+    stiff_steps: int = 0
 
     def add(self, arr) -> None:
+        """Add a compiled driver's counters: [nfev, steps, rejected], then [stiff_steps]
+        (dop853-jit, 4 entries) or [njev, nlu, newton_iters] (radau-jit, 6 entries)."""
         self.nfev += int(arr[0])
         self.steps += int(arr[1])
         self.rejected += int(arr[2])
+        if len(arr) == 4:
+            self.stiff_steps += int(arr[3])
         if len(arr) > 5:
             self.njev += int(arr[3])
             self.nlu += int(arr[4])
             self.newton_iters += int(arr[5])
+
+    def stiff_share(self) -> float:
+        """Share of the accepted steps that were stability-limited (dop853-jit's count; 0
+        before the first step and for the other integrators)."""
+        return self.stiff_steps / self.steps if self.steps else 0.0
 
 
 @dataclass
@@ -288,7 +300,7 @@ class JitDop853(Integrator):
 
     def advance(self, carry, model, plan, y0, t0, t_out, held, breaks) -> Stretch:
         Y = np.empty((t_out.size, y0.size))
-        stats = np.zeros(3, dtype=np.int64)
+        stats = np.zeros(4, dtype=np.int64)
         ev = _event_buffers(plan, y0.size)
         y, t, h, status, written = _compiled(
             model.compiled.dop853, Problem(model.chain, plan.extra, model.loads, held),

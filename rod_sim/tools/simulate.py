@@ -18,7 +18,8 @@ from rod_sim.app import limits
 from rod_sim.app.common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, new_output_path
 from rod_sim.app.common import non_negative_float, port_number
 from rod_sim.app.common import positive_float as _positive_float
-from rod_sim.app.progress import Pace, Progress, left_text, run_state, steps_text
+from rod_sim.app.progress import (Pace, Progress, left_text, run_state, steps_text,
+                                  stiffness_hint)
 from rod_sim.app.signals import done, signals_deferred
 
 HELP = "offline run of a scene, written as an MCAP log"
@@ -219,6 +220,9 @@ def run(args) -> int:
           + (f", {logged.logged_events} hinge events" if logged.logged_events else "") + ")")
     if logged.validity.summary():
         print(f"rod-sim simulate: validity warning: {logged.validity.summary()}", file=sys.stderr)
+    hint = stiffness_hint(integrator, sim.stats)
+    if hint:
+        print(f"rod-sim simulate: hint: {hint}", file=sys.stderr)
     return status
 
 
@@ -431,9 +435,11 @@ class _RunLine:
         sim = self.sim
         t, steps, h = run_state(sim)
         left = self.pace.left(t, steps, h)
+        stiff = "; stiff: try --integrator radau-jit" if stiffness_hint(
+            sim.integrator, sim.stats) else ""
         return (f"rod-sim simulate: t = {t:.6g} of {self.t_end:g} s after {elapsed:.0f} s "
                 f"({sim.integrator.describe()}: {steps_text(steps, h)}, {sim.stats.nfev} rhs "
-                f"evaluations; {left_text(left)})")
+                f"evaluations; {left_text(left)}){stiff}")
 
 
 def _salvage(path: Path) -> str:
