@@ -16,7 +16,9 @@ full model's bending stiffness folded into each rod's 2 x 2 bending block. One s
 about one right-hand side. What is left out (the velocity terms, dM/dq times the
 accelerations, the load's dependence on phi, and in the full model the stop contacts) only
 slows the simplified Newton iteration down: docs/bench.md ("radau-jit") gives the measured
-effect.
+effect. What is kept exact is every lock's constraint (:func:`chain_solve`): an increment
+that broke a lock and was solved as if it could not would never be corrected, and neither
+the Newton test nor the error estimate would see it.
 
 The Newton part of the Radau workspace (:class:`rod_sim.core.radau.RadauWork`): ``jac`` phi_J
 (n + 1,) [rad], ``real``, ``real_aux`` the real Newton Extra and Chain, ``cplx``,
@@ -130,22 +132,36 @@ def chain_solve(chain, extra, phi_j, nex, nch, g, r, out):
         W[k, _k.W_GP] = r[m + k] + g * r[k]
         W[k, _k.W_GA] = r[m + n + k] + g * r[n + k] if full else 0.0
         W[k, _k.W_COR] = r[m + 2 * n + k] + g * r[2 * n + k] if full else 0.0
-    # a locked hinge 0 on a prescribed base holds phi_1 (+ alpha_1) = psi(t) + const: the
-    # exact Jacobian's rows of that constraint give its increments C x = C c' / g^2, not the
-    # C x = 0 of a lock between rods. Split off d r_c (r_c: chain c's rigid turn, C r_c = 1
-    # at its hinge 0 and 0 at the others; no spring, damper or bending acts on it, so A r_c
-    # = g^2 M r_c), solve the rest with C x = 0, add d r_c / g^2 back (W_TN holds d)
+    # A locked hinge h holds C_h q = const (between rods: phi_h (+ alpha_h) - phi_p
+    # (- beta_p); hinge 0 on a prescribed base: phi_1 (+ alpha_1) - psi(t)), and the exact
+    # Jacobian's rows give C_h a = 0 (the lock's reaction makes it so) or psi'': its increments
+    # are C_h x = C_h c' / g^2, not 0 (they are 0 only while the stages keep the lock exactly;
+    # a predictor that does not would never be corrected). For each: d_h = C_h c', split off
+    # d_h r_h (r_h: the rigid turn of rods h.. of its chain, C_h r_h = 1 and C_j r_h = 0 for
+    # every other hinge; no spring, damper or bending acts on it, so A r_h = g^2 M r_h), solve
+    # the rest with C x = 0, add d_h r_h / g^2 back (W_TN holds the sums of d over rods)
     turn = chain.base[_k.B_MODE] == _k.MODE_PRESCRIBED
-    if turn:
-        seg = chain.seg
-        for ci in range(seg.shape[0] - 1):
-            k0 = seg[ci]
-            d = 0.0 * g
-            if extra.locked[k0] != 0:
-                d = W[k0, _k.W_GP] + W[k0, _k.W_GA]
-            for k in range(k0, seg[ci + 1]):
-                W[k, _k.W_GP] -= d
-                W[k, _k.W_TN] = d
+    any_lock = False
+    seg = chain.seg
+    for ci in range(seg.shape[0] - 1):
+        k0 = seg[ci]
+        for k in range(k0, seg[ci + 1]):
+            W[k, _k.W_TN] = 0.0 * g
+            if extra.locked[k] == 0 or (k == k0 and not turn):
+                continue
+            any_lock = True
+            d = W[k, _k.W_GP] + W[k, _k.W_GA]
+            if k > k0:
+                p = chain.prev[k]
+                d -= W[p, _k.W_GP] + W[p, _k.W_COR]
+            W[k, _k.W_TN] = d
+        acc = 0.0 * g
+        for k in range(k0, seg[ci + 1]):
+            acc += W[k, _k.W_TN]
+            W[k, _k.W_TN] = acc
+    if any_lock:
+        for k in range(n):
+            W[k, _k.W_GP] -= W[k, _k.W_TN]
     # inertia product (full kind: the slope rows get m^{gamma phi} c' even for the reduced
     # model, whose Newton system keeps them)
     _k.inertia_columns(True, chain, W, _k.W_GP, _k.W_GA, _k.W_COR, _k.W_FP, _k.W_FA, _k.W_FB,
@@ -185,7 +201,7 @@ def chain_solve(chain, extra, phi_j, nex, nch, g, r, out):
         return
     for k in range(n):
         out[k] = W[k, _k.W_X]
-        if turn:
+        if any_lock:
             out[k] += W[k, _k.W_TN] / g2
         if full:
             out[n + k] = W[k, _k.W_A]
