@@ -133,27 +133,29 @@ def chain_solve(chain, extra, phi_j, nex, nch, g, r, out):
         W[k, _k.W_GA] = r[m + n + k] + g * r[n + k] if full else 0.0
         W[k, _k.W_COR] = r[m + 2 * n + k] + g * r[2 * n + k] if full else 0.0
     # A locked hinge h holds C_h q = const (between rods: phi_h (+ alpha_h) - phi_p
-    # (- beta_p); hinge 0 on a prescribed base: phi_1 (+ alpha_1) - psi(t)), and the exact
-    # Jacobian's rows give C_h a = 0 (the lock's reaction makes it so) or psi'': its increments
-    # are C_h x = C_h c' / g^2, not 0 (they are 0 only while the stages keep the lock exactly;
-    # a predictor that does not would never be corrected). For each: d_h = C_h c', split off
+    # (- beta_p); hinge 0: phi_1 (+ alpha_1) - psi, psi = 0 on a fixed base, psi(t) on a
+    # prescribed one), and the exact Jacobian's rows give C_h a = 0 (the lock's reaction makes
+    # it so) or psi'': its increments are C_h x = C_h c' / g^2, not 0 (they are 0 only while
+    # the stages keep the lock exactly; a predictor that does not would never be corrected,
+    # nor would the Newton test or the error estimate see it). For each: d_h = C_h c', split off
     # d_h r_h (r_h: the rigid turn of rods h.. of its chain, C_h r_h = 1 and C_j r_h = 0 for
     # every other hinge; no spring, damper or bending acts on it, so A r_h = g^2 M r_h), solve
     # the rest with C x = 0, add d_h r_h / g^2 back (W_TN holds the sums of d over rods)
-    turn = chain.base[_k.B_MODE] == _k.MODE_PRESCRIBED
     any_lock = False
     seg = chain.seg
     for ci in range(seg.shape[0] - 1):
         k0 = seg[ci]
         for k in range(k0, seg[ci + 1]):
             W[k, _k.W_TN] = 0.0 * g
-            if extra.locked[k] == 0 or (k == k0 and not turn):
+            if extra.locked[k] == 0:
                 continue
             any_lock = True
             d = W[k, _k.W_GP] + W[k, _k.W_GA]
             if k > k0:
                 p = chain.prev[k]
                 d -= W[p, _k.W_GP] + W[p, _k.W_COR]
+            elif nb > 0:
+                d -= bk[_k.BK_V + 2]                  # a free base's psi
             W[k, _k.W_TN] = d
         acc = 0.0 * g
         for k in range(k0, seg[ci + 1]):
