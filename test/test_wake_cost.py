@@ -30,3 +30,22 @@ def test_bad_counts_exit_2(bad, capsys):
         wake_cost.main(bad)
     assert e.value.code == 2
     assert "must be" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("work, label", [("arithmetic", "20000 compiled multiply-adds"),
+                                         ("sum", "a compiled sum of 2 KiB, 5 passes")])
+def test_the_other_works_are_timed_and_named(work, label, capsys):
+    assert wake_cost.main(["--work", work, "--kib", "2", "--wait-ms", "0.2", "--blocks", "3",
+                           "--calls", "2"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 3
+    for line in lines:
+        m = re.search(re.escape(label) + r": median ([0-9.]+) us, .* \((\d+) calls", line)
+        assert m and float(m.group(1)) > 0 and m.group(2) == "2"
+
+
+def test_a_bad_array_size_exits_2(capsys):
+    with pytest.raises(SystemExit) as e:
+        wake_cost.main(["--work", "sum", "--kib", "0"])
+    assert e.value.code == 2
+    assert "--kib must be > 0" in capsys.readouterr().err

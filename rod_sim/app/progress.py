@@ -49,11 +49,14 @@ class Pace:
     """Wall time left to reach ``t_end`` [s] of simulated time, at the pace of the interval
     since the last :meth:`left` call (the first interval starts at construction): the pace of
     the simulated time when it advanced, else (inside one long stretch of integration, whose
-    time is set only at its end) the accepted steps' pace at the current step size."""
+    time is set only at its end) the accepted steps' pace at the current step size. ``wall``:
+    the ``time.perf_counter()`` reading at which the run was at ``t_now`` (default: now)."""
 
-    def __init__(self, t_end: float, t_now: float = 0.0, steps: int = 0):
+    def __init__(self, t_end: float, t_now: float = 0.0, steps: int = 0,
+                 wall: float | None = None):
         self.t_end = float(t_end)
-        self._last = (time.perf_counter(), float(t_now), int(steps))
+        self._last = (time.perf_counter() if wall is None else float(wall), float(t_now),
+                      int(steps))
 
     def left(self, t_now: float, steps: int = 0, h: float = 0.0) -> float:
         """[s] of wall time left; ``steps``: accepted steps so far, ``h`` [s] the current step

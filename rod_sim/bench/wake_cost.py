@@ -1,6 +1,7 @@
 """What a compiled right-hand side costs after the thread waited (this machine's, not the code's).
 
     python -m rod_sim.bench.wake_cost [--rods 1024] [--wait-ms 8] [--blocks 60] [--calls 20]
+                                      [--work rhs|arithmetic|sum] [--kib 8]
 
 A real-time node does its period's work after a wait of most of the period; ``--period-cost``
 and the micro-benchmarks time the same work back to back. This measures the difference on the
@@ -10,6 +11,10 @@ wall time per call, in blocks of ``--calls`` calls each preceded by nothing (``b
 by ``--wait-ms`` of busy waiting (``after spinning``) or by ``time.sleep`` of it (``after
 sleeping``), the three kinds of block taking turns so that a slow phase of the machine falls
 on all three alike. No ROS, no log, no Python between the timer and the kernel but the call.
+
+``--work`` separates what the wait costs: ``arithmetic`` (a compiled chain of 20000
+multiply-adds, no memory) pays for a slower or shared core, ``sum`` (a compiled sum of a
+``--kib`` KiB array, 5 passes) for data evicted from the core's caches while it waited.
 """
 from __future__ import annotations
 
@@ -21,6 +26,7 @@ from typing import Callable
 import numpy as np
 
 WAYS = ("back to back", "after spinning", "after sleeping")
+WORKS = ("rhs", "arithmetic", "sum")
 
 
 def rhs_call(rods: int) -> Callable[[], None]:
@@ -44,9 +50,71 @@ def rhs_call(rods: int) -> Callable[[], None]:
     return call
 
 
-def measure(rods: int, wait_ms: float, blocks: int, calls: int) -> dict[str, list[float]]:
-    """Wall time [us] of each right-hand side call, per way of waiting before it (:data:`WAYS`)."""
-    rhs = rhs_call(rods)
+def arithmetic_call() -> Callable[[], None]:
+    """A compiled chain of 20000 dependent multiply-adds on one float (no memory traffic)."""
+    import numba
+
+    @numba.njit(cache=False)
+    def chain(k):
+        x = 1.0
+        for _ in range(k):
+            x = x * 1.0000001 + 1e-9
+        return x
+
+    def call() -> None:
+        chain(20000)
+
+    for _ in range(20):
+        call()
+    return call
+
+
+def sum_call(kib: float) -> Callable[[], None]:
+    """A compiled sum, 5 passes, over an array of ``kib`` KiB (float64): what it costs
+    beyond back to back is the array's reloading into the core's caches."""
+    import numba
+
+    @numba.njit(cache=False)
+    def passes(a, k):
+        s = 0.0
+        for _ in range(k):
+            for i in range(a.size):
+                s += a[i]
+        return s
+
+    a = np.ones(max(1, int(kib * 1024 / 8)))
+
+    def call() -> None:
+        passes(a, 5)
+
+    for _ in range(20):
+        call()
+    return call
+
+
+def work_call(work: str, rods: int, kib: float) -> Callable[[], None]:
+    """The call of ``work`` (:data:`WORKS`), compiled and warm."""
+    if work == "arithmetic":
+        return arithmetic_call()
+    if work == "sum":
+        return sum_call(kib)
+    return rhs_call(rods)
+
+
+def work_label(work: str, rods: int, kib: float) -> str:
+    """What :func:`work_call` times, in words."""
+    if work == "arithmetic":
+        return "20000 compiled multiply-adds"
+    if work == "sum":
+        return f"a compiled sum of {kib:g} KiB, 5 passes"
+    return f"right-hand side of {rods} rods"
+
+
+def measure(rods: int, wait_ms: float, blocks: int, calls: int, work: str = "rhs",
+            kib: float = 8.0) -> dict[str, list[float]]:
+    """Wall time [us] of each call of ``work`` (:func:`work_call`), per way of waiting before
+    it (:data:`WAYS`)."""
+    rhs = work_call(work, rods, kib)
     wait_s = wait_ms / 1e3
     out: dict[str, list[float]] = {way: [] for way in WAYS}
     for block in range(blocks):
@@ -71,16 +139,23 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--wait-ms", type=float, default=8.0, help="[ms] wait before each call")
     p.add_argument("--blocks", type=int, default=60, help="blocks of calls, ways taking turns")
     p.add_argument("--calls", type=int, default=20, help="calls per block")
+    p.add_argument("--work", choices=WORKS, default="rhs",
+                   help="what is timed: the right-hand side (default), compiled arithmetic "
+                        "alone, or a compiled sum over --kib KiB")
+    p.add_argument("--kib", type=float, default=8.0, help="[KiB] the array of --work sum")
     args = p.parse_args(argv)
     if args.rods < 1 or args.blocks < 1 or args.calls < 1 or args.wait_ms < 0:
         p.error("--rods, --blocks and --calls must be >= 1, --wait-ms >= 0")
-    result = measure(args.rods, args.wait_ms, args.blocks, args.calls)
+    if not args.kib > 0:
+        p.error("--kib must be > 0")
+    result = measure(args.rods, args.wait_ms, args.blocks, args.calls, args.work, args.kib)
+    label = work_label(args.work, args.rods, args.kib)
     base = statistics.median(result[WAYS[0]])
     for way, times in result.items():
         if not times:
             continue
         median = statistics.median(times)
-        print(f"{way}: right-hand side of {args.rods} rods: median {median:.1f} us, 10th "
+        print(f"{way}: {label}: median {median:.1f} us, 10th "
               f"percentile {float(np.percentile(times, 10)):.1f} us ({len(times)} calls, "
               f"{median / base:.2f} x back to back; wait {args.wait_ms:g} ms)")
     return 0

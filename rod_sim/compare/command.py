@@ -312,26 +312,32 @@ PROGRESS_EVERY_S = 10.0
 
 def _progress(runs, end_s: float | None):
     """The progress lines of a compare: how far the full-model re-runs are (``runs()`` ->
-    the simulated time [s] all of them have reached, and the reference's Simulator) out of
-    the log's ``end_s`` [s] (None: not known, e.g. a truncated log), and the wall time left
+    :class:`~rod_sim.compare.comparison.Reached`; first the stiffness probe's) out of the
+    log's ``end_s`` [s] (None: not known, e.g. a truncated log), and the wall time left
     (:class:`~rod_sim.app.progress.Pace`)."""
     from rod_sim.app.progress import Pace, Progress, left_text, run_state, steps_text
+    from rod_sim.app.stiff_probe import probe_label
     from .runs import COMPARE_CHECK_RTOL, COMPARE_REFERENCE_RTOL
 
-    t, ref = runs()
-    pace = Pace(end_s if end_s is not None else math.inf, t, run_state(ref)[1])
-    which = (f"reference rtol {COMPARE_REFERENCE_RTOL:g}, check {COMPARE_CHECK_RTOL:g}, "
-             "chaos twin")
+    pace: Pace | None = None
+    of = "of the log" if end_s is None else f"of {end_s:g} s"
 
     def line(elapsed: float) -> str:
-        t, ref = runs()
-        _, steps, h = run_state(ref)
-        where = f"; the reference at {steps_text(steps, h)}"
+        nonlocal pace
+        t, sim, integrator, since = runs()
+        _, steps, h = run_state(sim) if sim is not None else (t, 0, 0.0)
+        if integrator is None:
+            return (f"rod-sim compare: {probe_label()} at t = {t:.6g} s {of} after "
+                    f"{elapsed:.0f} s ({steps_text(steps, h)})")
+        which = (f"{integrator}: reference rtol {COMPARE_REFERENCE_RTOL:g}, check "
+                 f"{COMPARE_CHECK_RTOL:g}, chaos twin; the reference at {steps_text(steps, h)}")
         if end_s is None:
-            return (f"rod-sim compare: full-model re-runs at t = {t:.6g} s of the log after "
-                    f"{elapsed:.0f} s ({which}{where})")
-        return (f"rod-sim compare: full-model re-runs at t = {t:.6g} of {end_s:g} s after "
-                f"{elapsed:.0f} s ({which}{where}; {left_text(pace.left(t, steps, h))})")
+            return (f"rod-sim compare: full-model re-runs at t = {t:.6g} s {of} after "
+                    f"{elapsed:.0f} s ({which})")
+        if pace is None:                            # the re-runs' pace from their start
+            pace = Pace(end_s, 0.0, 0, wall=since)
+        return (f"rod-sim compare: full-model re-runs at t = {t:.6g} {of} after "
+                f"{elapsed:.0f} s ({which}; {left_text(pace.left(t, steps, h))})")
 
     return Progress(line, PROGRESS_FIRST_S, PROGRESS_EVERY_S, "rod-sim-compare-progress")
 

@@ -44,8 +44,9 @@ from __future__ import annotations
 
 import contextlib
 import math
+import time
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -71,6 +72,8 @@ DEFAULT_TOLERANCE = 1e-2
 """[rad] default limit on max |phi_log - phi_full| (see docs/compare.md for why)."""
 WINDOW_SAMPLES = 2000
 """Largest number of /rod_states samples compared in one window."""
+PROBE_SPAN_S = 3600.0
+"""[s] the stiffness probe's span when the log's end is not known (it stops after its steps)."""
 WINDOW_S = 1.0
 """[s] longest log time of one window (also the twin run's renormalisation interval)."""
 PLOT_POINTS = 4000
@@ -198,6 +201,19 @@ class Report:
         }
 
 
+class Reached(NamedTuple):
+    """How far a compare's full-model re-runs are: ``t`` the simulated time [s] all of them
+    have reached, ``sim`` the reference's :class:`~rod_sim.core.simulator.Simulator`,
+    ``integrator`` its integrator's name (None while the stiffness probe runs: ``t`` and
+    ``sim`` are then the probe's, or 0 and None before it), ``since`` the
+    ``time.perf_counter()`` reading at which the re-runs started."""
+
+    t: float
+    sim: Any
+    integrator: str | None
+    since: float
+
+
 class _Comparison:
     """Window-by-window state of :func:`compare_log` (see the module docstring): the buffered
     messages of the current window and the parts of the pipeline they are fed to."""
@@ -208,9 +224,10 @@ class _Comparison:
         self.log, self.scene, self.tol = log, scene, tolerance
         self.n = n = scene.n
         self.model = reference_model(scene)
-        y0 = self.model.initial_state()
-        self.refs = References(self.model, rtol, check_rtol, y0)
-        self.chaos = ChaosTracker(self.model, rtol, y0)
+        self.rtol, self.check_rtol = rtol, check_rtol
+        self.probe = None           # the stiffness probe's Simulator while it runs
+        self.refs: References | None = None      # the re-runs, from start()
+        self.chaos: ChaosTracker | None = None
         self.inputs = HeldInputs(
             log, n, self.model.forces,
             (lambda t: scene.scripted_load_table(t)[n:n + 2])
@@ -234,12 +251,35 @@ class _Comparison:
         self.nodes: list[tuple[int, np.ndarray]] = []
         self.bases: list[tuple[int, np.ndarray]] = []
 
-    def reached(self):
-        """(the simulated time [s] every full-model re-run (reference, check, twin) has
-        reached, the reference's :class:`~rod_sim.core.simulator.Simulator`): what is left
-        to compare starts there."""
-        runs = [self.refs.ref, self.refs.check, self.chaos.twin]
-        return min(r.sim.t for r in runs if r is not None), self.refs.ref.sim
+    def start(self, integrator: str | None = None) -> None:
+        """Make the full-model re-runs with ``integrator``; None: the stiffness probe's choice
+        (:func:`rod_sim.app.stiff_probe.reference_integrator` at the reference's tolerance,
+        over the log's span when known), dop853-jit unless the scene is stiff for it."""
+        if integrator is None:
+            from rod_sim.app.stiff_probe import reference_integrator
+
+            end = self.log.end_ns / NS_PER_S if self.log.end_ns else PROBE_SPAN_S
+            integrator = reference_integrator(self.model, self.rtol, end, self.rtol * 1e-2,
+                                              running=self._probing)
+            self.probe = None
+        y0 = self.model.initial_state()
+        self.refs = References(self.model, self.rtol, self.check_rtol, y0, integrator)
+        self.chaos = ChaosTracker(self.model, self.rtol, y0, integrator)
+        self.started = time.perf_counter()
+
+    def _probing(self, sim) -> None:
+        self.probe = sim
+
+    def reached(self) -> "Reached":
+        """How far the full-model re-runs (reference, check, twin) are (:class:`Reached`):
+        what is left to compare starts there. While the stiffness probe runs (before the
+        re-runs exist): its time and Simulator, integrator None."""
+        probe, refs = self.probe, self.refs
+        if refs is None or probe is not None:
+            return Reached(0.0 if probe is None else probe.t, probe, None, 0.0)
+        runs = [refs.ref, refs.check, self.chaos.twin]
+        return Reached(min(r.sim.t for r in runs if r is not None), refs.ref.sim,
+                       refs.ref.integ.name, self.started)
 
     # ----- input -----
 
@@ -419,19 +459,21 @@ def compare_log(log: "LogStream", scene: Scene, tolerance: float = DEFAULT_TOLER
                 rtol: float = COMPARE_REFERENCE_RTOL,
                 check_rtol: float | None = COMPARE_CHECK_RTOL,
                 rate_hz: float | None = None, keep_samples: bool = False,
-                progress=None, plot: bool = True) -> Report:
+                progress=None, plot: bool = True, integrator: str | None = None) -> Report:
     """Compare a log opened by :func:`rod_sim.io.log_source.read_log` with the full model of
     ``scene``, window by window (memory independent of the log's length; ``keep_samples``
     also keeps every sample's errors, for tests). ``progress``: None, or a function that takes
-    a function giving the simulated time [s] the re-runs have reached and the reference's
-    Simulator (:meth:`_Comparison.reached`) and returns a context manager, held while the
-    log is compared (the command's progress lines). Raises CompareInputError when it cannot
+    a function giving how far the re-runs are (:class:`Reached`) and returns a context
+    manager, held while the log is compared (the command's progress lines). ``integrator``:
+    the re-runs' (``"dop853-jit"`` or ``"radau-jit"``); None: dop853-jit unless a probe finds
+    the scene stiff for it (:mod:`rod_sim.app.stiff_probe`). Raises CompareInputError when it cannot
     be compared honestly, LogFormatError for a log that turns out unreadable."""
     if not (math.isfinite(tolerance) and tolerance > 0):
         raise CompareInputError(f"--tolerance must be > 0 (got {tolerance!r})")
     run = _Comparison(log, scene, float(tolerance), rtol, check_rtol, rate_hz, keep_samples,
                       plot)
     with (contextlib.nullcontext() if progress is None else progress(run.reached)):
+        run.start(integrator)
         for group in log.groups():
             run.add(group)
         run.finish()

@@ -16,7 +16,7 @@ from rod_sim.core.models import FullModel
 from rod_sim.core.scene import Scene
 
 COMPARE_REFERENCE_RTOL = 1e-10
-"""Relative tolerance of compare's full-model re-run (compiled DOP853); atol = rtol * 1e-2."""
+"""Relative tolerance of compare's full-model re-run; atol = rtol * 1e-2."""
 COMPARE_CHECK_RTOL = 1e-12
 """compare's tighter second re-run: the two differ by about the first one's own error."""
 
@@ -30,13 +30,15 @@ def reference_model(scene: Scene) -> FullModel:
 class Run:
     """A full-model run from the scene's initial state, continued window by window through the
     one driver (a :class:`Simulator`: hinge features, latches and stop contacts included) with
-    the compiled DOP853 at ``rtol`` (atol = rtol * 1e-2). ``y`` (the full model's state, see
+    ``integrator`` (dop853-jit, or radau-jit on a stiff scene: :mod:`rod_sim.app.stiff_probe`)
+    at ``rtol`` (atol = rtol * 1e-2). ``y`` (the full model's state, see
     above) is the state at ``t_ns``; setting ``y`` (the twin's renormalisation) keeps the mode
     and re-derives the contacts."""
 
-    def __init__(self, model: FullModel, rtol: float, y0: np.ndarray):
+    def __init__(self, model: FullModel, rtol: float, y0: np.ndarray,
+                 integrator: str = "dop853-jit"):
         self.model = model
-        self.integ = make_integrator("dop853-jit", rtol=rtol, atol=rtol * 1e-2)
+        self.integ = make_integrator(integrator, rtol=rtol, atol=rtol * 1e-2)
         self.sim = Simulator(model, self.integ)
         self.y = y0
 
@@ -86,14 +88,15 @@ class Run:
 
 class References:
     """The re-run at ``rtol`` (``ref``) and, unless ``check_rtol`` is None, the check re-run at
-    ``check_rtol`` (``check``), both from ``y0``; :meth:`advance` runs both and books the
+    ``check_rtol`` (``check``), both from ``y0`` with ``integrator``; :meth:`advance` runs both
+    and books the
     largest phi [rad] and phi_rate [rad/s] separations between them (``phi_change``,
     ``rate_change``)."""
 
     def __init__(self, model: FullModel, rtol: float, check_rtol: float | None,
-                 y0: np.ndarray):
-        self.ref = Run(model, rtol, y0)
-        self.check = Run(model, check_rtol, y0) if check_rtol else None
+                 y0: np.ndarray, integrator: str = "dop853-jit"):
+        self.ref = Run(model, rtol, y0, integrator)
+        self.check = Run(model, check_rtol, y0, integrator) if check_rtol else None
         self.phi_change = 0.0
         self.rate_change = 0.0
 

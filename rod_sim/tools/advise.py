@@ -121,25 +121,19 @@ def _run(scene, model_name: str, rtol: float, t_end: float, repeats: int = 1,
 
 
 def reference_integrator(scene, t_end: float, watch: Watch | None = None) -> str:
-    """The integrator of the full-model reference: radau-jit when dop853-jit's first
-    :data:`~rod_sim.app.progress.STIFF_MIN_STEPS` steps on the full model at the check's
-    tolerance are stiff (a stiff reference would take dop853-jit minutes to hours), else
-    dop853-jit. ``watch`` is told of the probe (not counted as a run)."""
-    from ..api import IntegrationError, Simulator, make_integrator, make_model
-    from ..app.progress import STIFF_MIN_STEPS, stiffness_hint
+    """The integrator of the full-model reference (:mod:`rod_sim.app.stiff_probe` at the
+    check's tolerance); ``watch`` is told of the probe (not counted as a run)."""
+    from ..api import make_model
+    from ..app.stiff_probe import probe_label, reference_integrator as probe
 
-    probe = Simulator(make_model("full", scene), make_integrator(rtol=ADVISE_CHECK_RTOL))
-    probe.configure(max_steps=STIFF_MIN_STEPS)
-    if watch is not None:
-        watch.running("a probe of the full model's stiffness (dop853-jit, "
-                      f"{STIFF_MIN_STEPS} steps at most)", probe)
-    try:
-        probe.advance(t_end)
-    except IntegrationError:                          # the probe's step budget, or a failure
-        pass                                          # the reference itself will report
+    def running(sim):
+        if watch is not None:
+            watch.running(probe_label(), sim)
+
+    chosen = probe(make_model("full", scene), ADVISE_CHECK_RTOL, t_end, running=running)
     if watch is not None:
         watch.label, watch.sim = "setting up the next run", None
-    return "radau-jit" if stiffness_hint(probe.integrator, probe.stats) else "dop853-jit"
+    return chosen
 
 
 def advise(scene, tolerance: float, t_end: float = 1.0, repeats: int = 3,
