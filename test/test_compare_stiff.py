@@ -51,6 +51,7 @@ def test_a_stiff_log_is_compared_with_radau_and_its_error_is_the_oracles(tmp_pat
     ref = report["reference"]
     assert ref["integrator"] == "radau-jit rtol=1e-10 atol=1e-12"
     assert ref["check_integrator"] == "radau-jit rtol=1e-12 atol=1e-14"
+    assert ref["twin_integrator"] == "radau-jit rtol=1e-10 atol=1e-12"
     assert ref["converged"] and ref["phi_change"] < 1e-10
     t = np.arange(int(round(T_END * RATE)) + 1) / RATE
     fast = (-NU - math.sqrt(NU ** 2 - 4 * J * KAPPA)) / (2 * J)
@@ -73,6 +74,35 @@ def test_a_scene_that_is_not_stiff_keeps_dop853(tmp_path, capsys):
     ref = json.loads(capsys.readouterr().out)["reference"]
     assert ref["integrator"] == "dop853-jit rtol=1e-10 atol=1e-12"
     assert ref["check_integrator"] == "dop853-jit rtol=1e-12 atol=1e-14"
+
+
+def test_a_twin_that_is_not_stiff_keeps_dop853_and_the_numbers_stay(tmp_path, capsys):
+    """The spin-up beam's full model is stiff for dop853-jit from its initial state (42 % of the
+    probe's steps), its chaos twin (every other rod turned by 1e-7 rad) is not (14 %): the
+    reference and its check run radau-jit, the twin dop853-jit, and every number of the
+    report is the all-dop853-jit comparison's."""
+    from rod_sim.compare.comparison import compare_log
+    from rod_sim.io.log_source import read_log
+
+    scene = ROOT / "config" / "spin_up_beam.yaml"
+    log = tmp_path / "beam.mcap"
+    assert cli.main(["simulate", str(scene), "--t-end", "2", "--out", str(log)]) == 0
+    capsys.readouterr()
+    assert cli.main(["compare", str(log)]) in (0, 1)
+    text = " ".join(capsys.readouterr().out.split())
+    assert "reference: full model, radau-jit rtol=1e-10 atol=1e-12" in text
+    assert "the twin run with dop853-jit rtol=1e-10 atol=1e-12)" in text
+    reports = []
+    for integrator in (None, "dop853-jit"):
+        with read_log(log, None) as stream:
+            reports.append(compare_log(stream, load_scene(scene), integrator=integrator))
+    auto, explicit = reports
+    assert auto.reference["integrator"].startswith("radau-jit")
+    assert auto.reference["twin_integrator"].startswith("dop853-jit")
+    assert explicit.reference["integrator"].startswith("dop853-jit")
+    for name, q in explicit.quantities.items():
+        assert abs(auto.quantities[name].max - q.max) <= 1e-9 * max(1.0, q.max), name
+    assert abs(auto.chaos["gain"] - explicit.chaos["gain"]) <= 1e-6 * explicit.chaos["gain"]
 
 
 def test_the_probe_has_its_progress_line(tmp_path, capsys, monkeypatch):

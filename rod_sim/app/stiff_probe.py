@@ -12,6 +12,8 @@ from __future__ import annotations
 
 from typing import Callable
 
+import numpy as np
+
 PROBED = "dop853-jit"
 """The integrator the probe runs (and the reference's when the probe finds no stiffness)."""
 STIFF_REFERENCE = "radau-jit"
@@ -26,10 +28,12 @@ def probe_label() -> str:
 
 
 def reference_integrator(model, rtol: float, t_end: float, atol: float | None = None,
-                         running: Callable[[object], None] | None = None) -> str:
+                         running: Callable[[object], None] | None = None,
+                         y0=None) -> str:
     """``"radau-jit"`` when dop853-jit's first steps on ``model`` (the full model of the scene,
-    from its initial state, scripted loads only) at ``rtol`` and ``atol`` (None: the
-    integrator's default) over at most ``t_end`` [s] are stiff, else ``"dop853-jit"``. ``running`` is
+    from ``y0`` at t = 0 (None: its initial state), scripted loads only) at ``rtol`` and
+    ``atol`` (None: the integrator's default) over at most ``t_end`` [s] are stiff, else
+    ``"dop853-jit"``. ``running`` is
     handed the probe's :class:`~rod_sim.core.simulator.Simulator` before it runs (for
     progress lines). A failure of the probe (its step budget, a blow-up) is not reported
     here: the reference itself will report it."""
@@ -39,6 +43,9 @@ def reference_integrator(model, rtol: float, t_end: float, atol: float | None = 
 
     probe = Simulator(model, make_integrator(PROBED, rtol=rtol, atol=atol))
     probe.configure(max_steps=STIFF_MIN_STEPS)
+    if y0 is not None:
+        probe.y = np.array(y0, dtype=float)
+        probe.contact = model.contact_state(probe.y, 0.0)
     if running is not None:
         running(probe)
     try:

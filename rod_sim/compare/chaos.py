@@ -28,17 +28,23 @@ the tolerance (so it cannot move the verdict); beyond a separation of the two re
 this large the horizon is reached."""
 
 
+def twin_start(model: FullModel, y0: np.ndarray) -> np.ndarray:
+    """The twin run's initial state: ``y0`` with phi of rod k turned by +TWIN_DELTA (k odd)
+    or -TWIN_DELTA (k even) [rad]."""
+    n = model.n
+    twin0 = np.array(y0, dtype=float)
+    twin0[:n] += TWIN_DELTA * np.where(np.arange(n) % 2 == 0, 1.0, -1.0)
+    return twin0
+
+
 class ChaosTracker:
     """The twin run (``integrator`` at ``rtol``, from ``y0`` with phi perturbed by +-TWIN_DELTA
     alternately), the gain so far and the horizon search; see the module docstring."""
 
     def __init__(self, model: FullModel, rtol: float, y0: np.ndarray,
                  integrator: str = "dop853-jit"):
-        n = model.n
-        twin0 = y0.copy()
-        twin0[:n] += TWIN_DELTA * np.where(np.arange(n) % 2 == 0, 1.0, -1.0)
-        self.n = n
-        self.twin = Run(model, rtol, twin0, integrator)
+        self.n = model.n
+        self.twin = Run(model, rtol, twin_start(model, y0), integrator)
         self.log_gain = 0.0                 # ln of the twin's renormalisations so far
         self.gain = 1.0                     # running max of the amplification
         self.onset: float | None = None     # [s] time the gain reached ONSET_GAIN

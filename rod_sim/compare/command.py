@@ -113,10 +113,14 @@ def chaos_lines(report) -> list[str]:
     """The predictability summary: gain, Lyapunov exponent, horizon and beyond-horizon checks."""
     c = report.chaos
     lam = c["lyapunov_exponent"]
+    twin = report.reference.get("twin_integrator")
+    ref = report.reference["integrator"]
     lines = [f"chaos: a {c['twin_perturbation']:g} rad perturbation of the full model is "
              f"amplified at most {c['gain']:.3g}x over t = {report.t_start:g}..{report.t_end:g} s"
              f" (largest finite-time Lyapunov exponent {lam:.3g} 1/s"
-             + (f", Lyapunov time {1 / lam:.3g} s" if lam and lam > 0 else "") + ")"]
+             + (f", Lyapunov time {1 / lam:.3g} s" if lam and lam > 0 else "")
+             + (f"; the twin run with {twin}" if twin and twin.split()[0] != ref.split()[0]
+                else "") + ")"]
     if report.horizon is None:
         lines.append("predictability horizon: none within the log (judged sample by sample "
                      "to the end)" if c["onset"] is None else
@@ -324,13 +328,15 @@ def _progress(runs, end_s: float | None):
 
     def line(elapsed: float) -> str:
         nonlocal pace
-        t, sim, integrator, since = runs()
+        t, sim, integrator, since, twin = runs()
         _, steps, h = run_state(sim) if sim is not None else (t, 0, 0.0)
         if integrator is None:
             return (f"rod-sim compare: {probe_label()} at t = {t:.6g} s {of} after "
                     f"{elapsed:.0f} s ({steps_text(steps, h)})")
+        twin_text = "chaos twin" if twin == integrator else f"chaos twin {twin}"
         which = (f"{integrator}: reference rtol {COMPARE_REFERENCE_RTOL:g}, check "
-                 f"{COMPARE_CHECK_RTOL:g}, chaos twin; the reference at {steps_text(steps, h)}")
+                 f"{COMPARE_CHECK_RTOL:g}, {twin_text}; the reference at "
+                 f"{steps_text(steps, h)}")
         if end_s is None:
             return (f"rod-sim compare: full-model re-runs at t = {t:.6g} s {of} after "
                     f"{elapsed:.0f} s ({which})")

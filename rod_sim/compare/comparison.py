@@ -55,7 +55,7 @@ from rod_sim.core.kinematics import node_positions
 from rod_sim.core.scene import Scene
 from rod_sim.core.units import NS_PER_S
 
-from .chaos import CONVERGED_FRACTION, ChaosTracker
+from .chaos import CONVERGED_FRACTION, ChaosTracker, twin_start
 from .chaos import ONSET_GAIN, TWIN_DELTA  # noqa: F401  (documented constants)
 from .inputs import CompareInputError, HeldInputs, SampleTimeline
 from .spacecraft import SpacecraftCheck
@@ -206,12 +206,14 @@ class Reached(NamedTuple):
     have reached, ``sim`` the reference's :class:`~rod_sim.core.simulator.Simulator`,
     ``integrator`` its integrator's name (None while the stiffness probe runs: ``t`` and
     ``sim`` are then the probe's, or 0 and None before it), ``since`` the
-    ``time.perf_counter()`` reading at which the re-runs started."""
+    ``time.perf_counter()`` reading at which the re-runs started, ``twin`` the chaos twin's
+    integrator's name."""
 
     t: float
     sim: Any
     integrator: str | None
     since: float
+    twin: str | None = None
 
 
 class _Comparison:
@@ -254,17 +256,27 @@ class _Comparison:
     def start(self, integrator: str | None = None) -> None:
         """Make the full-model re-runs with ``integrator``; None: the stiffness probe's choice
         (:func:`rod_sim.app.stiff_probe.reference_integrator` at the reference's tolerance,
-        over the log's span when known), dop853-jit unless the scene is stiff for it."""
+        over the log's span when known), dop853-jit unless the scene is stiff for it. The
+        reference and its check take the probe's choice from the scene's initial state; when
+        that is radau-jit, the chaos twin is probed from its own start (its perturbation
+        excites the fastest modes, which then limit an implicit method's steps as much)."""
+        y0 = self.model.initial_state()
+        twin_integrator = integrator
         if integrator is None:
-            from rod_sim.app.stiff_probe import reference_integrator
+            from rod_sim.app.stiff_probe import PROBED, reference_integrator
 
             end = self.log.end_ns / NS_PER_S if self.log.end_ns else PROBE_SPAN_S
-            integrator = reference_integrator(self.model, self.rtol, end, self.rtol * 1e-2,
-                                              running=self._probing)
+
+            def probe(start):
+                return reference_integrator(self.model, self.rtol, end, self.rtol * 1e-2,
+                                            running=self._probing, y0=start)
+
+            integrator = probe(y0)
+            twin_integrator = PROBED if integrator == PROBED else probe(twin_start(self.model,
+                                                                                   y0))
             self.probe = None
-        y0 = self.model.initial_state()
         self.refs = References(self.model, self.rtol, self.check_rtol, y0, integrator)
-        self.chaos = ChaosTracker(self.model, self.rtol, y0, integrator)
+        self.chaos = ChaosTracker(self.model, self.rtol, y0, twin_integrator)
         self.started = time.perf_counter()
 
     def _probing(self, sim) -> None:
@@ -279,7 +291,7 @@ class _Comparison:
             return Reached(0.0 if probe is None else probe.t, probe, None, 0.0)
         runs = [refs.ref, refs.check, self.chaos.twin]
         return Reached(min(r.sim.t for r in runs if r is not None), refs.ref.sim,
-                       refs.ref.integ.name, self.started)
+                       refs.ref.integ.name, self.started, self.chaos.twin.integ.name)
 
     # ----- input -----
 
@@ -403,7 +415,8 @@ class _Comparison:
         reference: dict[str, Any] = {"model": self.model.name,
                                      "integrator": refs.ref.integ.describe(),
                                      "segments": self.inputs.segments,
-                                     "rhs_evaluations": refs.ref.sim.stats.nfev}
+                                     "rhs_evaluations": refs.ref.sim.stats.nfev,
+                                     "twin_integrator": chaos.twin.integ.describe()}
         converged = False
         if refs.check is not None:
             converged = bool(self.within.ref_separation <= CONVERGED_FRACTION * tol)
