@@ -33,9 +33,8 @@ def reference_integrator(model, rtol: float, t_end: float, atol: float | None = 
     """``"radau-jit"`` when dop853-jit's first steps on ``model`` (the full model of the scene,
     from ``y0`` at t = 0 (None: its initial state), scripted loads only) at ``rtol`` and
     ``atol`` (None: the integrator's default) over at most ``t_end`` [s] are stiff, else
-    ``"dop853-jit"``. ``running`` is
-    handed the probe's :class:`~rod_sim.core.simulator.Simulator` before it runs (for
-    progress lines). A failure of the probe (its step budget, a blow-up) is not reported
+    ``"dop853-jit"``. ``running`` is handed the probe's
+    :class:`~rod_sim.core.simulator.Simulator` before it runs (for progress lines). A failure of the probe (its step budget, a blow-up) is not reported
     here: the reference itself will report it."""
     from ..core.integrators import IntegrationError, make_integrator
     from ..core.simulator import Simulator

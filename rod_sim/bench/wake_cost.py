@@ -114,7 +114,7 @@ def measure(rods: int, wait_ms: float, blocks: int, calls: int, work: str = "rhs
             kib: float = 8.0) -> dict[str, list[float]]:
     """Wall time [us] of each call of ``work`` (:func:`work_call`), per way of waiting before
     it (:data:`WAYS`)."""
-    rhs = work_call(work, rods, kib)
+    call = work_call(work, rods, kib)
     wait_s = wait_ms / 1e3
     out: dict[str, list[float]] = {way: [] for way in WAYS}
     for block in range(blocks):
@@ -127,7 +127,7 @@ def measure(rods: int, wait_ms: float, blocks: int, calls: int, work: str = "rhs
             elif way == "after sleeping":
                 time.sleep(wait_s)
             start = time.perf_counter_ns()
-            rhs()
+            call()
             out[way].append((time.perf_counter_ns() - start) / 1e3)
     return out
 
