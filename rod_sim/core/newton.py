@@ -4,24 +4,28 @@ Radau IIA needs (g I - J) z = r for the Jacobian J = [[0, I], [K, D]] of y = [q,
 g and a complex g (:mod:`rod_sim.core.radau`). Here K = da/dq and D = da/dv are replaced by
 their elastic parts, K ~ -M^{-1} K_el and D ~ -M^{-1} C_el, with M the model's inertia at the
 angles of the last "Jacobian" update, K_el the hinge springs (plus, for the rigid and reduced
-models, the stop contacts in contact) and the bending stiffness, C_el the hinge dampers (plus
-the contacts' damping). Then
+models, the stop contacts in contact), the bending stiffness and the tension stiffness K_T
+(diagonal: l_k times rod k's mean axial tension on its angle, at the Jacobian update; the
+stiffness of a limp line under load, which the velocity terms and dM/dq a carry), C_el the
+hinge dampers (plus the contacts' damping). Then
 
     (g^2 M + g C_el + K_el) x = M (r_v + g r_q) + C_el r_q,   z = [x, g x - r_q],
 
 and (M + (C_el / g + K_el / g^2)) is the structure the kernels' chain solve takes: every
 sprung hinge a compliant constraint with compliance -1 / (nu_h / g + kappa_h / g^2) (its
 multiplier acts on the phi rows and, in the reduced model, on the hinge's slope rows), the
-full model's bending stiffness folded into each rod's 2 x 2 bending block. One solve costs
-about one right-hand side. What is left out (the velocity terms, dM/dq times the
-accelerations, the load's dependence on phi, and in the full model the stop contacts) only
+full model's bending stiffness folded into each rod's 2 x 2 bending block, K_T / g^2 added
+to each rod's angle diagonal A_kk. One solve costs about one right-hand side. What is left
+out (the rest of the velocity terms and of dM/dq times the accelerations, the load's
+dependence on phi, and in the full model the stop contacts) only
 slows the simplified Newton iteration down: docs/bench.md ("radau-jit") gives the measured
 effect. What is kept exact is every lock's constraint (:func:`chain_solve`): an increment
 that broke a lock and was solved as if it could not would never be corrected, and neither
 the Newton test nor the error estimate would see it.
 
-The Newton part of the Radau workspace (:class:`rod_sim.core.radau.RadauWork`): ``jac`` phi_J
-(n + 1,) [rad], ``real``, ``real_aux`` the real Newton Extra and Chain, ``cplx``,
+The Newton part of the Radau workspace (:class:`rod_sim.core.radau.RadauWork`): ``jac``
+(2 n + 1,) = phi_J (n,) [rad], the base angle psi_J [rad] and K_T (n,) [N m/rad], ``real``,
+``real_aux`` the real Newton Extra and Chain, ``cplx``,
 ``cplx_aux`` the complex Newton Extra and Chain (:func:`chain_workspace`).
 """
 from __future__ import annotations
@@ -39,37 +43,107 @@ def chain_workspace(chain, extra, size):
     cplx_aux) of :class:`rod_sim.core.radau.RadauWork`."""
     n = chain.l.shape[0]
     zeros3, zeros4 = np.zeros((3, n)), np.zeros((4, n))
-    parts = [np.zeros(n + 1)]                   # phi_J and the base angle psi_J
+    parts = [np.zeros(2 * n + 1)]         # phi_J, the base angle psi_J, the tension stiffness
     for dtype in (float, complex):
         ex = _k.make_extra(zeros3, zeros4, np.zeros(n), np.zeros(n, bool), np.zeros(n, bool),
                            kind=extra.kind, dtype=dtype, nchains=chain.seg.shape[0] - 1)
         ch = chain._replace(c105=np.array(chain.c105, dtype=dtype),
-                            c140=np.array(chain.c140, dtype=dtype))
+                            c140=np.array(chain.c140, dtype=dtype),
+                            Akk=np.array(chain.Akk, dtype=dtype))
         parts += [ex, ch]
     return tuple(parts)
 
 
 @njit
+def tension_stiffness(rhs, problem, t_side, t, y, out):
+    """out (n,) [N m/rad]: l_k times the mean axial tension of rod k at (t, y) (0 where the
+    rod is compressed), the diagonal that tension adds to the stiffness of the rods' angles
+    (for a chain hanging under gravity, d^2V/dphi_k^2 = l_k T_k exactly). The tension comes from
+    the chords' accelerations (one right-hand side for phi'' and the base's), the node and rod
+    masses, the applied nodal loads and gravity, summed from each chain's tip; the slopes'
+    motion is left out (it is a Newton matrix, not the dynamics)."""
+    chain, extra, loads, held = problem
+    n = chain.l.shape[0]
+    size = y.shape[0]
+    m = size // 2
+    full = extra.kind == _k.KIND_FULL
+    i0 = 3 * n if full else n
+    nb = m - i0
+    f = np.empty(size)
+    rhs(t, y, chain, extra, loads, held, t_side, f)        # also the loads and the base pose
+    forces = extra.forces
+    bk = extra.bk
+    gx = chain.base[_k.B_GX]
+    gy = chain.base[_k.B_GY]
+    if nb > 0:
+        abx, aby, apsi = f[m + i0], f[m + i0 + 1], f[m + i0 + 2]
+    else:
+        abx, aby, apsi = bk[_k.BK_AX], bk[_k.BK_AY], bk[_k.BK_APSI]
+    w2 = bk[_k.BK_W] * bk[_k.BK_W]
+    cps = bk[_k.BK_COS]
+    sps = bk[_k.BK_SIN]
+    l = chain.l
+    seg = chain.seg
+    acc = np.empty((n, 4))            # rod k: its centre's and its tip node's accelerations
+    for ci in range(seg.shape[0] - 1):
+        k0, k1 = seg[ci], seg[ci + 1]
+        rx = cps * chain.attach[ci, 0] - sps * chain.attach[ci, 1]
+        ry = sps * chain.attach[ci, 0] + cps * chain.attach[ci, 1]
+        px = abx - apsi * ry - w2 * rx                     # the chain's hinge-0 point
+        py = aby + apsi * rx - w2 * ry
+        for k in range(k0, k1):
+            c, s = math.cos(y[k]), math.sin(y[k])
+            tx = l[k] * (-s * f[m + k] - c * y[m + k] * y[m + k])
+            ty = l[k] * (c * f[m + k] - s * y[m + k] * y[m + k])
+            acc[k, 0] = px + 0.5 * tx
+            acc[k, 1] = py + 0.5 * ty
+            px += tx
+            py += ty
+            acc[k, 2] = px
+            acc[k, 3] = py
+        # the force the part beyond rod k's near end takes from the rod before it (or the
+        # base), summed from the chain's tip: mass times (acceleration - gravity) less loads
+        sx = sy = 0.0
+        for k in range(k1 - 1, k0 - 1, -1):
+            mu = chain.mu[k]
+            far_x = sx + mu * (acc[k, 2] - gx) - forces[k, 0]
+            far_y = sy + mu * (acc[k, 3] - gy) - forces[k, 1]
+            mr = chain.m[k] * l[k]
+            near_x = far_x + mr * (acc[k, 0] - gx)
+            near_y = far_y + mr * (acc[k, 1] - gy)
+            tension = -0.5 * (math.cos(y[k]) * (near_x + far_x)
+                              + math.sin(y[k]) * (near_y + far_y))
+            out[k] = l[k] * max(0.0, tension)
+            sx, sy = near_x, near_y
+
+
+@njit
 def chain_jac(rhs, problem, t_side, t, y, f, work, stats):
-    """The "Jacobian" update: the inertia is taken at the current angles."""
+    """The "Jacobian" update: the inertia is taken at the current angles, and the tension
+    stiffness (:func:`tension_stiffness`) there."""
     chain = problem.chain
     phi_j = work.jac
-    n = phi_j.shape[0] - 1
+    n = chain.l.shape[0]
     for k in range(n):
         phi_j[k] = y[k]
     nb = int(chain.base[_k.B_NB])
     phi_j[n] = y[y.shape[0] // 2 - nb + 2] if nb > 0 else 0.0
+    tension_stiffness(rhs, problem, t_side, t, y, phi_j[n + 1:])
+    stats[0] += 1
     if stats.shape[0] > 3:
         stats[3] += 1
 
 
 @njit(inline="always")
-def _setup(chain, extra, g, nex, nch):
-    """Compliances and weights of the Newton Extra ``nex`` and the bending block of ``nch``
-    for the shift g (real or complex) in the mode of ``extra``."""
+def _setup(chain, extra, phi_j, g, nex, nch):
+    """Compliances and weights of the Newton Extra ``nex``, the bending block of ``nch`` and
+    its rods' angle diagonal (the tension stiffness of the Jacobian update, in ``phi_j``) for
+    the shift g (real or complex) in the mode of ``extra``."""
     n = chain.l.shape[0]
     full = extra.kind == _k.KIND_FULL
     g2 = g * g
+    for k in range(n):
+        nch.Akk[k] = chain.Akk[k] + phi_j[n + 1 + k] / g2
     for h in range(n):
         nex.pinned[h] = extra.pinned[h]
         if extra.locked[h] != 0:
@@ -98,8 +172,8 @@ def _setup(chain, extra, g, nex, nch):
 @njit
 def chain_factor(chain, extra, work, g_real, g_cplx, stats):
     """Set up the real and complex Newton systems (O(n)); always succeeds."""
-    _setup(chain, extra, g_real, work.real, work.real_aux)
-    _setup(chain, extra, g_cplx, work.cplx, work.cplx_aux)
+    _setup(chain, extra, work.jac, g_real, work.real, work.real_aux)
+    _setup(chain, extra, work.jac, g_cplx, work.cplx, work.cplx_aux)
     return True
 
 
@@ -189,6 +263,10 @@ def chain_solve(chain, extra, phi_j, nex, nch, g, r, out):
             W[p, _k.W_FB] -= nu * sig
         else:
             bk[_k.BK_M + 2] -= cphi * sig
+    if any_lock:
+        # the rigid turns split off see the tension stiffness too: A r_h = (g^2 M + K_T) r_h
+        for k in range(n):
+            W[k, _k.W_FP] -= phi_j[n + 1 + k] * W[k, _k.W_TN] / g2
     for k in range(n):
         W[k, _k.W_FP] /= g2
         W[k, _k.W_FA] /= g2

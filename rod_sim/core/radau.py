@@ -89,7 +89,8 @@ class RadauWork(NamedTuple):
     own ``jac``, ``factor`` and ``solve`` functions (:class:`RadauFns`):
 
     - ``jac``: what the Jacobian update keeps (dense: J = [da/dq, da/dv] (m, 2m); chain: the
-      angles phi_J (n + 1,) [rad] the inertia is taken at);
+      angles phi_J and psi_J (n + 1,) [rad] the inertia is taken at and the tension
+      stiffness K_T (n,) [N m/rad] there);
     - ``real``, ``real_aux``: the system at the real shift (dense: LU (m, m) and pivots
       (m,); chain: the Newton Extra and Chain), ``cplx``, ``cplx_aux`` the same at the
       complex shift;
