@@ -5,8 +5,9 @@ g and a complex g (:mod:`rod_sim.core.radau`). Here K = da/dq and D = da/dv are 
 their elastic parts, K ~ -M^{-1} K_el and D ~ -M^{-1} C_el, with M the model's inertia at the
 angles of the last "Jacobian" update, K_el the hinge springs (plus, for the rigid and reduced
 models, the stop contacts in contact), the bending stiffness and the tension stiffness K_T
-(diagonal: l_k times rod k's mean axial tension on its angle, at the Jacobian update; the
-stiffness of a limp line under load, which the velocity terms and dM/dq a carry), C_el the
+(diagonal: l_k times the average of rod k's end tensions, on its angle, at the Jacobian
+update; the stiffness of a limp line under load, which the velocity terms and dM/dq a carry),
+C_el the
 hinge dampers (plus the contacts' damping). Then
 
     (g^2 M + g C_el + K_el) x = M (r_v + g r_q) + C_el r_q,   z = [x, g x - r_q],
@@ -56,9 +57,9 @@ def chain_workspace(chain, extra, size):
 
 @njit
 def tension_stiffness(rhs, problem, t_side, t, y, out):
-    """out (n,) [N m/rad]: l_k times the mean axial tension of rod k at (t, y) (0 where the
-    rod is compressed), the diagonal that tension adds to the stiffness of the rods' angles
-    (for a chain hanging under gravity, d^2V/dphi_k^2 = l_k T_k exactly). The tension comes from
+    """out (n,) [N m/rad]: l_k times the average T_k of rod k's axial tensions at its two ends
+    at (t, y) (0 where that is a compression), the diagonal that tension adds to the stiffness
+    of the rods' angles (for a chain hanging under gravity, d^2V/dphi_k^2 = l_k T_k exactly). The tension comes from
     the chords' accelerations (one right-hand side for phi'' and the base's), the node and rod
     masses, the applied nodal loads and gravity, summed from each chain's tip; the slopes'
     motion is left out (it is a Newton matrix, not the dynamics)."""
