@@ -36,9 +36,10 @@ def stiffness_of(model, t, y):
     plan = data.plan()
     held = np.zeros((model.n + 2, 3))
     out = np.zeros(model.n)
-    newton.tension_stiffness(model.kernel, kernels.Problem(model.chain, plan.extra,
-                                                           model.loads, held),
-                             t, t, y, out)
+    f = np.empty(y.size)
+    problem = kernels.Problem(model.chain, plan.extra, model.loads, held)
+    model.kernel(t, y, *problem, t, f)
+    newton.tension_stiffness(problem, t, t, y, f, out)
     return out
 
 

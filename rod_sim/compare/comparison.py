@@ -230,6 +230,7 @@ class _Comparison:
         self.probe = None           # the stiffness probe's Simulator while it runs
         self.refs: References | None = None      # the re-runs, from start()
         self.chaos: ChaosTracker | None = None
+        self.started = 0.0          # time.perf_counter() when the re-runs started
         self.inputs = HeldInputs(
             log, n, self.model.forces,
             (lambda t: scene.scripted_load_table(t)[n:n + 2])
@@ -267,13 +268,13 @@ class _Comparison:
 
             end = self.log.end_ns / NS_PER_S if self.log.end_ns else PROBE_SPAN_S
 
-            def probe(start):
+            def chosen_from(start):
                 return reference_integrator(self.model, self.rtol, end, self.rtol * 1e-2,
                                             running=self._probing, y0=start)
 
-            integrator = probe(y0)
-            twin_integrator = PROBED if integrator == PROBED else probe(twin_start(self.model,
-                                                                                   y0))
+            integrator = chosen_from(y0)
+            twin_integrator = (PROBED if integrator == PROBED
+                               else chosen_from(twin_start(self.model, y0)))
             self.probe = None
         self.refs = References(self.model, self.rtol, self.check_rtol, y0, integrator)
         self.chaos = ChaosTracker(self.model, self.rtol, y0, twin_integrator)

@@ -7,8 +7,7 @@ angles of the last "Jacobian" update, K_el the hinge springs (plus, for the rigi
 models, the stop contacts in contact), the bending stiffness and the tension stiffness K_T
 (diagonal: l_k times the average of rod k's end tensions, on its angle, at the Jacobian
 update; the stiffness of a limp line under load, which the velocity terms and dM/dq a carry),
-C_el the
-hinge dampers (plus the contacts' damping). Then
+C_el the hinge dampers (plus the contacts' damping). Then
 
     (g^2 M + g C_el + K_el) x = M (r_v + g r_q) + C_el r_q,   z = [x, g x - r_q],
 
@@ -18,8 +17,8 @@ multiplier acts on the phi rows and, in the reduced model, on the hinge's slope 
 full model's bending stiffness folded into each rod's 2 x 2 bending block, K_T / g^2 added
 to each rod's angle diagonal A_kk. One solve costs about one right-hand side. What is left
 out (the rest of the velocity terms and of dM/dq times the accelerations, the load's
-dependence on phi, and in the full model the stop contacts) only
-slows the simplified Newton iteration down: docs/bench.md ("radau-jit") gives the measured
+dependence on phi, and in the full model the stop contacts) only slows the simplified Newton
+iteration down: docs/bench.md ("radau-jit") gives the measured
 effect. What is kept exact is every lock's constraint (:func:`chain_solve`): an increment
 that broke a lock and was solved as if it could not would never be corrected, and neither
 the Newton test nor the error estimate would see it.
@@ -56,23 +55,23 @@ def chain_workspace(chain, extra, size):
 
 
 @njit
-def tension_stiffness(rhs, problem, t_side, t, y, out):
+def tension_stiffness(problem, t_side, t, y, f, out):
     """out (n,) [N m/rad]: l_k times the average T_k of rod k's axial tensions at its two ends
-    at (t, y) (0 where that is a compression), the diagonal that tension adds to the stiffness
-    of the rods' angles (for a chain hanging under gravity, d^2V/dphi_k^2 = l_k T_k exactly). The tension comes from
-    the chords' accelerations (one right-hand side for phi'' and the base's), the node and rod
-    masses, the applied nodal loads and gravity, summed from each chain's tip; the slopes'
-    motion is left out (it is a Newton matrix, not the dynamics)."""
+    at (t, y) (0 where that is a compression), the diagonal that tension adds to the
+    stiffness of the rods' angles (for a chain hanging under gravity, d^2V/dphi_k^2 = l_k T_k
+    exactly). The tension comes from the chords' accelerations (phi'' and a free base's from
+    f = rhs(t, y) (N,), a prescribed base's from its profiles), the node and rod masses, the
+    applied nodal loads and gravity, summed from each chain's tip; the slopes' motion is left
+    out (it is a Newton matrix, not the dynamics). Writes the loads and the base's state into
+    the scratch of ``problem.extra``, as a right-hand side does."""
     chain, extra, loads, held = problem
     n = chain.l.shape[0]
-    size = y.shape[0]
-    m = size // 2
-    full = extra.kind == _k.KIND_FULL
-    i0 = 3 * n if full else n
+    m = y.shape[0] // 2
+    i0 = 3 * n if extra.kind == _k.KIND_FULL else n
     nb = m - i0
-    f = np.empty(size)
-    rhs(t, y, chain, extra, loads, held, t_side, f)        # also the loads and the base pose
     forces = extra.forces
+    _k.load_forces(t, loads, held, t_side, forces)
+    _k._base_state(t, y, chain, extra, i0, m)
     bk = extra.bk
     gx = chain.base[_k.B_GX]
     gy = chain.base[_k.B_GY]
@@ -129,8 +128,7 @@ def chain_jac(rhs, problem, t_side, t, y, f, work, stats):
         phi_j[k] = y[k]
     nb = int(chain.base[_k.B_NB])
     phi_j[n] = y[y.shape[0] // 2 - nb + 2] if nb > 0 else 0.0
-    tension_stiffness(rhs, problem, t_side, t, y, phi_j[n + 1:])
-    stats[0] += 1
+    tension_stiffness(problem, t_side, t, y, f, phi_j[n + 1:])
     if stats.shape[0] > 3:
         stats[3] += 1
 
@@ -214,27 +212,24 @@ def chain_solve(chain, extra, phi_j, nex, nch, g, r, out):
     # the stages keep the lock exactly; a predictor that does not would never be corrected,
     # nor would the Newton test or the error estimate see it). For each: d_h = C_h c', split off
     # d_h r_h (r_h: the rigid turn of rods h.. of its chain, C_h r_h = 1 and C_j r_h = 0 for
-    # every other hinge; no spring, damper or bending acts on it, so A r_h = g^2 M r_h), solve
-    # the rest with C x = 0, add d_h r_h / g^2 back (W_TN holds the sums of d over rods)
+    # every other hinge; no spring, damper or bending acts on it, so A r_h = g^2 M r_h + K_T
+    # r_h, the tension stiffness's part moved to the right-hand side below), solve the rest
+    # with C x = 0, add d_h r_h / g^2 back (W_TN holds the sums of d over rods)
     any_lock = False
     seg = chain.seg
     for ci in range(seg.shape[0] - 1):
         k0 = seg[ci]
-        for k in range(k0, seg[ci + 1]):
-            W[k, _k.W_TN] = 0.0 * g
-            if extra.locked[k] == 0:
-                continue
-            any_lock = True
-            d = W[k, _k.W_GP] + W[k, _k.W_GA]
-            if k > k0:
-                p = chain.prev[k]
-                d -= W[p, _k.W_GP] + W[p, _k.W_COR]
-            elif nb > 0:
-                d -= bk[_k.BK_V + 2]                  # a free base's psi
-            W[k, _k.W_TN] = d
         acc = 0.0 * g
         for k in range(k0, seg[ci + 1]):
-            acc += W[k, _k.W_TN]
+            if extra.locked[k] != 0:
+                any_lock = True
+                d = W[k, _k.W_GP] + W[k, _k.W_GA]
+                if k > k0:
+                    p = chain.prev[k]
+                    d -= W[p, _k.W_GP] + W[p, _k.W_COR]
+                elif nb > 0:
+                    d -= bk[_k.BK_V + 2]              # a free base's psi
+                acc += d
             W[k, _k.W_TN] = acc
     if any_lock:
         for k in range(n):
@@ -264,11 +259,9 @@ def chain_solve(chain, extra, phi_j, nex, nch, g, r, out):
             W[p, _k.W_FB] -= nu * sig
         else:
             bk[_k.BK_M + 2] -= cphi * sig
-    if any_lock:
-        # the rigid turns split off see the tension stiffness too: A r_h = (g^2 M + K_T) r_h
-        for k in range(n):
-            W[k, _k.W_FP] -= phi_j[n + 1 + k] * W[k, _k.W_TN] / g2
     for k in range(n):
+        if any_lock:                            # the split-off rigid turns' K_T r_h d_h / g^2
+            W[k, _k.W_FP] -= phi_j[n + 1 + k] * W[k, _k.W_TN] / g2
         W[k, _k.W_FP] /= g2
         W[k, _k.W_FA] /= g2
         W[k, _k.W_FB] /= g2
