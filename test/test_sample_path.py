@@ -283,12 +283,40 @@ def test_the_balance_rate_pair_on_chains_of_a_base(base, model_name):
             assert got == pytest.approx(want, rel=1e-11, abs=1e-11)
 
 
+@pytest.mark.parametrize("model_name", ("reduced", "rigid"))
+def test_the_balance_rate_pair_on_a_prescribed_base(model_name):
+    """Two chains on a base prescribed in x, y and psi, gravity on the bent rods, a scripted
+    load and held inputs: the one-call pair (two right-hand sides, then one compiled call) is
+    the moved States' net powers to rounding, and the spin-up beam's too."""
+    from sc_common import chain_dict, scene_dict
+
+    from rod_sim.core.scene import Scene
+
+    rng = np.random.default_rng(31)
+    base = {"mode": "prescribed", "initial": {"x": 0.3, "y": -0.2, "psi": 0.4},
+            "motion": {"psi": {"shape": "spin_up", "rate": 2.0, "duration": 1.5},
+                       "x": {"shape": "harmonic", "amplitude": 0.2, "frequency": 1.3},
+                       "y": {"shape": "cycloidal", "amplitude": 0.5, "duration": 2.0}}}
+    load = {"chain": "a", "node": 2, "axis": "y", "shape": "raised_cosine_pulse",
+            "amplitude": 5.0, "start": 0.0, "duration": 1.0}
+    d = scene_dict([chain_dict("a", 3, rng), chain_dict("b", 2, rng)], base, (0.3, -9.81),
+                   loads=[load])
+    for scene in (Scene.from_dict(d), load_scene(REPO / "config" / "spin_up_beam.yaml")):
+        model = make_model(model_name, scene)
+        assert model.paired_balance and model.prescribed_base
+        for k in range(4):
+            y = model.initial_state() + rng.normal(scale=0.3, size=model.state_size)
+            held = rng.normal(scale=3.0, size=(scene.n + 2, 3))
+            _pair_matches_the_moved_states(model, 0.37 * k, y, held)
+
+
 @pytest.mark.parametrize("scene_name, model_name", [("deployment.yaml", "reduced"),
                                                     ("two_wing_deployment.yaml", "reduced"),
-                                                    ("spin_up_beam.yaml", "rigid"),
+                                                    ("hub_arm_latch.yaml", "rigid"),
+                                                    ("spin_up_beam.yaml", "full"),
                                                     ("paper_example.yaml", "full")])
 def test_other_layouts_move_their_states_one_by_one(scene_name, model_name):
-    """Stops, a prescribed base or slope rates in the state: no one-call pair (None)."""
+    """Stops or slope rates in the state: no one-call pair (None)."""
     model = make_model(model_name, load_scene(REPO / "config" / scene_name))
     assert not model.paired_balance
     y = model.initial_state()

@@ -448,6 +448,50 @@ def test_base_reaction_is_the_support_force_of_the_oracle(name, ns, seed, transl
         assert np.max(np.abs(want)) > 1e-3 * scale      # the support carries something
 
 
+@needs_spacecraft()
+@pytest.mark.parametrize("name", ["rigid", "reduced"])
+@pytest.mark.parametrize("ns,seed,translate", [((2,), 321, False), ((1, 3), 322, True)])
+def test_balance_pair_on_a_prescribed_base_is_the_oracles_energy_rate(name, ns, seed,
+                                                                      translate):
+    """A balance sample's two moved states y +- h f on a prescribed base, in one compiled call
+    (State.moved_net_powers): each is the rate of the oracle's mechanical energy there, the
+    power of the loads, motors and dampers on every coordinate's rate plus the support's
+    generalized force (the residual's base rows, with the model's accelerations and the
+    motion's) on the base's rates (gravity, nodal loads and hinge motors on)."""
+    from rod_sim.core.validity import RATE_STEP as h
+
+    d, rng, scripted = prescribed_scene(ns, seed, translate)
+    model = make(name, d)
+    assert model.paired_balance
+    lag = oracle_from_dict(d)
+    lay = Layout(name, lag.N, False, False)
+    N = lag.N
+    zbi = name != "rigid"
+    for t in (0.7, 1.9):
+        bq, bqd, _ = prescribed_base(t, translate)
+        q, qd = random_state(lay, rng)
+        q, qd = lay.to_oracle(lay.from_oracle(q, qd), bq, bqd)
+        held = random_held(N, rng, free=False)
+        y = lay.from_oracle(q, qd)
+        s = model.state(t, y, held)
+        hf = h * s.f
+        pair = s.moved_net_powers(t + h, t - h, hf)
+        assert pair is not None
+        for got, tm, ym in zip(pair, (t + h, t - h), (y + hf, y - hf)):
+            bq, bqd, bqdd = prescribed_base(tm, translate)
+            qm, qdm = lay.to_oracle(ym, bq, bqd)
+            qdd = lay.qdd_to_oracle(model.rhs(tm, ym, held), bqdd)
+            if name == "reduced":
+                qm[N:2 * N], qm[2 * N:3 * N] = model.bending(tm, ym, held)
+            loads = held + scripted
+            support = lag.residual(qm, qdm, qdd, loads, zero_bending_inertia=zbi)[lag.i_base]
+            want = float((lag.load_force(qm, loads) - lag.dissipation_force(qm, qdm)) @ qdm
+                         + support @ qdm[lag.i_base])
+            scale = residual_scale(lag, qm, qdm, qdd, loads, zbi) * np.max(np.abs(qdm))
+            assert abs(got - want) < 1e-9 * scale, (got, want, scale)
+            assert abs(support @ qdm[lag.i_base]) > 1e-3 * scale   # the base delivers power
+
+
 # ----------------------------------------------------------------------------- the check can fail
 
 @needs_spacecraft()

@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from .chain_momentum import chain_base_reaction
 from .jit import njit
-from .kernels import load_forces
+from .kernels import load_forces, motion_eval
 
 
 @njit(inline="always")
@@ -169,3 +170,111 @@ def net_power_pair(y, hf, n, dof, seg, neg_l, l, nu, table, rows, t_up, t_down, 
         if free:
             load += _base_load_power(f, n, cb, sb, cx, cy, vx, vy, wz, w)
         out[r] = load - damper
+
+
+@njit
+def prescribed_net_power_pair(y, hf, f_up, f_down, alpha_up, beta_up, alpha_down, beta_down, n,
+                              dof, seg, first, starts, roots, chain_of_rod, neg_l, l, nu, table,
+                              rows, t_up, t_down, base, motion, attach_x, attach_y, half_l, ml,
+                              C, l3_3, l3_20, l3_30, half_ml_l, mu, gx, gy, bent, out):
+    """:func:`net_power_pair` on a prescribed base: the net power [W] at (t_up, y + hf) and
+    (t_down, y - hf), into ``out`` (2,), for a model without slope rates (reduced, rigid) and
+    without stops, any number of chains: the load power minus the damper power plus the power
+    the base delivers to the chains (:func:`~rod_sim.core.momentum.injected_power`: sum over
+    chains of F_c . v_0c - psi' M_c, the base's reaction
+    :func:`~rod_sim.core.chain_momentum.chain_base_reaction`).
+
+    The reaction needs each moved state's accelerations: ``f_up``, ``f_down``
+    (state_size,) are the right-hand sides at the two moved states and ``alpha_*``,
+    ``beta_*`` (n,) [rad] their slopes (used when ``bent``: gravity on the reduced model's
+    bent rods; zeros otherwise). The base's pose, twist and acceleration at each time are
+    ``base`` (3,) (x, y [m], psi [rad] at rest) plus the profiles ``motion`` (rows x, y, psi:
+    :func:`~rod_sim.core.kernels.motion_eval`). ``first`` (each chain's first rod), ``starts``
+    (n,) (each rod's start node row), ``roots`` (nc,) (each chain's node 0 row) and
+    ``chain_of_rod`` (n,) index the nodes (n + nc, 2) in scene order; ``half_l`` .. ``mu`` (n,)
+    the :class:`~rod_sim.core.models.RodConstants`; (gx, gy) [m/s^2] gravity. The laws are
+    :class:`~rod_sim.core.state.State`'s (nodes and their velocities and accelerations as
+    ``origin + cumsum``, the first hinge of each chain turning against psi'), with numba's
+    sines and cosines."""
+    nc = seg.shape[0] - 1
+    yr = np.empty(y.shape[0])
+    s = np.empty(n)
+    c = np.empty(n)
+    zeros = np.zeros(n)
+    ddelta = np.empty(n)
+    f = np.empty((n + 2, 3))
+    nodes = np.empty((n + nc, 2))
+    acc = np.empty((n + nc, 2))
+    v0 = np.empty((nc, 2))
+    force = np.empty((nc, 2))
+    moment = np.empty(nc)
+    for r in range(2):
+        if r == 0:
+            for i in range(y.shape[0]):
+                yr[i] = y[i] + hf[i]
+            t = t_up
+            fr = f_up
+            alpha = alpha_up
+            beta = beta_up
+        else:
+            for i in range(y.shape[0]):
+                yr[i] = y[i] - hf[i]
+            t = t_down
+            fr = f_down
+            alpha = alpha_down
+            beta = beta_down
+        px, vx, ax_b = motion_eval(motion, 0, t)
+        py, vy, ay_b = motion_eval(motion, 1, t)
+        pp, wz, al_b = motion_eval(motion, 2, t)
+        bx = base[0] + px
+        by = base[1] + py
+        psi = base[2] + pp
+        cb, sb = np.cos(psi), np.sin(psi)
+        w2 = wz * wz
+        for i in range(n):
+            s[i] = np.sin(yr[i])
+            c[i] = np.cos(yr[i])
+        dphi = yr[dof:dof + n]
+        ddphi = fr[dof:dof + n]
+        deflection_rates(dphi, zeros, zeros, first, wz, ddelta)
+        load_forces(t, table, rows, t, f)
+        load = 0.0
+        damper = 0.0
+        for j in range(nc):
+            ax, ay = attach_x[j], attach_y[j]
+            rx = cb * ax - sb * ay
+            ry = sb * ax + cb * ay
+            ox = bx + cb * ax - sb * ay
+            oy = by + sb * ax + cb * ay
+            v0[j, 0] = vx - wz * (sb * ax + cb * ay)
+            v0[j, 1] = vy + wz * (cb * ax - sb * ay)
+            a0x = ax_b - al_b * ry - w2 * rx
+            a0y = ay_b + al_b * rx - w2 * ry
+            o = roots[j]
+            nodes[o, 0] = ox
+            nodes[o, 1] = oy
+            acc[o, 0] = a0x
+            acc[o, 1] = a0y
+            sx = sy = qx = qy = 0.0
+            for k in range(seg[j], seg[j + 1]):
+                sx += l[k] * c[k]
+                sy += l[k] * s[k]
+                w = dphi[k] * dphi[k]
+                qx += l[k] * (-s[k] * ddphi[k] - c[k] * w)
+                qy += l[k] * (c[k] * ddphi[k] - s[k] * w)
+                e = o + 1 + k - seg[j]
+                nodes[e, 0] = ox + sx
+                nodes[e, 1] = oy + sy
+                acc[e, 0] = a0x + qx
+                acc[e, 1] = a0y + qy
+            load, damper = _span_powers(neg_l, l, nu, s, c, dphi, ddelta, f, seg[j],
+                                        seg[j + 1], v0[j, 0], v0[j, 1], load, damper)
+        chain_base_reaction(nodes, acc, starts, roots, chain_of_rod, c, s, dphi, ddphi, zeros,
+                            zeros, alpha, beta, zeros, zeros, half_l, ml, C, l3_3, l3_20, l3_30,
+                            half_ml_l, mu, f, gx, gy, False, bent, force, moment)
+        injected = 0.0
+        turning = 0.0
+        for j in range(nc):
+            injected += force[j, 0] * v0[j, 0] + force[j, 1] * v0[j, 1]
+            turning += moment[j]
+        out[r] = (load - damper) + (injected - wz * turning)

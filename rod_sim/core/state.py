@@ -473,12 +473,16 @@ class State:
         a balance sample) in one compiled call
         (:func:`~rod_sim.core.chain_power.net_power_pair`, the laws of :meth:`moved` States;
         its sines and cosines are numba's and its sums run rod by rod, so the values agree with
-        theirs to rounding) when the model allows it (:attr:`ChainModel.paired_balance`: a
-        fixed or free base, no stop, no slope rates in the state); else None (move the
-        States)."""
+        theirs to rounding) when the model allows it (:attr:`ChainModel.paired_balance`: no
+        stop, no slope rates in the state); else None (move the States). On a prescribed base
+        the power it delivers needs the accelerations at the two moved states: two right-hand
+        sides in this State's scratch, then one compiled call
+        (:func:`~rod_sim.core.chain_power.prescribed_net_power_pair`)."""
         m = self.model
         if not m.paired_balance:
             return None
+        if m.prescribed_base:
+            return self._prescribed_pair(t_up, t_down, hf)
         out = np.empty(2)
         b = m.chain.base
         ax, ay = m.attach_columns
@@ -487,6 +491,34 @@ class State:
                                    m.params.nu, m.loads, self.held_rows, t_up, t_down,
                                    b[kernels.B_X:kernels.B_PSI + 1], bool(m.nb), m.nb, ax, ay,
                                    cx, cy, out)
+        return float(out[0]), float(out[1])
+
+    def _prescribed_pair(self, t_up: float, t_down: float, hf: np.ndarray
+                         ) -> tuple[float, float]:
+        """:meth:`moved_net_powers` on a prescribed base."""
+        m = self.model
+        y = self.y
+        contact = self.contact
+        f_up, (a_up, b_up) = m.rhs_bending(t_up, y + hf, self.held, self.mode, contact,
+                                           self.data)
+        f_down, (a_down, b_down) = m.rhs_bending(t_down, y - hf, self.held, self.mode, contact,
+                                                 self.data)
+        b = m.chain.base
+        k = m.rod_constants
+        gravity = b[kernels.B_GRAVITY] != 0.0
+        gx, gy = (float(b[kernels.B_GX]), float(b[kernels.B_GY])) if gravity else (0.0, 0.0)
+        # gravity acts on the reduced model's bent rods (its quasi-static slopes), as in
+        # momentum._base_reaction
+        bent = bool(gravity and m.name == "reduced")
+        ax, ay = m.attach_columns
+        table = m.table
+        out = np.empty(2)
+        chain_power.prescribed_net_power_pair(
+            y, hf, f_up, f_down, a_up, b_up, a_down, b_down, m.n, m.dof, m.seg, m._first_rods,
+            m.rod_starts, table.roots, table.chain, m.neg_l, m.params.l, m.params.nu, m.loads,
+            self.held_rows, t_up, t_down, b[kernels.B_X:kernels.B_PSI + 1], m.chain.motion, ax,
+            ay, k.half_l, k.ml, k.C, k.l3_3, k.l3_20, k.l3_30, k.half_ml_l, k.mu, gx, gy, bent,
+            out)
         return float(out[0]), float(out[1])
 
     @cached

@@ -28,6 +28,10 @@ from pathlib import Path
 
 CONFIG = Path(__file__).resolve().parents[2] / "config"
 SCENES = ("paper_example.yaml", "deployment.yaml")     # plain chain; hinge features
+ON_A_BASE = "spin_up_beam.yaml"
+"""A chain on a prescribed base: one sample of it per model (with the hinge scene's drivers,
+so not for ``--demo``) compiles the base's helpers of a sample (its reaction, the momentum,
+the balance's pair on a prescribed base, the momentum ledger)."""
 DEMO = (("paper_example.yaml", "full", "dop853-jit"),
         ("paper_example.yaml", "reduced", "dop853-jit"))
 """What ``make demo`` runs: table1 (both models), the node (reduced), compare (full)."""
@@ -98,15 +102,26 @@ def run_group(group) -> list[tuple[str, float, float, bool]]:
     node or a log and every run's start call from Python: one snapshot, one energy balance
     sample (the energies, the powers and the balance's central difference) and the validity
     monitor (the chain's lowest bending mode: the mass and stiffness operators, and the
-    velocity projection of locked hinges): per item (label, wall s, CPU s, skipped). A
-    combination the library refuses (ValueError) is skipped."""
+    velocity projection of locked hinges); with the hinge scene's first driver of a model, one
+    sample of the model on a base (:data:`ON_A_BASE`): per item (label, wall s, CPU s,
+    skipped). A combination the library refuses (ValueError) is skipped."""
     from ..core.integrators import make_integrator
+    from ..core.ledger import SpacecraftLedger
     from ..core.models import make_model
     from ..core.simulator import Simulator
     from ..core.validity import ValidityMonitor, balance_sample
     from ..io.scene_yaml import load_scene
 
+    def sample_on_a_base(model_name: str) -> None:
+        model = make_model(model_name, load_scene(CONFIG / ON_A_BASE))
+        t, y = 0.5, model.initial_state()       # spinning up: the base moves
+        s = model.state(t, y)
+        model.snapshot(t, y, state=s)
+        balance_sample(model, t, y, state=s)
+        SpacecraftLedger(model).add(t, y, None, None, state=s)
+
     out = []
+    on_a_base = set()
     for scene, model_name, integrator in group:
         w0, c0 = time.perf_counter(), time.process_time()
         skipped = False
@@ -117,6 +132,9 @@ def run_group(group) -> list[tuple[str, float, float, bool]]:
             model.snapshot(sim.t, sim.y, sim.held, sim.mode)
             balance_sample(model, sim.t, sim.y, sim.held, sim.mode)
             ValidityMonitor(model)
+            if scene == SCENES[-1] and model_name not in on_a_base:
+                on_a_base.add(model_name)
+                sample_on_a_base(model_name)
         except ValueError:
             skipped = True
         out.append((f"{model_name} x {integrator} on {scene}", time.perf_counter() - w0,
