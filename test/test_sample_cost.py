@@ -113,7 +113,8 @@ def test_simulate_evaluates_each_quantity_once_per_sample(scene_name, model_name
 def test_node_period_evaluates_each_quantity_once(counts):
     """The node's PeriodRunner (rod_sim/ros/period.py, no ROS graph): a period with unchanged
     inputs books its end state once — one momentum (snapshot and momentum ledger), the
-    powers at its three states, one right-hand side."""
+    powers at its own state and the balance's two moved states in one call (stops and a free
+    base), one right-hand side."""
     from rod_sim.ros import budget
     from rod_sim.ros.period import PeriodRunner
 
@@ -128,5 +129,5 @@ def test_node_period_evaluates_each_quantity_once(counts):
         assert runner.run(held) is not None
         here = (float(sim.t), sim.y.tobytes())
         assert counts["momentum"] == [here] and counts["energies"] == [here]
-        assert len(counts["powers"]) == len(set(counts["powers"])) == 3
-        assert counts["powers"][0] == here and len(counts["rhs"]) == 1
+        assert counts["powers"] == [here] and counts["moved_pair"] == [here]
+        assert len(counts["rhs"]) == 1

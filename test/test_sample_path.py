@@ -310,13 +310,41 @@ def test_the_balance_rate_pair_on_a_prescribed_base(model_name):
             _pair_matches_the_moved_states(model, 0.37 * k, y, held)
 
 
-@pytest.mark.parametrize("scene_name, model_name", [("deployment.yaml", "reduced"),
-                                                    ("two_wing_deployment.yaml", "reduced"),
-                                                    ("hub_arm_latch.yaml", "rigid"),
-                                                    ("spin_up_beam.yaml", "full"),
-                                                    ("paper_example.yaml", "full")])
-def test_other_layouts_move_their_states_one_by_one(scene_name, model_name):
-    """Stops or slope rates in the state: no one-call pair (None)."""
+@pytest.mark.parametrize("scene_name", ("deployment.yaml", "two_wing_deployment.yaml",
+                                        "hub_arm_latch.yaml"))
+@pytest.mark.parametrize("model_name", ("reduced", "rigid"))
+def test_the_balance_rate_pair_with_stops_and_latches(scene_name, model_name):
+    """Stops (a fixed base, two wings on a free base, an arm on a prescribed base), with and
+    without latched hinges: the one-call pair is the moved States' net powers to rounding,
+    the contacts' dissipation included (states spread so that hinges are beyond their
+    stops)."""
+    from rod_sim.core.validity import RATE_STEP, _net_power
+
+    scene = load_scene(REPO / "config" / scene_name)
+    model = make_model(model_name, scene)
+    assert model.paired_balance and model.has_stops
+    rng = np.random.default_rng(41)
+    beyond = 0
+    for k in range(6):
+        y = model.initial_state() + rng.normal(scale=0.6, size=model.state_size)
+        held = rng.normal(scale=3.0, size=(scene.n + 2, 3))
+        mode = None if k % 2 == 0 else rng.random(scene.n) < 0.4
+        t = 0.3 * k
+        s = model.state(t, y, held, mode)
+        hf = RATE_STEP * s.f
+        pair = s.moved_net_powers(t + RATE_STEP, t - RATE_STEP, hf)
+        up, down = s.moved(t + RATE_STEP, y + hf), s.moved(t - RATE_STEP, y - hf)
+        moved = (up.value(_net_power), down.value(_net_power))
+        assert pair == pytest.approx(moved, rel=1e-13, abs=1e-13)
+        beyond += up.penetrating and up.damper_power != up.chain_powers[1]
+    assert beyond >= 2
+
+
+@pytest.mark.parametrize("scene_name", ("deployment.yaml", "spin_up_beam.yaml",
+                                        "paper_example.yaml"))
+def test_the_full_model_moves_its_states_one_by_one(scene_name):
+    """Slope rates in the state (the full model): no one-call pair (None)."""
+    model_name = "full"
     model = make_model(model_name, load_scene(REPO / "config" / scene_name))
     assert not model.paired_balance
     y = model.initial_state()

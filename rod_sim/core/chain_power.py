@@ -108,13 +108,58 @@ def base_load_power(f, n, cos_psi, sin_psi, cx, cy, vx, vy, wz, w):
     return _base_load_power(f, n, cos_psi, sin_psi, cx, cy, vx, vy, wz, w)
 
 
+@njit(inline="always")
+def _rigid_hinge(yr, dof, seg, j, i, psi, wz):
+    """(theta [rad], theta' [rad/s]) of hinge i of chain j (rods seg[j] .. seg[j + 1] - 1) at
+    the state ``yr``: rod i's angle less its left rod's, or less the base's angle ``psi`` (rate
+    ``wz``) for the chain's first hinge."""
+    if i == seg[j]:
+        return yr[i] - psi, yr[dof + i] - wz
+    return yr[i] - yr[i - 1], yr[dof + i] - yr[dof + i - 1]
+
+
+@njit(inline="always")
+def _stop_dissipation(yr, dof, seg, psi, wz, stops, locked):
+    """The power [W] the stop contacts dissipate at the state ``yr`` (the part of
+    :attr:`~rod_sim.core.state.State.damper_power` beyond the hinge dampers): the sum over
+    hinges of (m_h - m_h^elastic) theta_h' with the contact moments m_h of
+    :func:`~rod_sim.core.hinges.contact_moments` and their elastic part -k (max(0, theta -
+    upper) - max(0, lower - theta)), both zero on the ``locked`` hinges (n,) bool, on the rigid
+    hinge angles (:func:`_rigid_hinge`); 0.0 when no hinge is beyond a stop. ``stops`` (4, n):
+    lower, upper [rad], stiffness [N m/rad], damping [N m s/rad]."""
+    nc = seg.shape[0] - 1
+    beyond = False
+    for j in range(nc):
+        for i in range(seg[j], seg[j + 1]):
+            theta, _ = _rigid_hinge(yr, dof, seg, j, i, psi, wz)
+            if theta - stops[1, i] > 0.0 or stops[0, i] - theta > 0.0:
+                beyond = True
+    if not beyond:
+        return 0.0
+    total = 0.0
+    for j in range(nc):
+        for i in range(seg[j], seg[j + 1]):
+            if locked[i]:
+                continue
+            theta, rate = _rigid_hinge(yr, dof, seg, j, i, psi, wz)
+            k = stops[2, i]
+            p_hi = theta - stops[1, i]
+            p_lo = stops[0, i] - theta
+            m = 0.0
+            if p_hi > 0.0:
+                m = -max(0.0, k * p_hi + stops[3, i] * rate)
+            if p_lo > 0.0:
+                m = max(0.0, k * p_lo - stops[3, i] * rate)
+            total += (m - -k * (max(0.0, p_hi) - max(0.0, p_lo))) * rate
+    return total
+
 @njit
 def net_power_pair(y, hf, n, dof, seg, neg_l, l, nu, table, rows, t_up, t_down, base, free,
-                   nb, attach_x, attach_y, cx, cy, out):
+                   nb, attach_x, attach_y, cx, cy, stops, locked, has_stops, out):
     """The net power (load power minus damper power) [W] at (t_up, y + hf) and
     (t_down, y - hf), into ``out`` (2,): a balance sample's central difference in one call,
-    for a model whose state carries no slope rates (reduced, rigid), without stops, on a
-    fixed or free base (not a prescribed one), any number of chains.
+    for a model whose state carries no slope rates (reduced, rigid), on a fixed or free base
+    (not a prescribed one: :func:`prescribed_net_power_pair`), any number of chains.
 
     ``y``, ``hf`` (state_size,): the state [q, q'] with phi' at ``dof``; chain c holds rods
     ``seg[c]`` .. ``seg[c + 1] - 1`` and is attached at (attach_x[c], attach_y[c]) [m] of the
@@ -128,7 +173,9 @@ def net_power_pair(y, hf, n, dof, seg, neg_l, l, nu, table, rows, t_up, t_down, 
     attach point's velocity plus the prefix sum of l_j phi_j' (-sin phi_j, cos phi_j)
     (``origin + cumsum``, as :func:`~rod_sim.core.kinematics.chain_nodes`), each chain's
     first hinge turns against the base's rate, then :func:`_span_powers` chain by chain and a
-    free base's :func:`_base_load_power`."""
+    free base's :func:`_base_load_power`. With ``has_stops``, the stop contacts' dissipation
+    (:func:`_stop_dissipation`; ``stops`` (4, n), ``locked`` (n,) bool: the hinges held
+    rigid) joins the damper power."""
     yr = np.empty(y.shape[0])
     s = np.empty(n)
     c = np.empty(n)
@@ -169,6 +216,8 @@ def net_power_pair(y, hf, n, dof, seg, neg_l, l, nu, table, rows, t_up, t_down, 
                                         vy + wz * (cb * ax - sb * ay), load, damper)
         if free:
             load += _base_load_power(f, n, cb, sb, cx, cy, vx, vy, wz, w)
+        if has_stops:
+            damper -= _stop_dissipation(yr, dof, seg, psi, wz, stops, locked)
         out[r] = load - damper
 
 
@@ -176,10 +225,12 @@ def net_power_pair(y, hf, n, dof, seg, neg_l, l, nu, table, rows, t_up, t_down, 
 def prescribed_net_power_pair(y, hf, f_up, f_down, alpha_up, beta_up, alpha_down, beta_down, n,
                               dof, seg, first, starts, roots, chain_of_rod, neg_l, l, nu, table,
                               rows, t_up, t_down, base, motion, attach_x, attach_y, half_l, ml,
-                              C, l3_3, l3_20, l3_30, half_ml_l, mu, gx, gy, bent, out):
+                              C, l3_3, l3_20, l3_30, half_ml_l, mu, gx, gy, bent, stops,
+                              locked, has_stops, out):
     """:func:`net_power_pair` on a prescribed base: the net power [W] at (t_up, y + hf) and
-    (t_down, y - hf), into ``out`` (2,), for a model without slope rates (reduced, rigid) and
-    without stops, any number of chains: the load power minus the damper power plus the power
+    (t_down, y - hf), into ``out`` (2,), for a model without slope rates (reduced, rigid),
+    any number of chains: the load power minus the damper power (with the stop contacts'
+    dissipation when ``has_stops``, as in :func:`net_power_pair`) plus the power
     the base delivers to the chains (:func:`~rod_sim.core.momentum.injected_power`: sum over
     chains of F_c . v_0c - psi' M_c, the base's reaction
     :func:`~rod_sim.core.chain_momentum.chain_base_reaction`).
@@ -272,6 +323,8 @@ def prescribed_net_power_pair(y, hf, f_up, f_down, alpha_up, beta_up, alpha_down
         chain_base_reaction(nodes, acc, starts, roots, chain_of_rod, c, s, dphi, ddphi, zeros,
                             zeros, alpha, beta, zeros, zeros, half_l, ml, C, l3_3, l3_20, l3_30,
                             half_ml_l, mu, f, gx, gy, False, bent, force, moment)
+        if has_stops:
+            damper -= _stop_dissipation(yr, dof, seg, psi, wz, stops, locked)
         injected = 0.0
         turning = 0.0
         for j in range(nc):

@@ -345,10 +345,10 @@ class ChainModel:
         self._before = np.maximum(np.arange(self.n) - 1, 0)     # rod k - 1 (0 for rod 0)
         one_fixed = self.base_mode == k.MODE_FIXED and len(self.seg) == 2
         self._plain_powers = self._plain_rates = one_fixed
-        self.paired_balance = not self.has_stops and self.dof_per_rod != 3
+        self.paired_balance = self.dof_per_rod != 3
         """Whether a balance sample evaluates its two moved states in one call
-        (:meth:`~rod_sim.core.state.State.moved_net_powers`): any base and number of chains,
-        no stop, no slope rates in the state."""
+        (:meth:`~rod_sim.core.state.State.moved_net_powers`): any base, number of chains and
+        hinge features, no slope rates in the state (the reduced and rigid models)."""
         self._plain_angles = one_fixed and b[k.B_PSI] == 0.0
         self._plain_nodes = one_fixed and not b[k.B_X:k.B_PSI + 1].any() \
             and not self.chain.attach.any()

@@ -474,7 +474,7 @@ class State:
         (:func:`~rod_sim.core.chain_power.net_power_pair`, the laws of :meth:`moved` States;
         its sines and cosines are numba's and its sums run rod by rod, so the values agree with
         theirs to rounding) when the model allows it (:attr:`ChainModel.paired_balance`: no
-        stop, no slope rates in the state); else None (move the States). On a prescribed base
+        slope rates in the state); else None (move the States). On a prescribed base
         the power it delivers needs the accelerations at the two moved states: two right-hand
         sides in this State's scratch, then one compiled call
         (:func:`~rod_sim.core.chain_power.prescribed_net_power_pair`)."""
@@ -490,7 +490,7 @@ class State:
         chain_power.net_power_pair(self.y, hf, m.n, m.dof, m.seg, m.neg_l, m.params.l,
                                    m.params.nu, m.loads, self.held_rows, t_up, t_down,
                                    b[kernels.B_X:kernels.B_PSI + 1], bool(m.nb), m.nb, ax, ay,
-                                   cx, cy, out)
+                                   cx, cy, m._stops, self.locked, m.has_stops, out)
         return float(out[0]), float(out[1])
 
     def _prescribed_pair(self, t_up: float, t_down: float, hf: np.ndarray
@@ -498,7 +498,7 @@ class State:
         """:meth:`moved_net_powers` on a prescribed base."""
         m = self.model
         y = self.y
-        contact = self.contact
+        contact = None if m.has_stops else self.contact     # None: each moved state's own
         f_up, (a_up, b_up) = m.rhs_bending(t_up, y + hf, self.held, self.mode, contact,
                                            self.data)
         f_down, (a_down, b_down) = m.rhs_bending(t_down, y - hf, self.held, self.mode, contact,
@@ -518,7 +518,7 @@ class State:
             m.rod_starts, table.roots, table.chain, m.neg_l, m.params.l, m.params.nu, m.loads,
             self.held_rows, t_up, t_down, b[kernels.B_X:kernels.B_PSI + 1], m.chain.motion, ax,
             ay, k.half_l, k.ml, k.C, k.l3_3, k.l3_20, k.l3_30, k.half_ml_l, k.mu, gx, gy, bent,
-            out)
+            m._stops, self.locked, m.has_stops, out)
         return float(out[0]), float(out[1])
 
     @cached
