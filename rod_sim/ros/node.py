@@ -16,7 +16,11 @@ lockstep; every stamp and log time is simulated time.
 """
 from __future__ import annotations
 
-import dataclasses
+from rod_sim.app.blas import one_blas_thread
+
+one_blas_thread()                           # before rclpy and rod_sim load numpy
+
+import dataclasses  # noqa: E402 -- after one_blas_thread
 import functools
 import sys
 import time

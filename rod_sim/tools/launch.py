@@ -29,6 +29,10 @@ _stop_at_once.rod_sim_early = True          # rod_sim.app.signals replaces it
 signal.signal(signal.SIGINT, _stop_at_once)
 signal.signal(signal.SIGTERM, _stop_at_once)
 
+from rod_sim.app.blas import one_blas_thread  # noqa: E402 -- after the handlers
+
+one_blas_thread()                           # before anything loads numpy
+
 from .commands import COMMANDS as _COMMANDS  # noqa: E402 -- after the handlers, plain data
 
 
