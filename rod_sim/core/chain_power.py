@@ -119,6 +119,17 @@ def _rigid_hinge(yr, dof, seg, j, i, psi, wz):
 
 
 @njit(inline="always")
+def _beyond_a_stop(yr, dof, seg, psi, wz, stops):
+    """Whether a hinge of the state ``yr`` is beyond one of its stops (:func:`_rigid_hinge`)."""
+    for j in range(seg.shape[0] - 1):
+        for i in range(seg[j], seg[j + 1]):
+            theta, _ = _rigid_hinge(yr, dof, seg, j, i, psi, wz)
+            if theta - stops[1, i] > 0.0 or stops[0, i] - theta > 0.0:
+                return True
+    return False
+
+
+@njit(inline="always")
 def _stop_dissipation(yr, dof, seg, psi, wz, stops, locked):
     """The power [W] the stop contacts dissipate at the state ``yr`` (the part of
     :attr:`~rod_sim.core.state.State.damper_power` beyond the hinge dampers): the sum over
@@ -127,17 +138,10 @@ def _stop_dissipation(yr, dof, seg, psi, wz, stops, locked):
     upper) - max(0, lower - theta)), both zero on the ``locked`` hinges (n,) bool, on the rigid
     hinge angles (:func:`_rigid_hinge`); 0.0 when no hinge is beyond a stop. ``stops`` (4, n):
     lower, upper [rad], stiffness [N m/rad], damping [N m s/rad]."""
-    nc = seg.shape[0] - 1
-    beyond = False
-    for j in range(nc):
-        for i in range(seg[j], seg[j + 1]):
-            theta, _ = _rigid_hinge(yr, dof, seg, j, i, psi, wz)
-            if theta - stops[1, i] > 0.0 or stops[0, i] - theta > 0.0:
-                beyond = True
-    if not beyond:
+    if not _beyond_a_stop(yr, dof, seg, psi, wz, stops):
         return 0.0
     total = 0.0
-    for j in range(nc):
+    for j in range(seg.shape[0] - 1):
         for i in range(seg[j], seg[j + 1]):
             if locked[i]:
                 continue
@@ -150,8 +154,10 @@ def _stop_dissipation(yr, dof, seg, psi, wz, stops, locked):
                 m = -max(0.0, k * p_hi + stops[3, i] * rate)
             if p_lo > 0.0:
                 m = max(0.0, k * p_lo - stops[3, i] * rate)
-            total += (m - -k * (max(0.0, p_hi) - max(0.0, p_lo))) * rate
+            elastic = -k * (max(0.0, p_hi) - max(0.0, p_lo))
+            total += (m - elastic) * rate
     return total
+
 
 @njit
 def net_power_pair(y, hf, n, dof, seg, neg_l, l, nu, table, rows, t_up, t_down, base, free,
@@ -295,7 +301,7 @@ def prescribed_net_power_pair(y, hf, f_up, f_down, alpha_up, beta_up, alpha_down
             ax, ay = attach_x[j], attach_y[j]
             rx = cb * ax - sb * ay
             ry = sb * ax + cb * ay
-            ox = bx + cb * ax - sb * ay
+            ox = bx + cb * ax - sb * ay         # not bx + rx: the State's rounding
             oy = by + sb * ax + cb * ay
             v0[j, 0] = vx - wz * (sb * ax + cb * ay)
             v0[j, 1] = vy + wz * (cb * ax - sb * ay)
