@@ -2,7 +2,7 @@
 simulate`` on spacecraft scenes): the snapshot, the energy balance sample, the momentum ledger
 and the diagnostics of a sample share one :class:`~rod_sim.core.state.State`, so the momentum
 is evaluated once per sample, the powers once per state (the sample's own and the two states
-of the balance's central difference, those two in one call without stops and slope rates), the
+of the balance's central difference, those two in one call without slope rates in the state), the
 node velocities once per state and the right-hand side once per sample (beyond the
 integrator's own). Counted by wrapping the laws themselves, wherever they are called from; the
 counts of 1cf5e2f were 3 momenta, 6 node velocity evaluations and 3 powers per sample on the
@@ -88,7 +88,7 @@ def test_simulate_evaluates_each_quantity_once_per_sample(scene_name, model_name
         assert counts["momentum"] == ([here] if scene.is_spacecraft else []), per
         assert counts["energies"] == [here] and here in counts["nodes"], per
         # the powers once per state: the sample's own and y +- h f of the balance's rate
-        # (no stops and no slope rates: both of those in one call, at the sample's state)
+        # (no slope rates in the state: both of those in one call, at the sample's state)
         if sim.model.paired_balance:
             assert counts["moved_pair"] == [here], per
             assert per["powers"] == 1 and counts["powers"][0] == here, per
