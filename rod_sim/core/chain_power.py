@@ -159,6 +159,43 @@ def _stop_dissipation(yr, dof, seg, psi, wz, stops, locked):
     return total
 
 
+@njit(inline="always")
+def _move(y, hf, r, yr):
+    """``yr`` = y + hf (r = 0) or y - hf (r = 1): a balance pair's moved state."""
+    if r == 0:
+        for i in range(y.shape[0]):
+            yr[i] = y[i] + hf[i]
+    else:
+        for i in range(y.shape[0]):
+            yr[i] = y[i] - hf[i]
+
+
+@njit(inline="always")
+def _moved_powers(yr, t, n, dof, seg, first, neg_l, l, nu, table, rows, psi, cb, sb, vx, vy,
+                  wz, attach_x, attach_y, stops, locked, has_stops, s, c, zeros, ddelta, f):
+    """(load power, damper power) [W] of the moved state ``yr`` at time t [s] with the base
+    frame at angle psi (cos, sin = cb, sb), its origin moving at (vx, vy) [m/s] and turning at
+    wz [rad/s]: the chains' nodal forces and motors, the hinge dampers and, with
+    ``has_stops``, the stop contacts (a free base's own loads are the caller's). Leaves sin
+    phi, cos phi in ``s``, ``c``, the hinge rates in ``ddelta`` and the loads in ``f``."""
+    for i in range(n):
+        s[i] = np.sin(yr[i])
+        c[i] = np.cos(yr[i])
+    dphi = yr[dof:dof + n]
+    deflection_rates(dphi, zeros, zeros, first, wz, ddelta)
+    load_forces(t, table, rows, t, f)
+    load = 0.0
+    damper = 0.0
+    for j in range(seg.shape[0] - 1):
+        ax, ay = attach_x[j], attach_y[j]
+        load, damper = _span_powers(neg_l, l, nu, s, c, dphi, ddelta, f, seg[j],
+                                    seg[j + 1], vx - wz * (sb * ax + cb * ay),
+                                    vy + wz * (cb * ax - sb * ay), load, damper)
+    if has_stops:
+        damper -= _stop_dissipation(yr, dof, seg, psi, wz, stops, locked)
+    return load, damper
+
+
 @njit
 def net_power_pair(y, hf, n, dof, seg, neg_l, l, nu, table, rows, t_up, t_down, base, free,
                    nb, attach_x, attach_y, cx, cy, stops, locked, has_stops, out):
@@ -191,14 +228,8 @@ def net_power_pair(y, hf, n, dof, seg, neg_l, l, nu, table, rows, t_up, t_down, 
     f = np.empty((n + 2, 3))
     bi = n                  # x_B in q: after the chains' angles (one coordinate per rod)
     for r in range(2):
-        if r == 0:
-            for i in range(y.shape[0]):
-                yr[i] = y[i] + hf[i]
-            t = t_up
-        else:
-            for i in range(y.shape[0]):
-                yr[i] = y[i] - hf[i]
-            t = t_down
+        _move(y, hf, r, yr)
+        t = t_up if r == 0 else t_down
         if free:
             psi = yr[bi + 2]
             vx, vy, wz = yr[dof + bi], yr[dof + bi + 1], yr[dof + bi + 2]
@@ -207,23 +238,11 @@ def net_power_pair(y, hf, n, dof, seg, neg_l, l, nu, table, rows, t_up, t_down, 
             psi = base[2]
             vx = vy = wz = w = 0.0
         cb, sb = np.cos(psi), np.sin(psi)
-        for i in range(n):
-            s[i] = np.sin(yr[i])
-            c[i] = np.cos(yr[i])
-        dphi = yr[dof:dof + n]
-        deflection_rates(dphi, zeros, zeros, first, wz, ddelta)
-        load_forces(t, table, rows, t, f)
-        load = 0.0
-        damper = 0.0
-        for j in range(seg.shape[0] - 1):
-            ax, ay = attach_x[j], attach_y[j]
-            load, damper = _span_powers(neg_l, l, nu, s, c, dphi, ddelta, f, seg[j],
-                                        seg[j + 1], vx - wz * (sb * ax + cb * ay),
-                                        vy + wz * (cb * ax - sb * ay), load, damper)
+        load, damper = _moved_powers(yr, t, n, dof, seg, first, neg_l, l, nu, table, rows,
+                                     psi, cb, sb, vx, vy, wz, attach_x, attach_y, stops,
+                                     locked, has_stops, s, c, zeros, ddelta, f)
         if free:
             load += _base_load_power(f, n, cb, sb, cx, cy, vx, vy, wz, w)
-        if has_stops:
-            damper -= _stop_dissipation(yr, dof, seg, psi, wz, stops, locked)
         out[r] = load - damper
 
 
@@ -266,20 +285,11 @@ def prescribed_net_power_pair(y, hf, f_up, f_down, alpha_up, beta_up, alpha_down
     force = np.empty((nc, 2))
     moment = np.empty(nc)
     for r in range(2):
+        _move(y, hf, r, yr)
         if r == 0:
-            for i in range(y.shape[0]):
-                yr[i] = y[i] + hf[i]
-            t = t_up
-            fr = f_up
-            alpha = alpha_up
-            beta = beta_up
+            t, fr, alpha, beta = t_up, f_up, alpha_up, beta_up
         else:
-            for i in range(y.shape[0]):
-                yr[i] = y[i] - hf[i]
-            t = t_down
-            fr = f_down
-            alpha = alpha_down
-            beta = beta_down
+            t, fr, alpha, beta = t_down, f_down, alpha_down, beta_down
         px, vx, ax_b = motion_eval(motion, 0, t)
         py, vy, ay_b = motion_eval(motion, 1, t)
         pp, wz, al_b = motion_eval(motion, 2, t)
@@ -287,16 +297,12 @@ def prescribed_net_power_pair(y, hf, f_up, f_down, alpha_up, beta_up, alpha_down
         by = base[1] + py
         psi = base[2] + pp
         cb, sb = np.cos(psi), np.sin(psi)
+        load, damper = _moved_powers(yr, t, n, dof, seg, first, neg_l, l, nu, table, rows,
+                                     psi, cb, sb, vx, vy, wz, attach_x, attach_y, stops,
+                                     locked, has_stops, s, c, zeros, ddelta, f)
         w2 = wz * wz
-        for i in range(n):
-            s[i] = np.sin(yr[i])
-            c[i] = np.cos(yr[i])
         dphi = yr[dof:dof + n]
         ddphi = fr[dof:dof + n]
-        deflection_rates(dphi, zeros, zeros, first, wz, ddelta)
-        load_forces(t, table, rows, t, f)
-        load = 0.0
-        damper = 0.0
         for j in range(nc):
             ax, ay = attach_x[j], attach_y[j]
             rx = cb * ax - sb * ay
@@ -324,13 +330,9 @@ def prescribed_net_power_pair(y, hf, f_up, f_down, alpha_up, beta_up, alpha_down
                 nodes[e, 1] = oy + sy
                 acc[e, 0] = a0x + qx
                 acc[e, 1] = a0y + qy
-            load, damper = _span_powers(neg_l, l, nu, s, c, dphi, ddelta, f, seg[j],
-                                        seg[j + 1], v0[j, 0], v0[j, 1], load, damper)
         chain_base_reaction(nodes, acc, starts, roots, chain_of_rod, c, s, dphi, ddphi, zeros,
                             zeros, alpha, beta, zeros, zeros, half_l, ml, C, l3_3, l3_20, l3_30,
                             half_ml_l, mu, f, gx, gy, False, bent, force, moment)
-        if has_stops:
-            damper -= _stop_dissipation(yr, dof, seg, psi, wz, stops, locked)
         injected = 0.0
         turning = 0.0
         for j in range(nc):
